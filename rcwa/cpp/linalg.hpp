@@ -1,0 +1,60 @@
+// Dense complex linear algebra on column-major matrices, over LAPACK/BLAS from
+// scipy-openblas32 (symbols prefixed scipy_). The core has no Python in it.
+#pragma once
+
+#include <complex>
+#include <cstddef>
+#include <stdexcept>
+#include <vector>
+
+namespace rcwa {
+
+using cplx = std::complex<double>;
+using CVec = std::vector<cplx>;
+
+// A dense column-major complex matrix.
+struct Mat {
+    int rows = 0;
+    int cols = 0;
+    CVec data;
+
+    Mat() = default;
+    Mat(int r, int c) : rows(r), cols(c), data(static_cast<std::size_t>(r) * c, cplx(0.0, 0.0)) {}
+
+    cplx& operator()(int i, int j) { return data[static_cast<std::size_t>(j) * rows + i]; }
+    const cplx& operator()(int i, int j) const { return data[static_cast<std::size_t>(j) * rows + i]; }
+    cplx* ptr() { return data.data(); }
+    const cplx* ptr() const { return data.data(); }
+
+    static Mat identity(int n);
+};
+
+// C = alpha * op(A) * op(B) + beta * C, op = 'N' (none) or 'T' (transpose).
+void gemm(const Mat& A, const Mat& B, Mat& C, cplx alpha = 1.0, cplx beta = 0.0,
+          char transA = 'N', char transB = 'N');
+Mat matmul(const Mat& A, const Mat& B);
+
+// LU factorization of a square matrix, kept for repeated solves.
+class LU {
+  public:
+    explicit LU(Mat A);  // throws std::runtime_error if singular
+    Mat solve(const Mat& B) const;            // A^{-1} B
+    Mat solve_right(const Mat& B) const;      // B A^{-1}
+    Mat inverse() const;
+    int n() const { return lu_.rows; }
+
+  private:
+    Mat lu_;
+    std::vector<int> ipiv_;
+};
+
+// Eigen-decomposition of a general square matrix: A V = V diag(w). Right vectors only.
+struct Eigen {
+    CVec values;
+    Mat vectors;
+};
+Eigen eig(Mat A);
+
+void set_blas_threads(int n);
+
+}  // namespace rcwa

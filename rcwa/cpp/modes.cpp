@@ -1,0 +1,125 @@
+#include "modes.hpp"
+
+#include <cmath>
+
+namespace rcwa {
+
+cplx outgoing_sqrt(cplx kz2) {
+    if (kz2.imag() == 0.0) {
+        const double x = kz2.real();
+        return x >= 0.0 ? cplx(std::sqrt(x), 0.0) : cplx(0.0, std::sqrt(-x));
+    }
+    cplx r = std::sqrt(kz2);
+    if (r.imag() < 0.0 || (r.imag() == 0.0 && r.real() < 0.0)) r = -r;
+    return r;
+}
+
+cplx regularize_kz(cplx kz) {
+    // At kz = 0 exactly the two modes of a finite layer coincide and the mode matrix
+    // [W W; V -V] is singular. Moving kz to |kz| = 1e-8 (a relative change of the
+    // permittivity of order 1e-16) keeps it invertible; the error this makes is of order
+    // 1e-8 in the efficiencies (sqrt(machine epsilon), the best trade between the
+    // perturbation and the cancellation it causes). Only finite layers need this.
+    if (std::abs(kz) >= kKzFloor) return kz;
+    return cplx(kKzFloor, kKzFloor) / std::sqrt(2.0);
+}
+
+namespace {
+
+// Uniform layer: per order i the 2 x 2 block of Q is
+//   [[-kx ky, kx^2 - eps], [eps - ky^2, kx ky]],  V = Q / kz,  V^{-1} = kz Q^{-1},
+//   Q^{-1} = [[kx ky, eps - kx^2], [ky^2 - eps, -kx ky]] / (eps kz^2).
+class UniformModes : public LayerModes {
+  public:
+    UniformModes(const Harmonics& h, cplx eps) : h_(h), eps_(eps) {
+        const int n = h.size();
+        kz_.resize(2 * static_cast<std::size_t>(n));
+        for (int i = 0; i < n; ++i) {
+            const cplx kz = regularize_kz(outgoing_sqrt(eps - h.kx[i] * h.kx[i] - h.ky[i] * h.ky[i]));
+            kz_[i] = kz;
+            kz_[n + i] = kz;
+        }
+    }
+    Mat apply_W(const Mat& B) const override { return B; }
+    Mat apply_W_inverse(const Mat& B) const override { return B; }
+    Mat apply_V(const Mat& B) const override { return blockwise(B, false); }
+    Mat apply_V_inverse(const Mat& B) const override { return blockwise(B, true); }
+
+  private:
+    Mat blockwise(const Mat& B, bool inverse) const {
+        const int n = h_.size();
+        Mat out(B.rows, B.cols);
+        for (int i = 0; i < n; ++i) {
+            const double kx = h_.kx[i], ky = h_.ky[i];
+            const cplx kz = kz_[i];
+            cplx a, b, c, d;
+            if (!inverse) {
+                a = -kx * ky / kz;
+                b = (kx * kx - eps_) / kz;
+                c = (eps_ - ky * ky) / kz;
+                d = kx * ky / kz;
+            } else {
+                const cplx s = 1.0 / (eps_ * kz);
+                a = kx * ky * s;
+                b = (eps_ - kx * kx) * s;
+                c = (ky * ky - eps_) * s;
+                d = -kx * ky * s;
+            }
+            for (int j = 0; j < B.cols; ++j) {
+                const cplx x = B(i, j), y = B(n + i, j);
+                out(i, j) = a * x + b * y;
+                out(n + i, j) = c * x + d * y;
+            }
+        }
+        return out;
+    }
+    Harmonics h_;
+    cplx eps_;
+};
+
+}  // namespace
+
+std::unique_ptr<LayerModes> uniform_modes(const Harmonics& h, cplx eps) {
+    return std::make_unique<UniformModes>(h, eps);
+}
+
+DenseModes::DenseModes(Mat W, Mat V, CVec kz) : W_(W), V_(V), luW_(std::move(W)), luV_(std::move(V)) {
+    kz_ = std::move(kz);
+}
+
+std::unique_ptr<LayerModes> general_modes(const Harmonics& h, const Mat& E, const Mat& Exx,
+                                          const Mat& Exy, const Mat& Eyx, const Mat& Eyy) {
+    const int n = h.size();
+    const LU luE(E);
+    const Mat Z = luE.inverse();
+    // P and Q as in the header comment.
+    Mat P(2 * n, 2 * n), Q(2 * n, 2 * n);
+    for (int j = 0; j < n; ++j) {
+        for (int i = 0; i < n; ++i) {
+            const cplx z = Z(i, j);
+            P(i, j) = h.kx[i] * z * h.ky[j];
+            P(i, n + j) = -h.kx[i] * z * h.kx[j];
+            P(n + i, j) = h.ky[i] * z * h.ky[j];
+            P(n + i, n + j) = -h.ky[i] * z * h.kx[j];
+            Q(i, j) = -Eyx(i, j);
+            Q(i, n + j) = -Eyy(i, j);
+            Q(n + i, j) = Exx(i, j);
+            Q(n + i, n + j) = Exy(i, j);
+        }
+        P(j, n + j) += 1.0;
+        P(n + j, j) -= 1.0;
+        Q(j, j) -= h.kx[j] * h.ky[j];
+        Q(j, n + j) += h.kx[j] * h.kx[j];
+        Q(n + j, j) -= h.ky[j] * h.ky[j];
+        Q(n + j, n + j) += h.ky[j] * h.kx[j];
+    }
+    Eigen e = eig(matmul(P, Q));
+    CVec kz(2 * static_cast<std::size_t>(n));
+    for (int i = 0; i < 2 * n; ++i) kz[i] = regularize_kz(outgoing_sqrt(e.values[i]));
+    Mat V = matmul(Q, e.vectors);
+    for (int j = 0; j < 2 * n; ++j)
+        for (int i = 0; i < 2 * n; ++i) V(i, j) /= kz[j];
+    return std::make_unique<DenseModes>(std::move(e.vectors), std::move(V), std::move(kz));
+}
+
+}  // namespace rcwa

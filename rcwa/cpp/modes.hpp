@@ -1,0 +1,88 @@
+// Eigenmodes of one layer of a periodic stack.
+//
+// Normalization (all lengths times k0, H replaced by h = Z0 H): inside a layer the
+// tangential fields psi = [Ex; Ey] and phi = [hx; hy] of the retained harmonics obey
+//     d psi / dz = i P phi,   d phi / dz = i Q psi,
+// with (Kx, Ky diagonal; Z = [[eps]]^{-1}, the inverse of the Laurent matrix)
+//     P = [[Kx Z Ky, I - Kx Z Kx], [Ky Z Ky - I, -Ky Z Kx]]
+//     Q = [[-Kx Ky - Eyx, Kx^2 - Eyy], [Exx - Ky^2, Ky Kx + Exy]],
+// the PQ form of Liu & Fan 2012 (S4, Comput. Phys. Commun. 183, 2233, Eqs. 7-10) written
+// for an anisotropic effective permittivity [Exx Exy; Eyx Eyy] so that every Fourier
+// factorization rule (Laurent, Li 1996/1997, normal vector method) enters only through it.
+// A mode is psi = W e^{-+ i kz z}, phi = -+ V e^{-+ i kz z} with P Q W = W diag(kz^2) and
+// V = Q W diag(kz)^{-1}; the upper sign is the down-going wave (toward -z).
+#pragma once
+
+#include <memory>
+
+#include "linalg.hpp"
+
+namespace rcwa {
+
+// Normalized tangential wave numbers (kx, ky) / k0 of the N retained harmonics.
+struct Harmonics {
+    std::vector<double> kx;
+    std::vector<double> ky;
+    int size() const { return static_cast<int>(kx.size()); }
+};
+
+// Longitudinal wave numbers closer to zero than this are moved to this magnitude inside
+// finite layers, where kz = 0 makes the up- and down-going modes coincide (see
+// regularize_kz). Outside, in the superstrate and substrate, kz = 0 is handled exactly.
+constexpr double kKzFloor = 1e-8;
+
+// sqrt with Im >= 0 (Re >= 0 when Im == 0), exact for purely real arguments.
+cplx outgoing_sqrt(cplx kz2);
+cplx regularize_kz(cplx kz);
+
+class LayerModes {
+  public:
+    virtual ~LayerModes() = default;
+    virtual Mat apply_W(const Mat& B) const = 0;
+    virtual Mat apply_V(const Mat& B) const = 0;
+    virtual Mat apply_W_inverse(const Mat& B) const = 0;
+    virtual Mat apply_V_inverse(const Mat& B) const = 0;
+    const CVec& kz() const { return kz_; }
+
+  protected:
+    CVec kz_;
+};
+
+// A homogeneous layer: no eigen-solve. W = I and V = Q / kz, block-diagonal per order.
+std::unique_ptr<LayerModes> uniform_modes(const Harmonics& h, cplx eps);
+
+// A 1D lamellar layer (harmonics along x only, ky the same for all). E is the Laurent
+// matrix [[eps]], Exx the matrix used for Dx (Li's inverse rule [[1/eps]]^{-1}, or [[eps]]
+// for the Laurent rule). Two N x N eigen-solves, independent of ky (see lamellar.cpp).
+struct LamellarEigen {
+    Mat WA;        // eigenvectors of MA = E - Kx^2 (TE-like family, pure Ey)
+    CVec muA;      // its eigenvalues
+    Mat VB;        // eigenvectors of MB = Exx (I - Kx Z Kx) (TM-like family, pure hy)
+    CVec muB;
+    Mat Z;         // [[eps]]^{-1}
+    Mat B_VB;      // (I - Kx Z Kx) VB
+    Mat ZKx_VB;    // Z Kx VB
+};
+LamellarEigen lamellar_eigen(const std::vector<double>& kx, const Mat& E, const Mat& Exx);
+std::unique_ptr<LayerModes> lamellar_modes(const std::vector<double>& kx, const LamellarEigen& eig,
+                                           double ky);
+
+// A general (2D, or anisotropic) layer: one 2N x 2N eigen-solve of P Q.
+std::unique_ptr<LayerModes> general_modes(const Harmonics& h, const Mat& E, const Mat& Exx,
+                                          const Mat& Exy, const Mat& Eyx, const Mat& Eyy);
+
+// Dense modes (W, V given), with LU factorizations for the inverses.
+class DenseModes : public LayerModes {
+  public:
+    DenseModes(Mat W, Mat V, CVec kz);
+    Mat apply_W(const Mat& B) const override { return matmul(W_, B); }
+    Mat apply_V(const Mat& B) const override { return matmul(V_, B); }
+    Mat apply_W_inverse(const Mat& B) const override { return luW_.solve(B); }
+    Mat apply_V_inverse(const Mat& B) const override { return luV_.solve(B); }
+
+  private:
+    Mat W_, V_;
+    LU luW_, luV_;
+};
+
+}  // namespace rcwa

@@ -1,0 +1,263 @@
+"""Fourier factorization rules: the permittivity matrices a layer's eigenproblem uses.
+
+Each rule returns :class:`PermittivityMatrices` for one layer at one wavelength; the
+solver's PQ eigenproblem (rcwa/cpp/modes.hpp) takes the Laurent matrix ``E = [[eps]]``
+(for ``E_z``: ``Z = E^{-1}``) and the in-plane tensor ``[Exx Exy; Eyx Eyy]``. Rules:
+
+* ``laurent``: ``Exx = Eyy = [[eps]]`` (the classical, slowly converging choice; kept so
+  the difference can be measured).
+* ``li``: 1D: Li's inverse rule ``Exx = [[1/eps]]^{-1}``, ``Eyy = [[eps]]`` (Li 1996,
+  JOSA A 13, 1870, Theorems 1-2 and Eq. 37; Lalanne & Morris 1996, Granet & Guizal 1996).
+  2D: Li 1997 (JOSA A 14, 2758, Eqs. 38-39): ``Exx`` applies the inverse rule along x
+  inside each y-slab and the Laurent rule along y; ``Eyy`` the reverse. Exact for shapes
+  that are unions of axis-aligned rectangles; circles and polygons are cut into
+  ``LI_STAIRCASE_SLABS`` slabs (a staircase) along the Laurent direction.
+* ``nv``: the normal vector method (Schuster, Ruoff, Kerwien, Rafler & Osten 2007, JOSA A
+  24, 2880, Eqs. 15-18; Götz et al. 2008, Opt. Express 16, 17295): with a unit field n(r)
+  normal to every material boundary, ``Exx = E - Delta [[nx nx]]``, ``Exy = -Delta
+  [[nx ny]]``, ``Eyy = E - Delta [[ny ny]]``, ``Delta = [[eps]] - [[1/eps]]^{-1}``. In 1D
+  n = x everywhere and it is the same as ``li``.
+* ``auto``: ``li`` in 1D, ``nv`` in 2D.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Callable
+
+import numpy as np
+
+from rcwa import fourier
+from rcwa.shapes import Circle, Rect, Stripe, overlapping_pairs, visible_regions
+from rcwa.structure import Layer
+
+LI_STAIRCASE_SLABS = 128
+NV_GRID = 256  # samples per period for the FFT of the normal-vector field
+
+FACTORIZATION_RULES: tuple[str, ...] = ("auto", "laurent", "li", "nv")
+
+
+@dataclass(frozen=True)
+class PermittivityMatrices:
+    """``E`` is ``[[eps]]``; ``exy``/``eyx`` are None when zero."""
+
+    E: np.ndarray
+    exx: np.ndarray
+    eyy: np.ndarray
+    exy: np.ndarray | None = None
+    eyx: np.ndarray | None = None
+
+
+@dataclass(frozen=True)
+class HarmonicIndices:
+    """Retained harmonics: ``m`` (and ``n`` in 2D) of each, in solver order."""
+
+    m: np.ndarray
+    n: np.ndarray
+
+
+def resolve_rule(rule: str, dimension: int) -> str:
+    if rule not in FACTORIZATION_RULES:
+        from workbench.errors import UserInputError
+
+        raise UserInputError("unknown factorization rule", field="factorization", expected=f"one of {FACTORIZATION_RULES}", got=rule)
+    if rule == "auto":
+        return "li" if dimension == 1 else "nv"
+    return rule
+
+
+def permittivity_matrices(
+    layer: Layer,
+    period: tuple[float, ...],
+    eps_of: Callable,
+    harmonics: HarmonicIndices,
+    rule: str,
+) -> PermittivityMatrices:
+    """The matrices of a patterned layer; ``eps_of(material)`` gives its permittivity."""
+    rule = resolve_rule(rule, len(period))
+    if len(period) == 1:
+        return _lamellar(layer, period[0], eps_of, harmonics.m, rule)
+    return _crossed(layer, period, eps_of, harmonics, rule)
+
+
+# ---------------------------------------------------------------- 1D
+
+
+def _lamellar(layer: Layer, period: float, eps_of: Callable, m: np.ndarray, rule: str) -> PermittivityMatrices:
+    stripes = [s for s in layer.shapes if isinstance(s, Stripe)]
+    eps_bg = complex(eps_of(layer.material))
+    eps_s = [complex(eps_of(s.material)) for s in stripes]
+    g = np.arange(-2 * int(np.max(np.abs(m))), 2 * int(np.max(np.abs(m))) + 1)
+
+    def matrix(f: Callable[[complex], complex]) -> np.ndarray:
+        segments = fourier.paint_intervals(period, f(eps_bg), [(s.x0, s.x1, f(e)) for s, e in zip(stripes, eps_s)])
+        c = fourier.profile_coefficients(segments, period, g)
+        return fourier.toeplitz(lambda d: c[d + g.size // 2], m)
+
+    E = matrix(lambda e: e)
+    if rule == "laurent":
+        return PermittivityMatrices(E, E, E)
+    exx = np.linalg.inv(matrix(lambda e: 1.0 / e))
+    return PermittivityMatrices(E, exx, E)
+
+
+# ---------------------------------------------------------------- 2D
+
+
+def cell_coefficients(layer: Layer, period: tuple[float, float], value_of: Callable, gx: np.ndarray, gy: np.ndarray) -> np.ndarray:
+    """Exact Fourier coefficients ``c(gx, gy)`` of ``value_of(material)`` over the cell.
+
+    Shapes that overlap nothing add ``(v_shape - v_background) * FT(shape) / area``;
+    overlapping shapes are first cut into their visible polygons (painter's order).
+    """
+    lx, ly = period
+    qx = 2 * np.pi * gx[:, None] / lx + 0 * gy[None, :]
+    qy = 2 * np.pi * gy[None, :] / ly + 0 * gx[:, None]
+    area = lx * ly
+    v_bg = complex(value_of(layer.material))
+    c = np.where((qx == 0) & (qy == 0), v_bg, 0.0).astype(complex)
+    shapes = list(layer.shapes)
+    if not overlapping_pairs(shapes, period):
+        for s in shapes:
+            c += (complex(value_of(s.material)) - v_bg) * s.transform(qx, qy) / area
+        return c
+    for s, regions in zip(shapes, visible_regions(shapes, period)):
+        for region in regions:
+            c += (complex(value_of(s.material)) - v_bg) * fourier.region_transform(region, qx, qy) / area
+    return c
+
+
+def _convolution(c: np.ndarray, gx0: int, gy0: int, h: HarmonicIndices) -> np.ndarray:
+    dm = h.m[None, :] - h.m[:, None]
+    dn = h.n[None, :] - h.n[:, None]
+    return c[dm + gx0, dn + gy0]
+
+
+def _crossed(layer: Layer, period, eps_of: Callable, h: HarmonicIndices, rule: str) -> PermittivityMatrices:
+    mx, my = int(np.max(np.abs(h.m))), int(np.max(np.abs(h.n)))
+    gx, gy = np.arange(-2 * mx, 2 * mx + 1), np.arange(-2 * my, 2 * my + 1)
+    c_eps = cell_coefficients(layer, period, eps_of, gx, gy)
+    E = _convolution(c_eps, 2 * mx, 2 * my, h)
+    if rule == "laurent":
+        return PermittivityMatrices(E, E, E)
+    if rule == "li":
+        return PermittivityMatrices(E, _li_slabbed(layer, period, eps_of, h, axis=0), _li_slabbed(layer, period, eps_of, h, axis=1))
+    c_inv = cell_coefficients(layer, period, lambda mat: 1.0 / eps_of(mat), gx, gy)
+    delta = E - np.linalg.inv(_convolution(c_inv, 2 * mx, 2 * my, h))
+    nxx, nxy, nyy = _normal_products(layer, period, gx, gy)
+    conv = lambda c: _convolution(c, 2 * mx, 2 * my, h)  # noqa: E731
+    exy = -delta @ conv(nxy)
+    return PermittivityMatrices(E, E - delta @ conv(nxx), E - delta @ conv(nyy), exy, exy)
+
+
+def _slab_edges(layer: Layer, length: float, axis: int) -> np.ndarray:
+    """Boundaries of slabs along ``axis`` inside which every cut is the same (or a staircase)."""
+    edges = {0.0, length}
+    for s in layer.shapes:
+        edges.update(float(e) % length for e in s.edges_along(axis))
+    if any(not isinstance(s, Rect) for s in layer.shapes):
+        edges.update(np.linspace(0.0, length, LI_STAIRCASE_SLABS + 1).tolist())
+    return np.array(sorted(edges))
+
+
+def _li_slabbed(layer: Layer, period, eps_of: Callable, h: HarmonicIndices, axis: int) -> np.ndarray:
+    """Li 1997: inverse rule along ``axis`` inside each slab, Laurent across the slabs.
+
+    axis = 0 gives Exx (slabs stacked along y, inverse rule along x); axis = 1 gives Eyy.
+    """
+    along, across = period[axis], period[1 - axis]
+    idx_along = h.m if axis == 0 else h.n
+    idx_across = h.n if axis == 0 else h.m
+    m_along = np.arange(-int(np.max(np.abs(idx_along))), int(np.max(np.abs(idx_along))) + 1)
+    ga = np.arange(-2 * m_along[-1], 2 * m_along[-1] + 1)
+    g_across = np.arange(-2 * int(np.max(np.abs(idx_across))), 2 * int(np.max(np.abs(idx_across))) + 1)
+    edges = _slab_edges(layer, across, 1 - axis)
+    eps_bg = complex(eps_of(layer.material))
+    # total[i, j, g]: coefficient g (across) of the slab-wise inverse-rule matrix entry (i, j).
+    total = np.zeros((m_along.size, m_along.size, g_across.size), dtype=complex)
+    q_across = 2 * np.pi * g_across / across
+    for a, b in zip(edges[:-1], edges[1:]):
+        if b - a <= 1e-15:
+            continue
+        cut = 0.5 * (a + b)
+        intervals = []
+        for s in layer.shapes:
+            for shift in (-across, 0.0, across):
+                for x0, x1 in s.chords(cut + shift, 1 - axis):
+                    intervals.append((x0, x1, 1.0 / complex(eps_of(s.material))))
+        segments = fourier.paint_intervals(along, 1.0 / eps_bg, _clip_intervals(intervals, along))
+        c = fourier.profile_coefficients(segments, along, ga)
+        inv = np.linalg.inv(fourier.toeplitz(lambda d: c[d + ga.size // 2], m_along))
+        total += inv[:, :, None] * fourier.interval_transform(q_across, a, b)[None, None, :] / across
+    i = idx_along - m_along[0]
+    d_across = idx_across[None, :] - idx_across[:, None] + g_across.size // 2
+    return total[i[:, None], i[None, :], d_across]
+
+
+def _clip_intervals(intervals, length: float):
+    """Drop empty chords and split chords longer than the period (images overlapping)."""
+    out = []
+    for x0, x1, v in intervals:
+        if x1 - x0 <= 0:
+            continue
+        out.append((x0, min(x1, x0 + length), v))
+    return out
+
+
+def _normal_products(layer: Layer, period, gx: np.ndarray, gy: np.ndarray):
+    """Fourier coefficients of nx^2, nx ny, ny^2 of the normal-vector field.
+
+    n(r) is the outward normal of the nearest boundary point (Götz et al. 2008, Sec. 3),
+    sampled on an NV_GRID x NV_GRID grid and transformed by FFT (the field is smooth away
+    from the medial axis, so its low harmonics converge quickly).
+    """
+    lx, ly = period
+    xs = (np.arange(NV_GRID) + 0.5) * lx / NV_GRID
+    ys = (np.arange(NV_GRID) + 0.5) * ly / NV_GRID
+    X, Y = np.meshgrid(xs, ys, indexing="ij")
+    points = np.stack([X.ravel(), Y.ravel()], axis=1)
+    nx, ny = _nearest_boundary_normal(layer, period, points)
+    fields = [nx * nx, nx * ny, ny * ny]
+    out = []
+    for f in fields:
+        spectrum = np.fft.fft2(f.reshape(NV_GRID, NV_GRID)) / NV_GRID**2
+        # Sampled at pixel centres: shift the phase to the cell origin.
+        phase = np.exp(-1j * np.pi * (gx[:, None] / NV_GRID + gy[None, :] / NV_GRID))
+        out.append(spectrum[np.ix_(gx % NV_GRID, gy % NV_GRID)] * phase)
+    return out
+
+
+def _nearest_boundary_normal(layer: Layer, period, points: np.ndarray):
+    lx, ly = period
+    best = np.full(points.shape[0], np.inf)
+    nx = np.ones(points.shape[0])
+    ny = np.zeros(points.shape[0])
+    for s in layer.shapes:
+        for dx in (-lx, 0.0, lx):
+            for dy in (-ly, 0.0, ly):
+                if isinstance(s, Circle):
+                    rel = points - (np.array(s.center) + [dx, dy])
+                    r = np.hypot(rel[:, 0], rel[:, 1])
+                    dist = np.abs(r - s.radius)
+                    safe = np.where(r == 0, 1.0, r)
+                    cand_x, cand_y = rel[:, 0] / safe, rel[:, 1] / safe
+                    closer = dist < best
+                    best = np.where(closer, dist, best)
+                    nx = np.where(closer, cand_x, nx)
+                    ny = np.where(closer, cand_y, ny)
+                    continue
+                v = np.asarray(s.outline().exterior.coords)[:-1] + [dx, dy]
+                a, b = v, np.roll(v, -1, axis=0)
+                d = b - a
+                length2 = np.sum(d * d, axis=1)
+                t = np.clip(((points[:, None, :] - a[None]) * d[None]).sum(-1) / length2[None], 0.0, 1.0)
+                foot = a[None] + t[..., None] * d[None]
+                dist_all = np.hypot(*(points[:, None, :] - foot).transpose(2, 0, 1))
+                k = np.argmin(dist_all, axis=1)
+                dist = dist_all[np.arange(points.shape[0]), k]
+                normal = np.stack([d[:, 1], -d[:, 0]], axis=1) / np.sqrt(length2)[:, None]
+                closer = dist < best
+                best = np.where(closer, dist, best)
+                nx = np.where(closer, normal[k, 0], nx)
+                ny = np.where(closer, normal[k, 1], ny)
+    return nx, ny

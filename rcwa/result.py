@@ -1,0 +1,75 @@
+"""Results of one RCWA solve: per-order efficiencies, amplitudes and directions."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+
+@dataclass(frozen=True)
+class OrderResult:
+    """One diffraction order (m, n) for the polarization asked (``R``, ``T``), and per s/p.
+
+    ``R``/``T`` are efficiencies (fractions of the incident power through a plane
+    z = const). ``r_s``, ``t_s`` are outgoing amplitudes of the s part per unit incident
+    amplitude, ``r_p``, ``t_p`` of the p part, for s incidence (``*_from_s``) and p
+    incidence (``*_from_p``): s waves are measured by E along s-hat, p waves by h = Z0 H
+    along s-hat. Directions are (theta, phi) in degrees: reflected orders from +z,
+    transmitted orders from -z, azimuth from +x.
+    """
+
+    m: int
+    n: int
+    R: float
+    T: float
+    R_s: float
+    R_p: float
+    T_s: float
+    T_p: float
+    propagating_R: bool
+    propagating_T: bool
+    direction_R: tuple[float, float] | None
+    direction_T: tuple[float, float] | None
+    amplitudes: dict[str, complex] = field(repr=False, default_factory=dict)
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"m": self.m, "n": self.n, "R": self.R, "T": self.T}
+
+
+@dataclass(frozen=True)
+class SolveResult:
+    structure: str
+    wavelength_nm: float
+    theta_deg: float
+    phi_deg: float
+    pol: str
+    orders_retained: tuple[int, ...]
+    factorization: str
+    R_total: float
+    T_total: float
+    absorption: float
+    orders: list[OrderResult]
+    all_orders: dict[str, np.ndarray] = field(repr=False, default_factory=dict)
+
+    def order(self, m: int, n: int = 0) -> OrderResult:
+        for o in self.orders:
+            if o.m == m and o.n == n:
+                return o
+        raise KeyError(f"order ({m}, {n}) does not propagate (or was not retained)")
+
+    def to_dict(self) -> dict[str, Any]:
+        return {
+            "structure": self.structure,
+            "wavelength_nm": self.wavelength_nm,
+            "theta_deg": self.theta_deg,
+            "phi_deg": self.phi_deg,
+            "pol": self.pol,
+            "orders_retained": list(self.orders_retained),
+            "factorization": self.factorization,
+            "R_total": self.R_total,
+            "T_total": self.T_total,
+            "absorption": self.absorption,
+            "orders": [o.to_dict() for o in self.orders],
+        }

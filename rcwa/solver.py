@@ -1,0 +1,204 @@
+"""One RCWA solve: structure + wavelength + angles + truncation -> efficiencies.
+
+The method is the Fourier modal method / RCWA (Moharam & Gaylord 1981; stable
+formulation of Moharam, Grann, Pommet & Gaylord 1995, JOSA A 12, 1068 and 1077) with the
+factorization rules of rcwa.factorization, layer eigenmodes and the enhanced transmittance
+matrix stack in C++ (rcwa/cpp). This module converts units, validates the request, builds
+the Fourier matrices and turns amplitudes into efficiencies. Conventions:
+workbench.conventions.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+
+import numpy as np
+
+from rcwa import _core
+from rcwa.factorization import HarmonicIndices, permittivity_matrices, resolve_rule
+from rcwa.materials import Material
+from rcwa.result import OrderResult, SolveResult
+from rcwa.structure import Structure
+from workbench.conventions import Polarization, incident_tangential_k
+from workbench.errors import UserInputError
+
+# The superstrate must be lossless for the incident power to be defined; an index whose
+# imaginary part is below this (relative) is treated as lossless.
+LOSSLESS_TOLERANCE = 1e-12
+MAX_THETA_DEG = 90.0
+
+
+def solve(
+    structure: Structure,
+    wavelength_nm: float,
+    theta_deg: float,
+    phi_deg: float,
+    orders: int | Sequence[int],
+    pol: str | Polarization = Polarization.UNPOLARIZED,
+    factorization: str = "auto",
+) -> SolveResult:
+    """Diffraction efficiencies of ``structure`` for one incident plane wave.
+
+    Parameters
+    ----------
+    wavelength_nm: vacuum wavelength in nanometres.
+    theta_deg, phi_deg: incidence angles in degrees (workbench.conventions): polar angle
+        in the superstrate, ``0 <= theta < 90``, and azimuth of the tangential wave vector.
+    orders: retained harmonics per direction, odd: ``N`` (1D) or ``(Nx, Ny)`` (2D; an
+        int means ``(N, N)``).
+    pol: ``"s"``, ``"p"`` or ``"unpolarized"`` (the mean of s and p efficiencies).
+    factorization: ``"auto"``, ``"li"``, ``"nv"`` or ``"laurent"`` (rcwa.factorization).
+    """
+    pol = _polarization(pol)
+    counts = _order_counts(orders, structure.dimension)
+    rule = resolve_rule(factorization, structure.dimension)
+    wl_um = _positive(wavelength_nm, "wavelength") / 1000.0
+    theta, phi = _angles(theta_deg, phi_deg)
+    eps_of = _permittivity_lookup(structure, float(wavelength_nm))
+    eps_sup, eps_sub = eps_of(structure.superstrate), eps_of(structure.substrate)
+    if abs(eps_sup.imag) > LOSSLESS_TOLERANCE * abs(eps_sup) or eps_sup.real <= 0:
+        raise UserInputError(
+            "the superstrate must be a lossless dielectric (the incident power is measured there)",
+            file=structure.source, field="superstrate", expected="k = 0 and n > 0", got=complex(np.sqrt(eps_sup)),
+        )
+    eps_sup = complex(eps_sup.real, 0.0)
+
+    h, kx, ky, zero = _harmonics(structure.period, counts, wl_um, math.sqrt(eps_sup.real), theta, phi)
+    layers = [_layer_input(layer, structure, eps_of, h, rule, 2 * math.pi / wl_um) for layer in structure.layers]
+    r, t, kz_sup, kz_sub = _core.solve_stack(kx, ky, zero, eps_sup, eps_sub, (-math.sin(phi), math.cos(phi)), layers)
+    return _result(structure, wavelength_nm, theta_deg, phi_deg, pol, counts, rule, h, kx, ky, zero, eps_sup, eps_sub, r, t, kz_sup, kz_sub)
+
+
+# ---------------------------------------------------------------- validation
+
+
+def _polarization(pol: str | Polarization) -> Polarization:
+    try:
+        return Polarization(pol)
+    except ValueError:
+        raise UserInputError("unknown polarization", field="pol", expected="s, p or unpolarized", got=pol) from None
+
+
+def _order_counts(orders: int | Sequence[int], dimension: int) -> tuple[int, ...]:
+    values = (orders,) * dimension if isinstance(orders, (int, np.integer)) else tuple(orders)
+    if len(values) != dimension:
+        raise UserInputError(
+            f"a {dimension}D structure needs {dimension} order count(s)", field="orders",
+            expected="N" if dimension == 1 else "NX,NY", got=orders,
+        )
+    for v in values:
+        if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or v < 1 or v % 2 == 0:
+            raise UserInputError(
+                "the number of retained harmonics must be a positive odd integer (symmetric about order 0)",
+                field="orders", expected="1, 3, 5, ...", got=orders,
+            )
+    return tuple(int(v) for v in values)
+
+
+def _positive(value: float, name: str) -> float:
+    if not (isinstance(value, (int, float, np.floating)) and math.isfinite(value) and value > 0):
+        raise UserInputError("must be a positive number", field=name, got=value)
+    return float(value)
+
+
+def _angles(theta_deg: float, phi_deg: float) -> tuple[float, float]:
+    if not (math.isfinite(theta_deg) and 0.0 <= theta_deg < MAX_THETA_DEG):
+        raise UserInputError("the polar angle must be in [0, 90) degrees", field="theta", expected="0 <= theta < 90", got=theta_deg)
+    if not math.isfinite(phi_deg):
+        raise UserInputError("must be a finite number of degrees", field="phi", got=phi_deg)
+    return math.radians(theta_deg), math.radians(phi_deg)
+
+
+def _permittivity_lookup(structure: Structure, wavelength_nm: float):
+    cache: dict[int, complex] = {}
+
+    def eps_of(material: Material) -> complex:
+        key = id(material)
+        if key not in cache:
+            try:
+                cache[key] = complex(np.asarray(material.epsilon(wavelength_nm)).item())
+            except UserInputError as exc:
+                raise exc.located(file=structure.source, field_prefix=structure.field_of(material)) from None
+        return cache[key]
+
+    return eps_of
+
+
+# ---------------------------------------------------------------- assembly
+
+
+def _harmonics(period, counts, wl_um: float, n_sup: float, theta: float, phi: float):
+    kx0, ky0 = incident_tangential_k(n_sup, theta, phi)
+    ms = np.arange(counts[0]) - counts[0] // 2
+    if len(period) == 1:
+        h = HarmonicIndices(ms, np.zeros_like(ms))
+        kx = kx0 - ms * wl_um / period[0]
+        ky = np.full(ms.shape, ky0)
+    else:
+        ns = np.arange(counts[1]) - counts[1] // 2
+        M, N = np.meshgrid(ms, ns, indexing="ij")
+        h = HarmonicIndices(M.ravel(), N.ravel())
+        kx = kx0 - h.m * wl_um / period[0]
+        ky = ky0 - h.n * wl_um / period[1]
+    zero = int(np.flatnonzero((h.m == 0) & (h.n == 0))[0])
+    return h, np.ascontiguousarray(kx, dtype=float), np.ascontiguousarray(ky, dtype=float), zero
+
+
+def _layer_input(layer, structure: Structure, eps_of, h: HarmonicIndices, rule: str, k0: float):
+    k0d = k0 * layer.thickness
+    if layer.is_uniform:
+        return ("uniform", k0d, eps_of(layer.material), [])
+    pm = permittivity_matrices(layer, structure.period, eps_of, h, rule)
+    if structure.dimension == 1:
+        return ("lamellar", k0d, 0j, [pm.E, pm.exx])
+    zero = np.zeros_like(pm.E)
+    exy = pm.exy if pm.exy is not None else zero
+    eyx = pm.eyx if pm.eyx is not None else zero
+    return ("general", k0d, 0j, [pm.E, pm.exx, exy, eyx, pm.eyy])
+
+
+def _result(structure, wavelength_nm, theta_deg, phi_deg, pol, counts, rule, h, kx, ky, zero, eps_sup, eps_sub, r, t, kz_sup, kz_sub) -> SolveResult:
+    n = kx.size
+    kz0 = kz_sup[zero]
+    power_in = np.array([kz0.real, (kz0 / eps_sup).real])  # s (E-normalized), p (h-normalized)
+    lossless_sub = eps_sub.imag == 0.0 and eps_sub.real > 0
+    # eff[k][i, col]: efficiency of outgoing k-part (s or p) of order i for incidence col.
+    R = np.abs(r[:n]) ** 2 * kz_sup.real[:, None] + np.abs(r[n:]) ** 2 * (kz_sup / eps_sup).real[:, None]
+    T_into = np.abs(t[:n]) ** 2 * kz_sub.real[:, None] + np.abs(t[n:]) ** 2 * (kz_sub / eps_sub).real[:, None]
+    R = R / power_in
+    T_into = T_into / power_in
+    T = T_into if lossless_sub else np.zeros_like(T_into)
+    weights = {"s": np.array([1.0, 0.0]), "p": np.array([0.0, 1.0]), "unpolarized": np.array([0.5, 0.5])}[pol.value]
+    R_pol, T_pol = R @ weights, T @ weights
+
+    kt = np.hypot(kx, ky)
+    prop_R = (eps_sup.real - kt**2) > 0
+    prop_T = lossless_sub & ((eps_sub.real - kt**2) > 0) if lossless_sub else np.zeros(n, dtype=bool)
+    azimuth = np.degrees(np.arctan2(ky, kx))
+    orders = []
+    for i in np.flatnonzero(prop_R | prop_T):
+        direction_R = (math.degrees(math.asin(min(1.0, kt[i] / math.sqrt(eps_sup.real)))), float(azimuth[i])) if prop_R[i] else None
+        direction_T = (math.degrees(math.asin(min(1.0, kt[i] / math.sqrt(eps_sub.real)))), float(azimuth[i])) if prop_T[i] else None
+        amplitudes = {
+            "r_s_from_s": complex(r[i, 0]), "r_p_from_s": complex(r[n + i, 0]),
+            "r_s_from_p": complex(r[i, 1]), "r_p_from_p": complex(r[n + i, 1]),
+            "t_s_from_s": complex(t[i, 0]), "t_p_from_s": complex(t[n + i, 0]),
+            "t_s_from_p": complex(t[i, 1]), "t_p_from_p": complex(t[n + i, 1]),
+        }
+        orders.append(
+            OrderResult(
+                m=int(h.m[i]), n=int(h.n[i]), R=float(R_pol[i]) if prop_R[i] else 0.0, T=float(T_pol[i]) if prop_T[i] else 0.0,
+                R_s=float(R[i, 0]), R_p=float(R[i, 1]), T_s=float(T[i, 0]), T_p=float(T[i, 1]),
+                propagating_R=bool(prop_R[i]), propagating_T=bool(prop_T[i]),
+                direction_R=direction_R, direction_T=direction_T, amplitudes=amplitudes,
+            )
+        )
+    R_total = float(np.sum(R_pol))
+    T_total = float(np.sum(T_pol))
+    return SolveResult(
+        structure=structure.name, wavelength_nm=float(wavelength_nm), theta_deg=float(theta_deg), phi_deg=float(phi_deg),
+        pol=pol.value, orders_retained=counts, factorization=rule, R_total=R_total, T_total=T_total,
+        absorption=1.0 - R_total - T_total, orders=orders,
+        all_orders={"m": h.m, "n": h.n, "R": R, "T": T, "T_into_substrate": T_into, "kz_superstrate": kz_sup, "kz_substrate": kz_sub},
+    )
