@@ -17,7 +17,8 @@ solver's PQ eigenproblem (rcwa/cpp/modes.hpp) takes the Laurent matrix ``E = [[e
   normal to every material boundary, ``Exx = E - Delta [[nx nx]]``, ``Exy = -Delta
   [[nx ny]]``, ``Eyy = E - Delta [[ny ny]]``, ``Delta = [[eps]] - [[1/eps]]^{-1}``. In 1D
   n = x everywhere and it is the same as ``li``.
-* ``auto``: ``li`` in 1D, ``nv`` in 2D.
+* ``auto``: ``li`` in 1D and for 2D cells made only of rectangles (where Li 1997 is the
+  correct rule in both directions), ``nv`` for 2D cells with circles or polygons.
 """
 
 from __future__ import annotations
@@ -56,13 +57,14 @@ class HarmonicIndices:
     n: np.ndarray
 
 
-def resolve_rule(rule: str, dimension: int) -> str:
+def resolve_rule(rule: str, dimension: int, layers: tuple[Layer, ...] = ()) -> str:
     if rule not in FACTORIZATION_RULES:
         from workbench.errors import UserInputError
 
         raise UserInputError("unknown factorization rule", field="factorization", expected=f"one of {FACTORIZATION_RULES}", got=rule)
     if rule == "auto":
-        return "li" if dimension == 1 else "nv"
+        only_rectangles = all(isinstance(s, (Rect, Stripe)) for layer in layers for s in layer.shapes)
+        return "li" if dimension == 1 or only_rectangles else "nv"
     return rule
 
 
@@ -74,7 +76,7 @@ def permittivity_matrices(
     rule: str,
 ) -> PermittivityMatrices:
     """The matrices of a patterned layer; ``eps_of(material)`` gives its permittivity."""
-    rule = resolve_rule(rule, len(period))
+    rule = resolve_rule(rule, len(period), (layer,))
     if len(period) == 1:
         return _lamellar(layer, period[0], eps_of, harmonics.m, rule)
     return _crossed(layer, period, eps_of, harmonics, rule)
@@ -207,57 +209,60 @@ def _clip_intervals(intervals, length: float):
 def _normal_products(layer: Layer, period, gx: np.ndarray, gy: np.ndarray):
     """Fourier coefficients of nx^2, nx ny, ny^2 of the normal-vector field.
 
-    n(r) is the outward normal of the nearest boundary point (Götz et al. 2008, Sec. 3),
-    sampled on an NV_GRID x NV_GRID grid and transformed by FFT (the field is smooth away
-    from the medial axis, so its low harmonics converge quickly).
+    n(r) is the gradient of the distance to the nearest material boundary, i.e. the unit
+    vector from the nearest boundary point to r (Götz et al. 2008, Sec. 3): normal to
+    every boundary, radial around corners, continuous except on the medial axis, where
+    the tensor n n^T of equally near boundary points is averaged (so a symmetric cell
+    gets a symmetric field). Sampled at the centres of an NV_GRID x NV_GRID grid and
+    transformed by FFT.
     """
     lx, ly = period
     xs = (np.arange(NV_GRID) + 0.5) * lx / NV_GRID
     ys = (np.arange(NV_GRID) + 0.5) * ly / NV_GRID
     X, Y = np.meshgrid(xs, ys, indexing="ij")
     points = np.stack([X.ravel(), Y.ravel()], axis=1)
-    nx, ny = _nearest_boundary_normal(layer, period, points)
-    fields = [nx * nx, nx * ny, ny * ny]
+    fields = _normal_tensor(layer, period, points)
+    phase = np.exp(-1j * np.pi * (gx[:, None] / NV_GRID + gy[None, :] / NV_GRID))
     out = []
     for f in fields:
         spectrum = np.fft.fft2(f.reshape(NV_GRID, NV_GRID)) / NV_GRID**2
-        # Sampled at pixel centres: shift the phase to the cell origin.
-        phase = np.exp(-1j * np.pi * (gx[:, None] / NV_GRID + gy[None, :] / NV_GRID))
         out.append(spectrum[np.ix_(gx % NV_GRID, gy % NV_GRID)] * phase)
     return out
 
 
-def _nearest_boundary_normal(layer: Layer, period, points: np.ndarray):
+def _boundary_candidates(layer: Layer, period, points: np.ndarray):
+    """Distance to, and unit normal from, each boundary piece (edges, circles, images)."""
     lx, ly = period
-    best = np.full(points.shape[0], np.inf)
-    nx = np.ones(points.shape[0])
-    ny = np.zeros(points.shape[0])
+    dists, normals_x, normals_y = [], [], []
     for s in layer.shapes:
         for dx in (-lx, 0.0, lx):
             for dy in (-ly, 0.0, ly):
                 if isinstance(s, Circle):
                     rel = points - (np.array(s.center) + [dx, dy])
                     r = np.hypot(rel[:, 0], rel[:, 1])
-                    dist = np.abs(r - s.radius)
                     safe = np.where(r == 0, 1.0, r)
-                    cand_x, cand_y = rel[:, 0] / safe, rel[:, 1] / safe
-                    closer = dist < best
-                    best = np.where(closer, dist, best)
-                    nx = np.where(closer, cand_x, nx)
-                    ny = np.where(closer, cand_y, ny)
+                    dists.append(np.abs(r - s.radius)[:, None])
+                    normals_x.append((rel[:, 0] / safe)[:, None])
+                    normals_y.append((rel[:, 1] / safe)[:, None])
                     continue
                 v = np.asarray(s.outline().exterior.coords)[:-1] + [dx, dy]
-                a, b = v, np.roll(v, -1, axis=0)
-                d = b - a
+                d = np.roll(v, -1, axis=0) - v
                 length2 = np.sum(d * d, axis=1)
-                t = np.clip(((points[:, None, :] - a[None]) * d[None]).sum(-1) / length2[None], 0.0, 1.0)
-                foot = a[None] + t[..., None] * d[None]
-                dist_all = np.hypot(*(points[:, None, :] - foot).transpose(2, 0, 1))
-                k = np.argmin(dist_all, axis=1)
-                dist = dist_all[np.arange(points.shape[0]), k]
-                normal = np.stack([d[:, 1], -d[:, 0]], axis=1) / np.sqrt(length2)[:, None]
-                closer = dist < best
-                best = np.where(closer, dist, best)
-                nx = np.where(closer, normal[k, 0], nx)
-                ny = np.where(closer, normal[k, 1], ny)
-    return nx, ny
+                t = np.clip(((points[:, None, :] - v[None]) * d[None]).sum(-1) / length2[None], 0.0, 1.0)
+                rel = points[:, None, :] - (v[None] + t[..., None] * d[None])
+                dist = np.hypot(rel[..., 0], rel[..., 1])
+                edge_n = np.stack([d[:, 1], -d[:, 0]], axis=1) / np.sqrt(length2)[:, None]
+                on_edge = dist < 1e-12
+                safe = np.where(on_edge, 1.0, dist)
+                dists.append(dist)
+                normals_x.append(np.where(on_edge, edge_n[None, :, 0], rel[..., 0] / safe))
+                normals_y.append(np.where(on_edge, edge_n[None, :, 1], rel[..., 1] / safe))
+    return np.concatenate(dists, axis=1), np.concatenate(normals_x, axis=1), np.concatenate(normals_y, axis=1)
+
+
+def _normal_tensor(layer: Layer, period, points: np.ndarray):
+    dist, nx, ny = _boundary_candidates(layer, period, points)
+    nearest = dist <= dist.min(axis=1, keepdims=True) + 1e-12 * max(period)
+    count = nearest.sum(axis=1)
+    mean = lambda f: np.where(nearest, f, 0.0).sum(axis=1) / count  # noqa: E731
+    return mean(nx * nx), mean(nx * ny), mean(ny * ny)

@@ -52,7 +52,7 @@ def solve(
     """
     pol = _polarization(pol)
     counts = _order_counts(orders, structure.dimension)
-    rule = resolve_rule(factorization, structure.dimension)
+    rule = resolve_rule(factorization, structure.dimension, structure.layers)
     wl_um = _positive(wavelength_nm, "wavelength") / 1000.0
     theta, phi = _angles(theta_deg, phi_deg)
     eps_of = _permittivity_lookup(structure, float(wavelength_nm))

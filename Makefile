@@ -1,0 +1,41 @@
+# One command per job; each installs what is missing first.
+#   make demo    install, then run the main job on the built-in defaults
+#   make test    the test suite (slow checks excluded; `make test-slow` runs them)
+#   make bench   benchmarks against open-source peers (separate env .venv-bench)
+
+PYTHON ?= python3
+VENV   := .venv
+BIN    := $(VENV)/bin
+STAMP  := $(VENV)/.installed
+SOURCES := pyproject.toml CMakeLists.txt $(wildcard rcwa/cpp/*.cpp rcwa/cpp/*.hpp)
+
+.PHONY: install demo test test-slow bench clean
+
+install: $(STAMP)
+
+# The venv, the build tools (no build isolation, so rebuilds reuse them) and the package
+# in editable mode: Python edits take effect at once, C++ edits rebuild through this rule.
+$(STAMP): $(SOURCES)
+	@command -v c++ >/dev/null || { echo "installing g++ (Debian)"; apt-get update -q && apt-get install -y -q g++; }
+	@test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
+	$(BIN)/python -m pip install -q --upgrade pip
+	$(BIN)/python -m pip install -q "scikit-build-core>=0.10" "nanobind>=2.4" "scipy-openblas32>=0.3.28" cmake ninja
+	$(BIN)/python -m pip install -q --no-build-isolation -e '.[test]'
+	@touch $@
+
+demo: install
+	$(BIN)/workbench demo
+
+test: install
+	$(BIN)/python -m pytest -q
+
+test-slow: install
+	$(BIN)/python -m pytest -q -m slow
+
+bench: install
+	bash rcwa/benchmarks/setup_peers.sh
+	$(BIN)/python rcwa/benchmarks/bench_solve.py
+	$(BIN)/python rcwa/benchmarks/convergence.py
+
+clean:
+	rm -rf build $(VENV)

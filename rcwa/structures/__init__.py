@@ -1,0 +1,1 @@
+"""Built-in structure files (TOML), loaded by name through rcwa.load_structure."""

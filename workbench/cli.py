@@ -1,0 +1,78 @@
+"""The ``workbench`` command line.
+
+Every user error ends with ``error: <what, where, expected>`` on stderr and exit status 2,
+never a Python traceback.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import signal
+import sys
+from collections.abc import Sequence
+
+from workbench.errors import UserInputError
+
+
+def _orders_argument(text: str) -> int | tuple[int, ...]:
+    parts = text.split(",")
+    try:
+        values = tuple(int(p) for p in parts)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected N or NX,NY (odd integers), got {text!r}") from None
+    return values[0] if len(values) == 1 else values
+
+
+def _build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(prog="workbench", description=__doc__.splitlines()[0])
+    commands = parser.add_subparsers(dest="command", required=True)
+
+    rcwa_parser = commands.add_parser("rcwa", help="rigorous coupled-wave analysis")
+    rcwa_commands = rcwa_parser.add_subparsers(dest="rcwa_command", required=True)
+    solve = rcwa_commands.add_parser("solve", help="diffraction efficiencies for one incident plane wave")
+    solve.add_argument("structure", help="a built-in structure (cd, gold2d) or a TOML file")
+    solve.add_argument("--wavelength", type=float, required=True, metavar="NM", help="vacuum wavelength in nm")
+    solve.add_argument("--theta", type=float, default=0.0, metavar="DEG", help="polar angle of incidence (default 0)")
+    solve.add_argument("--phi", type=float, default=0.0, metavar="DEG", help="azimuth of incidence from +x (default 0)")
+    solve.add_argument("--orders", type=_orders_argument, required=True, metavar="N|NX,NY",
+                       help="retained harmonics per direction (odd)")
+    solve.add_argument("--pol", choices=["s", "p", "unpolarized"], default="unpolarized")
+    solve.add_argument("--factorization", choices=["auto", "li", "nv", "laurent"], default="auto",
+                       help="Fourier factorization rule (default: li in 1D, nv in 2D)")
+    solve.add_argument("--json", action="store_true", help="print one JSON object instead of a table")
+
+    commands.add_parser("demo", help="the main job on the built-in scene (for now: the CD's orders)")
+    return parser
+
+
+def _run_rcwa_solve(args: argparse.Namespace) -> int:
+    import rcwa
+    from workbench.report_text import solve_table
+
+    structure = rcwa.load_structure(args.structure)
+    result = rcwa.solve(structure, args.wavelength, args.theta, args.phi, args.orders, args.pol, args.factorization)
+    print(json.dumps(result.to_dict(), indent=2) if args.json else solve_table(result))
+    return 0
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    signal.signal(signal.SIGPIPE, signal.SIG_DFL)  # quiet when piped into head or less
+    parser = _build_parser()
+    args = parser.parse_args(argv)
+    try:
+        if args.command == "rcwa" and args.rcwa_command == "solve":
+            return _run_rcwa_solve(args)
+        if args.command == "demo":
+            from workbench.demo import run_demo
+
+            return run_demo()
+    except UserInputError as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
+    parser.error("unknown command")
+    return 2
+
+
+if __name__ == "__main__":
+    sys.exit(main())
