@@ -148,8 +148,11 @@ def _crossed(layer: Layer, period, eps_of: Callable, h: HarmonicIndices, rule: s
     delta = E - np.linalg.inv(_convolution(c_inv, 2 * mx, 2 * my, h))
     nxx, nxy, nyy = _normal_products(layer, period, gx, gy)
     conv = lambda c: _convolution(c, 2 * mx, 2 * my, h)  # noqa: E731
-    exy = -delta @ conv(nxy)
-    return PermittivityMatrices(E, E - delta @ conv(nxx), E - delta @ conv(nyy), exy, exy)
+    # Symmetrized product: Hermitian for lossless cells, so the truncated problem
+    # conserves energy exactly (Delta [[N]] alone does not; see docs/architecture.md).
+    sym = lambda N: 0.5 * (delta @ N + N @ delta)  # noqa: E731
+    exy = -sym(conv(nxy))
+    return PermittivityMatrices(E, E - sym(conv(nxx)), E - sym(conv(nyy)), exy, exy)
 
 
 def _slab_edges(layer: Layer, length: float, axis: int) -> np.ndarray:

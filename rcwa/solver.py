@@ -147,7 +147,8 @@ def _harmonics(period, counts, wl_um: float, n_sup: float, theta: float, phi: fl
 
 def _layer_input(layer, structure: Structure, eps_of, h: HarmonicIndices, rule: str, k0: float):
     k0d = k0 * layer.thickness
-    if layer.is_uniform:
+    if layer.is_uniform or all(eps_of(s.material) == eps_of(layer.material) for s in layer.shapes):
+        # No contrast at this wavelength: a uniform layer, solved without an eigen-solve.
         return ("uniform", k0d, eps_of(layer.material), [])
     pm = permittivity_matrices(layer, structure.period, eps_of, h, rule)
     if structure.dimension == 1:

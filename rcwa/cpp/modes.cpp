@@ -31,11 +31,15 @@ namespace {
 //   Q^{-1} = [[kx ky, eps - kx^2], [ky^2 - eps, -kx ky]] / (eps kz^2).
 class UniformModes : public LayerModes {
   public:
-    UniformModes(const Harmonics& h, cplx eps) : h_(h), eps_(eps) {
+    UniformModes(const Harmonics& h, cplx eps) : h_(h), eps_(h.size(), eps) {
         const int n = h.size();
         kz_.resize(2 * static_cast<std::size_t>(n));
         for (int i = 0; i < n; ++i) {
-            const cplx kz = regularize_kz(outgoing_sqrt(eps - h.kx[i] * h.kx[i] - h.ky[i] * h.ky[i]));
+            const double kt2 = h.kx[i] * h.kx[i] + h.ky[i] * h.ky[i];
+            const cplx kz = regularize_kz(outgoing_sqrt(eps - kt2));
+            // Where kz was moved off zero, move this order's permittivity with it
+            // (by |kz|^2 = 1e-16), so that V and V^{-1} stay exact inverses.
+            eps_[i] = kz * kz + kt2;
             kz_[i] = kz;
             kz_[n + i] = kz;
         }
@@ -51,18 +55,18 @@ class UniformModes : public LayerModes {
         Mat out(B.rows, B.cols);
         for (int i = 0; i < n; ++i) {
             const double kx = h_.kx[i], ky = h_.ky[i];
-            const cplx kz = kz_[i];
+            const cplx kz = kz_[i], eps = eps_[i];
             cplx a, b, c, d;
             if (!inverse) {
                 a = -kx * ky / kz;
-                b = (kx * kx - eps_) / kz;
-                c = (eps_ - ky * ky) / kz;
+                b = (kx * kx - eps) / kz;
+                c = (eps - ky * ky) / kz;
                 d = kx * ky / kz;
             } else {
-                const cplx s = 1.0 / (eps_ * kz);
+                const cplx s = 1.0 / (eps * kz);
                 a = kx * ky * s;
-                b = (eps_ - kx * kx) * s;
-                c = (ky * ky - eps_) * s;
+                b = (eps - kx * kx) * s;
+                c = (ky * ky - eps) * s;
                 d = -kx * ky * s;
             }
             for (int j = 0; j < B.cols; ++j) {
@@ -74,7 +78,7 @@ class UniformModes : public LayerModes {
         return out;
     }
     Harmonics h_;
-    cplx eps_;
+    CVec eps_;  // per order (equal to the layer's except where kz was regularized)
 };
 
 }  // namespace
