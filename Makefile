@@ -35,7 +35,7 @@ test-slow: install
 bench: install
 	bash rcwa/benchmarks/setup_peers.sh
 	$(BIN)/python rcwa/benchmarks/bench_solve.py
-	$(BIN)/python rcwa/benchmarks/convergence.py
+	$(BIN)/python -m rcwa.convergence
 
 clean:
 	rm -rf build $(VENV)

@@ -1,0 +1,119 @@
+"""`workbench rcwa solve`: output formats and clear errors for bad input (no tracebacks).
+
+Each error must name the file, the field and what was expected; exit status 2.
+"""
+
+import json
+import subprocess
+import sys
+import textwrap
+
+import pytest
+
+from workbench.cli import main
+
+GOOD = textwrap.dedent("""\
+    name = "grating"
+    period = [1.6]
+    superstrate = "polycarbonate"
+    substrate = "aluminum"
+
+    [[layers]]
+    thickness = 0.11
+    material = "polycarbonate"
+    shapes = [ { material = "aluminum", x = [0.5, 1.1] } ]
+""")
+
+
+def _write(tmp_path, text, name="s.toml"):
+    path = tmp_path / name
+    path.write_text(text)
+    return path
+
+
+def _run(capsys, *argv):
+    code = main(list(argv))
+    out, err = capsys.readouterr()
+    return code, out, err
+
+
+def test_json_output_has_the_documented_fields(tmp_path, capsys):
+    path = _write(tmp_path, GOOD)
+    code, out, _ = _run(capsys, "rcwa", "solve", str(path), "--wavelength", "550", "--theta", "20", "--phi", "10",
+                        "--orders", "31", "--pol", "p", "--json")
+    assert code == 0
+    data = json.loads(out)
+    for key in ("wavelength_nm", "theta_deg", "phi_deg", "pol", "R_total", "T_total", "absorption", "orders"):
+        assert key in data
+    assert data["pol"] == "p" and data["wavelength_nm"] == 550.0
+    assert all(set(o) == {"m", "n", "R", "T"} and o["n"] == 0 for o in data["orders"])
+    assert sum(o["R"] for o in data["orders"]) == pytest.approx(data["R_total"], abs=1e-12)
+
+
+def test_table_output_for_builtin_2d(capsys):
+    code, out, _ = _run(capsys, "rcwa", "solve", "gold2d", "--wavelength", "550", "--orders", "5,5")
+    assert code == 0 and "total R" in out and "gold2d" in out
+
+
+BAD_FILES = {
+    "malformed TOML": (GOOD.replace("period = [1.6]", "period = [1.6"), "not valid TOML", None),
+    "unknown material": (GOOD.replace('substrate = "aluminum"', 'substrate = "unobtainium"'), "substrate", "unobtainium"),
+    "negative thickness": (GOOD.replace("thickness = 0.11", "thickness = -0.11"), "layers[0].thickness", ">= 0"),
+    "zero period": (GOOD.replace("period = [1.6]", "period = [0]"), "period[0]", "> 0"),
+    "negative period": (GOOD.replace("period = [1.6]", "period = [-1.6]"), "period[0]", "> 0"),
+    "stripe ends before it starts": (GOOD.replace("x = [0.5, 1.1]", "x = [1.1, 0.5]"), "layers[0].shapes[0].x", "x1 > x0"),
+    "stripe wider than the period": (GOOD.replace("x = [0.5, 1.1]", "x = [0.0, 2.0]"), "layers[0].shapes[0].x", "<= 1.6"),
+    "missing superstrate": (GOOD.replace('superstrate = "polycarbonate"\n', ""), "superstrate", "missing"),
+    "2D shape in 1D": (GOOD.replace("x = [0.5, 1.1]", "rect = { center = [0, 0], size = [1, 1] }"), "layers[0].shapes[0].rect", "x = [x0, x1]"),
+}
+
+
+@pytest.mark.parametrize("case", BAD_FILES)
+def test_bad_structure_files(tmp_path, capsys, case):
+    text, field, expected = BAD_FILES[case]
+    path = _write(tmp_path, text)
+    code, out, err = _run(capsys, "rcwa", "solve", str(path), "--wavelength", "550", "--orders", "11")
+    assert code == 2 and out == ""
+    assert err.startswith("error: ") and str(path) in err and field in err
+    if expected:
+        assert expected in err
+    assert "Traceback" not in err
+
+
+BAD_ARGUMENTS = {
+    "theta of 90": (["--theta", "90"], "theta", "0 <= theta < 90"),
+    "even orders": (["--orders", "10"], "orders", "odd"),
+    "wavelength outside the data": (["--wavelength", "5000"], "superstrate", "has data for 360-1052 nm"),
+    "two order counts for 1D": (["--orders", "11,11"], "orders", "1 order count"),
+}
+
+
+@pytest.mark.parametrize("case", BAD_ARGUMENTS)
+def test_bad_arguments(tmp_path, capsys, case):
+    extra, field, expected = BAD_ARGUMENTS[case]
+    path = _write(tmp_path, GOOD)
+    args = {"--wavelength": "550", "--orders": "11", "--theta": "10"}
+    for k, v in zip(extra[::2], extra[1::2]):
+        args[k] = v
+    argv = ["rcwa", "solve", str(path)] + [x for kv in args.items() for x in kv]
+    code, _, err = _run(capsys, *argv)
+    assert code == 2 and field in err and expected in err and "Traceback" not in err
+
+
+def test_wavelength_error_names_file_and_field(tmp_path, capsys):
+    text = GOOD.replace('substrate = "aluminum"', 'substrate = "gold"').replace('superstrate = "polycarbonate"', 'superstrate = "air"')
+    path = _write(tmp_path, text.replace('material = "polycarbonate"', 'material = "air"'))
+    code, _, err = _run(capsys, "rcwa", "solve", str(path), "--wavelength", "3000", "--orders", "11")
+    assert code == 2 and str(path) in err and "substrate" in err and "gold" in err
+
+
+def test_unknown_structure_name(capsys):
+    code, _, err = _run(capsys, "rcwa", "solve", "no_such_thing", "--wavelength", "550", "--orders", "11")
+    assert code == 2 and "cd" in err and "gold2d" in err
+
+
+def test_installed_command_prints_no_traceback(tmp_path):
+    path = _write(tmp_path, GOOD.replace("thickness = 0.11", "thickness = -1"))
+    proc = subprocess.run([sys.executable, "-m", "workbench.cli", "rcwa", "solve", str(path), "--wavelength", "550",
+                           "--orders", "11"], capture_output=True, text=True)
+    assert proc.returncode == 2 and "Traceback" not in proc.stderr and "thickness" in proc.stderr
