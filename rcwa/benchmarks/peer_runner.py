@@ -1,0 +1,549 @@
+"""Solve one benchmark case with an open-source RCWA peer and print the result as JSON.
+
+Runs INSIDE the separate ``.venv-bench`` environment (see ``setup_peers.sh``); it imports
+nothing from this project, so the peers' pinned numpy/scipy never meet ours.
+
+Usage::
+
+    .venv-bench/bin/python rcwa/benchmarks/peer_runner.py CASE.json [--peer meent|grcwa]
+                                                          [--repeats K]
+
+CASE.json is one benchmark case (format in ``bench_solve.py``; its ``"structure"`` is the
+project's structure-file format as a dict). The output is one JSON object on stdout::
+
+    {"peer": "meent", "version": "0.13.2", "seconds_per_solve": ..., "repeats": K,
+     "formulation": "...", "orders": [{"m": .., "n": .., "R_s": .., "R_p": .., "T_s": ..,
+     "T_p": ..}, ...], "totals": {...}}
+
+``seconds_per_solve`` is the median wall time, over K repeats after one warm-up, of
+everything needed to get the efficiencies of BOTH incident polarizations for the case
+(building the peer's model and Fourier matrices included). Everything runs on one thread.
+
+Conventions (the project's, ``workbench/conventions.py``; every mapping below was checked
+against an independent reference by ``check_peer_conventions.py``):
+
+* exp(-i omega t), Im(n) > 0 for lossy media.
+* z points into the superstrate; the incident wave travels toward -z with tangential wave
+  vector k0 n_sup (sin theta cos phi, sin theta sin phi).
+* Order m (and n) has k_x,m = k_x,inc - m 2 pi / Lambda_x (k_y,n = k_y,inc - n 2 pi /
+  Lambda_y), Eq. 2 of Lange et al. 2021.
+* s: E perpendicular to the plane of incidence (TE); p: TM.
+* Efficiency: fraction of incident power through a plane z = const, summed over both
+  output polarizations. ``R_s`` is the efficiency of a reflected order for s incidence,
+  ``T_p`` of a transmitted order for p incidence, and so on.
+
+An order is listed when it propagates in the superstrate or in the substrate (for a lossy
+medium: when Re(n^2) > |k_t|^2 / k0^2). ``totals`` sums over every order, listed or not,
+so that the power entering a lossy substrate is still accounted for.
+"""
+
+from __future__ import annotations
+
+import os
+
+# Single-threaded BLAS/LAPACK: must be set before numpy is imported.
+for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "VECLIB_MAXIMUM_THREADS",
+             "NUMEXPR_NUM_THREADS"):
+    os.environ[_var] = "1"
+
+import argparse  # noqa: E402
+import json  # noqa: E402
+import math  # noqa: E402
+import statistics  # noqa: E402
+import sys  # noqa: E402
+import time  # noqa: E402
+from dataclasses import dataclass, field  # noqa: E402
+from fractions import Fraction  # noqa: E402
+
+import numpy as np  # noqa: E402
+
+PEERS = ("meent", "grcwa")
+
+# Largest uniform raster (cells per period, per axis) used to represent the stripes/rectangles
+# exactly on the peer's grid. meent's continuous-Fourier-series path then merges equal
+# columns, so its Fourier coefficients are exact; grcwa uses a discrete FFT of the grid.
+MAX_EXACT_CELLS_1D = 4096
+MAX_EXACT_CELLS_2D = 512
+# grcwa samples eps on a grid and takes its DFT: a fine grid keeps the aliasing error of the
+# step function's coefficients small (about 1e-3 relative at |m| = 30 with 4096 cells).
+GRCWA_CELLS_1D = 4096
+GRCWA_CELLS_2D = 256
+
+
+# --------------------------------------------------------------------------------------------
+# Case parsing
+# --------------------------------------------------------------------------------------------
+
+
+class CaseError(ValueError):
+    """A case file that the runner cannot read."""
+
+
+def complex_index(material, where: str) -> complex:
+    """Complex refractive index n + i k (exp(-i omega t) convention) of a material spec.
+
+    Accepts a number or ``{"n": .., "k": ..}``; named library materials and CSV files are
+    the project's business and must be resolved to numbers before a case reaches a peer.
+    """
+    if isinstance(material, (int, float)):
+        return complex(float(material), 0.0)
+    if isinstance(material, dict) and "n" in material:
+        return complex(float(material["n"]), float(material.get("k", 0.0)))
+    raise CaseError(f"{where}: expected a number or {{'n': .., 'k': ..}}, got {material!r}")
+
+
+@dataclass
+class Shape:
+    index: complex
+    x: tuple[float, float]  # [x0, x1) in micrometres
+    y: tuple[float, float] | None = None  # None for 1D
+
+
+@dataclass
+class Layer:
+    thickness: float
+    background: complex
+    shapes: list[Shape] = field(default_factory=list)
+
+
+@dataclass
+class Case:
+    name: str
+    wavelength_um: float
+    theta_rad: float
+    phi_rad: float
+    n_orders: tuple[int, ...]  # (Nx,) or (Nx, Ny): total orders per axis, odd
+    period: tuple[float, ...]
+    n_sup: complex
+    n_sub: complex
+    layers: list[Layer]
+
+    @property
+    def is_2d(self) -> bool:
+        return len(self.period) == 2
+
+    @property
+    def half_orders(self) -> tuple[int, int]:
+        hx = (self.n_orders[0] - 1) // 2
+        hy = (self.n_orders[1] - 1) // 2 if self.is_2d else 0
+        return hx, hy
+
+
+def parse_case(data: dict) -> Case:
+    """Read a case dict (see module docstring of bench_solve.py) into a :class:`Case`."""
+    try:
+        st = data["structure"]
+        period = tuple(float(p) for p in st["period"])
+        if len(period) not in (1, 2):
+            raise CaseError(f"structure.period: expected 1 or 2 values, got {st['period']!r}")
+        orders = data["orders"]
+        orders = (int(orders),) if isinstance(orders, (int, float)) else tuple(int(o) for o in orders)
+        if len(orders) != len(period):
+            raise CaseError(f"orders: expected {len(period)} value(s) to match the period, got {orders!r}")
+        if any(o < 1 or o % 2 == 0 for o in orders):
+            raise CaseError(f"orders: expected odd totals (2N+1), got {orders!r}")
+        layers = []
+        for i, lay in enumerate(st.get("layers", [])):
+            bg = complex_index(lay["material"], f"structure.layers[{i}].material")
+            shapes = []
+            for j, sh in enumerate(lay.get("shapes", []) or []):
+                where = f"structure.layers[{i}].shapes[{j}]"
+                idx = complex_index(sh["material"], where + ".material")
+                if len(period) == 1:
+                    if "x" not in sh:
+                        raise CaseError(f"{where}: a 1D shape needs 'x': [x0, x1]")
+                    x0, x1 = (float(v) for v in sh["x"])
+                    shapes.append(Shape(idx, (x0, x1)))
+                else:
+                    if "rect" not in sh:
+                        raise CaseError(f"{where}: only 'rect' shapes are supported by the peers")
+                    (cx, cy), (sx, sy) = sh["rect"]["center"], sh["rect"]["size"]
+                    shapes.append(Shape(idx, (cx - sx / 2, cx + sx / 2), (cy - sy / 2, cy + sy / 2)))
+            layers.append(Layer(float(lay["thickness"]), bg, shapes))
+        return Case(
+            name=str(data.get("name", "case")),
+            wavelength_um=float(data["wavelength_nm"]) / 1000.0,
+            theta_rad=math.radians(float(data["theta_deg"])),
+            phi_rad=math.radians(float(data.get("phi_deg", 0.0))),
+            n_orders=orders,
+            period=period,
+            n_sup=complex_index(st["superstrate"], "structure.superstrate"),
+            n_sub=complex_index(st["substrate"], "structure.substrate"),
+            layers=layers,
+        )
+    except KeyError as exc:
+        raise CaseError(f"missing field {exc.args[0]!r}") from None
+
+
+# --------------------------------------------------------------------------------------------
+# Rasterization of stripes / rectangles
+# --------------------------------------------------------------------------------------------
+
+
+def _cells_for_exact_grid(fractions: list[float], max_cells: int) -> int | None:
+    """Smallest N <= max_cells such that every fraction (of a period) is a multiple of 1/N."""
+    den = 1
+    for f in fractions:
+        fr = Fraction(f).limit_denominator(max_cells)
+        if abs(float(fr) - f) > 1e-12:
+            return None
+        den = den * fr.denominator // math.gcd(den, fr.denominator)
+        if den > max_cells:
+            return None
+    return den
+
+
+def _axis_cells(case: Case, axis: int, max_cells: int, fallback: int) -> tuple[int, bool]:
+    fr = []
+    for lay in case.layers:
+        for sh in lay.shapes:
+            lo_hi = sh.x if axis == 0 else sh.y
+            fr += [(v / case.period[axis]) % 1.0 for v in lo_hi]
+    n = _cells_for_exact_grid(fr, max_cells) if fr else 1
+    if n is None:
+        return fallback, False
+    return max(n, 1), True
+
+
+def _cover(lo: float, hi: float, period: float, n: int) -> np.ndarray:
+    """Boolean mask of the n cells (centres at (i + 1/2) period / n) inside [lo, hi), periodic."""
+    centres = (np.arange(n) + 0.5) * period / n
+    width = hi - lo
+    if width >= period:
+        return np.ones(n, dtype=bool)
+    return ((centres - lo) % period) < width
+
+
+def rasterize(case: Case, nx: int, ny: int) -> np.ndarray:
+    """Complex index on a (layers, ny, nx) raster; row iy covers y in [iy, iy+1) Ly/ny.
+
+    Shapes are painted in order, so a later shape covers an earlier one.
+    """
+    out = np.empty((len(case.layers), ny, nx), dtype=complex)
+    for li, lay in enumerate(case.layers):
+        out[li] = lay.background
+        for sh in lay.shapes:
+            mx = _cover(sh.x[0], sh.x[1], case.period[0], nx)
+            if case.is_2d:
+                my = _cover(sh.y[0], sh.y[1], case.period[1], ny)
+            else:
+                my = np.ones(ny, dtype=bool)
+            out[li][np.outer(my, mx)] = sh.index
+    return out
+
+
+# --------------------------------------------------------------------------------------------
+# Order bookkeeping
+# --------------------------------------------------------------------------------------------
+
+
+def tangential_k(case: Case, m: np.ndarray, n: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(k_x, k_y) / k0 of orders (m, n) in the project's convention."""
+    s = case.n_sup.real * math.sin(case.theta_rad)
+    kx = s * math.cos(case.phi_rad) - m * case.wavelength_um / case.period[0]
+    ky = s * math.sin(case.phi_rad)
+    if case.is_2d:
+        ky = ky - n * case.wavelength_um / case.period[1]
+    else:
+        ky = ky + 0 * n
+    return kx, ky
+
+
+def propagating(index: complex, kt2: np.ndarray) -> np.ndarray:
+    return (index * index).real - kt2 > 0
+
+
+def build_output(case: Case, eff: dict[str, np.ndarray]) -> tuple[list[dict], dict]:
+    """Turn efficiency arrays indexed [n + hy, m + hx] (OUR order indices) into the order list."""
+    hx, hy = case.half_orders
+    mm, nn = np.meshgrid(np.arange(-hx, hx + 1), np.arange(-hy, hy + 1))
+    kx, ky = tangential_k(case, mm, nn)
+    kt2 = kx * kx + ky * ky
+    keep = propagating(case.n_sup, kt2) | propagating(case.n_sub, kt2)
+    orders = []
+    for iy, ix in zip(*np.nonzero(keep)):
+        orders.append({
+            "m": int(mm[iy, ix]),
+            "n": int(nn[iy, ix]),
+            **{key: float(eff[key][iy, ix]) for key in ("R_s", "R_p", "T_s", "T_p")},
+        })
+    orders.sort(key=lambda o: (o["n"], o["m"]))
+    totals = {key: float(np.sum(eff[key])) for key in ("R_s", "R_p", "T_s", "T_p")}
+    return orders, totals
+
+
+# --------------------------------------------------------------------------------------------
+# meent
+# --------------------------------------------------------------------------------------------
+
+
+def meent_version() -> str:
+    import meent
+
+    return str(meent.__version__)
+
+
+_MEENT_PATCHED = False
+
+
+def _meent_outgoing_kz(n_medium, kx, ky):
+    """kz / k0 of the outgoing wave in meent's exp(+j omega t) convention: Im(kz) <= 0.
+
+    meent 0.13.2 takes the principal square root and then conjugates it. That picks the
+    right branch for lossless media (evanescent -> -i|kz|), but for a lossy medium
+    (eps = (n - ik)^2) it returns the conjugate of the physical root; the p/TM boundary
+    terms, which divide that kz by the unconjugated n^2, are then wrong: for an opaque metal
+    substrate meent gives Rp = 1.31 (Fresnel: 0.91) and a negative Tp. Choosing the branch
+    directly gives the same numbers as before for lossless media and the right ones for
+    lossy media (checked against Fresnel by check_peer_conventions.py).
+    """
+    kz = np.sqrt((n_medium ** 2 - kx ** 2 - ky.reshape((-1, 1)) ** 2).astype(complex))
+    return np.where(kz.imag > 0, -kz, kz).flatten()
+
+
+def _patch_meent() -> None:
+    """Replace the kz branch choice of meent's substrate/superstrate set-up (see above).
+
+    The replacements are the bodies of ``transfer_1d_conical_1`` and ``transfer_2d_1`` (the
+    two are identical in meent 0.13.2) with the branch chosen by :func:`_meent_outgoing_kz`;
+    the cost is unchanged.
+    """
+    global _MEENT_PATCHED
+    if _MEENT_PATCHED:
+        return
+    from meent.on_numpy.emsolver import _base
+
+    def set_up_half_spaces(kx, ky, n_top, n_bot, type_complex=np.complex128):
+        ff_xy = len(kx) * len(ky)
+        eye = np.eye(ff_xy, dtype=type_complex)
+        zero = np.zeros((ff_xy, ff_xy), dtype=type_complex)
+        kz_top = _meent_outgoing_kz(n_top, kx, ky)
+        kz_bot = _meent_outgoing_kz(n_bot, kx, ky)
+        varphi = np.arctan(ky.reshape((-1, 1)) / kx).flatten()
+        Kz_bot = np.diag(kz_bot)
+        big_F = np.block([[eye, zero], [zero, 1j * Kz_bot / (n_bot ** 2)]])
+        big_G = np.block([[1j * Kz_bot, zero], [zero, eye]])
+        big_T = np.eye(2 * ff_xy, dtype=type_complex)
+        return kz_top, kz_bot, varphi, big_F, big_G, big_T
+
+    _base.transfer_1d_conical_1 = set_up_half_spaces
+    _base.transfer_2d_1 = set_up_half_spaces
+    _MEENT_PATCHED = True
+
+
+def solve_meent(case: Case, raster: np.ndarray) -> dict[str, np.ndarray]:
+    """Both polarizations with meent's numpy backend; arrays indexed [n + hy, m + hx] (ours).
+
+    meent (0.13) conventions, each checked by ``check_peer_conventions.py``:
+
+    * it works in exp(+j omega t), so a lossy index is n - i k: every index is conjugated;
+    * its order index p has k_x = k_x,inc + p lambda / Lambda_x: p = -m (same for y);
+    * raster rows: meent flips the raster upside down (``cell_compression``), so the row
+      that covers y in [iy, iy+1) Ly/Ny is stored at row Ny-1-iy;
+    * theta, phi: as ours (tangential k = n_top sin theta (cos phi, sin phi));
+      the top medium is the incidence side and ``thickness[0]`` is the top layer;
+    * ``res_te_inc`` / ``res_tm_inc`` are s / p incidence (w.r.t. the plane of incidence);
+    * meent's kz branch is wrong for a lossy substrate in p: patched, see :func:`_patch_meent`.
+
+    Factorization (``fourier_type=1``: continuous Fourier series of the piecewise-constant
+    raster, exact): 1D conical -- Li 1996 inverse rule for eps_x, Laurent for eps_y and for
+    1/eps_z (the same as ours); 2D -- Li 1997's rules on the staircase cells, but nested
+    the other way round from ours (meent's ``cfs2d``: eps_x = [[ [[eps]]_y^-1 ]]_x^-1, the
+    Laurent rule along y inside and the inverse rule along x outside; ours applies the
+    inverse rule along x inside each y-slab, then Laurent along y; eps_y mirrored).
+    """
+    from meent import call_mee
+
+    _patch_meent()
+    hx, hy = case.half_orders
+    ucell = np.conj(raster[:, ::-1, :])  # n - ik, rows flipped (see docstring)
+    if case.is_2d and ucell.shape[1] == 1:
+        ucell = np.repeat(ucell, 2, axis=1)  # a 1-row raster would select meent's 1D solver
+    mee = call_mee(
+        backend=0,
+        ucell=ucell,
+        n_top=np.conj(case.n_sup),
+        n_bot=np.conj(case.n_sub),
+        theta=case.theta_rad,
+        phi=case.phi_rad,  # not None: selects the general (conical) 1D formulation
+        fto=[hx, hy],
+        period=list(case.period) if case.is_2d else [case.period[0], 1.0],
+        wavelength=case.wavelength_um,
+        thickness=[lay.thickness for lay in case.layers],
+        fourier_type=1,
+        pol=0,
+    )
+    res = mee.conv_solve()
+    out = {}
+    for pol, sub in (("s", res.res_te_inc), ("p", res.res_tm_inc)):
+        # meent index p runs -h..h along each axis and equals -(our index): reverse both axes.
+        out["R_" + pol] = np.asarray(sub.de_ri, dtype=float).reshape(2 * hy + 1, 2 * hx + 1)[::-1, ::-1]
+        out["T_" + pol] = np.asarray(sub.de_ti, dtype=float).reshape(2 * hy + 1, 2 * hx + 1)[::-1, ::-1]
+    return out
+
+
+MEENT_FORMULATION = {
+    1: "Moharam 1995 conical TMM + Li 1996 inverse rule (eps_x), exact continuous Fourier series",
+    2: ("Li 1997 rules nested the other way round (eps_x: Laurent along y inside, inverse rule along x "
+        "outside; eps_y mirrored), exact continuous Fourier series"),
+}
+
+
+# --------------------------------------------------------------------------------------------
+# grcwa
+# --------------------------------------------------------------------------------------------
+
+
+def grcwa_version() -> str:
+    import grcwa
+
+    return str(grcwa.__version__)
+
+
+def solve_grcwa(case: Case, raster: np.ndarray) -> dict[str, np.ndarray]:
+    """Both polarizations with grcwa (numpy backend); arrays indexed [n + hy, m + hx] (ours).
+
+    grcwa (0.1.2) conventions, each checked by ``check_peer_conventions.py``:
+
+    * exp(-i omega t) like ours (eps = (n + ik)^2), c = 1, freq = 1 / lambda;
+    * its layers are stacked along its +z from the incidence side, i.e. its z is our -z: a
+      mirror of the whole problem, which leaves efficiencies of isotropic media unchanged,
+      so x, y, theta, phi and the shapes are passed as they are;
+    * its reciprocal index G has k_x = k_x,inc + G_1 2 pi / Lambda_x: G_1 = -m (same for y);
+    * ``MakeExcitationPlanewave(p_amp, p_phase, s_amp, s_phase)``: s_amp=1 is s incidence.
+
+    The order set is forced to the full rectangle |m| <= hx, |n| <= hy (grcwa's own circular
+    truncation would drop the outermost ring). Factorization: grcwa has no Li rules --
+    Laurent's rule for the in-plane eps and the inverse of the Laurent eps for 1/eps_z, with
+    eps coefficients from the DFT of a sampled grid -- so it converges more slowly for p/TM
+    and metals, and does not match our formulation.
+    """
+    import grcwa
+    import grcwa.rcwa as grcwa_rcwa
+
+    hx, hy = case.half_orders
+    gx, gy = np.meshgrid(np.arange(-hx, hx + 1), np.arange(-hy, hy + 1))
+    G = np.stack([-gx.ravel(), -gy.ravel()], axis=1).astype(int)  # G index = -(our index)
+    original = grcwa_rcwa.Lattice_getG
+    grcwa_rcwa.Lattice_getG = lambda nG, Lk1, Lk2, method=0: (G, len(G))
+    try:
+        lx = case.period[0]
+        ly = case.period[1] if case.is_2d else 1.0
+        obj = grcwa.obj(len(G), [lx, 0.0], [0.0, ly], 1.0 / case.wavelength_um, case.theta_rad,
+                        case.phi_rad, verbose=0)
+        obj.Add_LayerUniform(0.0, case.n_sup ** 2)
+        patterned = []
+        for li, lay in enumerate(case.layers):
+            if lay.shapes:
+                ny_cells, nx_cells = raster.shape[1], raster.shape[2]
+                obj.Add_LayerGrid(lay.thickness, nx_cells, ny_cells)
+                patterned.append((raster[li] ** 2).T.ravel())  # grcwa grids are [ix, iy]
+            else:
+                obj.Add_LayerUniform(lay.thickness, lay.background ** 2)
+        obj.Add_LayerUniform(0.0, case.n_sub ** 2)
+        obj.Init_Setup(Gmethod=0)
+        if patterned:
+            obj.GridLayer_geteps(np.concatenate(patterned))
+    finally:
+        grcwa_rcwa.Lattice_getG = original
+    out = {}
+    for pol, (p_amp, s_amp) in (("s", (0.0, 1.0)), ("p", (1.0, 0.0))):
+        # ``order`` is the position of the incident (0, 0) order in G: the centre of our list
+        obj.MakeExcitationPlanewave(p_amp, 0.0, s_amp, 0.0, order=len(G) // 2)
+        R, T = obj.RT_Solve(normalize=1, byorder=1)
+        out["R_" + pol] = np.real(R).reshape(2 * hy + 1, 2 * hx + 1)
+        out["T_" + pol] = np.real(T).reshape(2 * hy + 1, 2 * hx + 1)
+    return out
+
+
+GRCWA_FORMULATION = {
+    1: "S4-style S-matrix, Laurent rule (no Li inverse rule), eps from the DFT of a fine grid",
+    2: "S4-style S-matrix, Laurent rule (no Li rules), eps from the DFT of a fine grid",
+}
+
+
+# --------------------------------------------------------------------------------------------
+# Driver
+# --------------------------------------------------------------------------------------------
+
+
+def prepare(case: Case, peer: str) -> tuple[np.ndarray, str]:
+    """The raster a peer needs and a note on how exact it is."""
+    if peer == "meent":
+        nx, exact_x = _axis_cells(case, 0, MAX_EXACT_CELLS_2D if case.is_2d else MAX_EXACT_CELLS_1D,
+                                  MAX_EXACT_CELLS_2D if case.is_2d else MAX_EXACT_CELLS_1D)
+        ny, exact_y = (_axis_cells(case, 1, MAX_EXACT_CELLS_2D, MAX_EXACT_CELLS_2D) if case.is_2d
+                       else (1, True))
+        note = "exact boundaries" if (exact_x and exact_y) else "boundaries rounded to a raster"
+    else:
+        # grcwa takes the DFT of a sampled grid: use a fine grid whose cell edges still fall
+        # on every boundary when the boundaries allow it (a multiple of the exact grid).
+        def fine(axis: int, target: int) -> int:
+            n, exact = _axis_cells(case, axis, target, target)
+            return n * max(1, -(-target // n)) if exact else target
+
+        nx = fine(0, GRCWA_CELLS_2D if case.is_2d else GRCWA_CELLS_1D)
+        ny = fine(1, GRCWA_CELLS_2D) if case.is_2d else 1
+        note = f"eps sampled on a {nx}x{ny} grid (DFT coefficients)"
+    return rasterize(case, nx, ny), note
+
+
+def run(case: Case, peer: str, repeats: int) -> dict:
+    if peer not in PEERS:
+        raise CaseError(f"--peer: expected one of {PEERS}, got {peer!r}")
+    solver = solve_meent if peer == "meent" else solve_grcwa
+    version = meent_version() if peer == "meent" else grcwa_version()
+    raster, note = prepare(case, peer)
+    eff = solver(case, raster)  # warm-up (imports, caches)
+    times = []
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        eff = solver(case, raster)
+        times.append(time.perf_counter() - t0)
+    orders, totals = build_output(case, eff)
+    kind = 2 if case.is_2d else 1
+    formulation = (MEENT_FORMULATION if peer == "meent" else GRCWA_FORMULATION)[kind]
+    factorization = "laurent" if peer == "grcwa" else ("li1996" if kind == 1 else "li1997-reversed-nesting")
+    return {
+        "peer": peer,
+        "version": version,
+        "case": case.name,
+        "seconds_per_solve": statistics.median(times),
+        "seconds_all": times,
+        "repeats": repeats,
+        "solve_covers": "both polarizations (s and p)",
+        "formulation": formulation,
+        "factorization": factorization,
+        "raster": note,
+        "orders": orders,
+        "totals": totals,
+        "numpy": np.__version__,
+        "threads": 1,
+    }
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("case", help="path of a case JSON file")
+    ap.add_argument("--peer", default=None, help=f"one of {PEERS} (default: the case's 'peer' or meent)")
+    ap.add_argument("--repeats", type=int, default=None, help="timed repeats after one warm-up (default 5)")
+    args = ap.parse_args(argv)
+    try:
+        with open(args.case, encoding="utf-8") as fh:
+            data = json.load(fh)
+        case = parse_case(data)
+        peer = args.peer or data.get("peer", "meent")
+        repeats = args.repeats if args.repeats is not None else int(data.get("repeats", 5))
+        if repeats < 1:
+            raise CaseError(f"--repeats: expected >= 1, got {repeats}")
+        result = run(case, peer, repeats)
+    except (OSError, json.JSONDecodeError, CaseError) as exc:
+        print(f"peer_runner: {args.case}: {exc}", file=sys.stderr)
+        return 2
+    json.dump(result, sys.stdout)
+    sys.stdout.write("\n")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
