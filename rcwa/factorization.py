@@ -24,6 +24,7 @@ solver's PQ eigenproblem (rcwa/cpp/modes.hpp) takes the Laurent matrix ``E = [[e
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import lru_cache
 from typing import Callable
 
 import numpy as np
@@ -146,7 +147,7 @@ def _crossed(layer: Layer, period, eps_of: Callable, h: HarmonicIndices, rule: s
         return PermittivityMatrices(E, _li_slabbed(layer, period, eps_of, h, axis=0), _li_slabbed(layer, period, eps_of, h, axis=1))
     c_inv = cell_coefficients(layer, period, lambda mat: 1.0 / eps_of(mat), gx, gy)
     delta = E - np.linalg.inv(_convolution(c_inv, 2 * mx, 2 * my, h))
-    nxx, nxy, nyy = _normal_products(layer, period, gx, gy)
+    nxx, nxy, nyy = _normal_products(layer, tuple(period), 2 * mx, 2 * my)
     conv = lambda c: _convolution(c, 2 * mx, 2 * my, h)  # noqa: E731
     # Symmetrized product: Hermitian for lossless cells, so the truncated problem
     # conserves energy exactly (Delta [[N]] alone does not; see docs/architecture.md).
@@ -209,7 +210,8 @@ def _clip_intervals(intervals, length: float):
     return out
 
 
-def _normal_products(layer: Layer, period, gx: np.ndarray, gy: np.ndarray):
+@lru_cache(maxsize=64)
+def _normal_products(layer: Layer, period: tuple[float, float], gx_max: int, gy_max: int):
     """Fourier coefficients of nx^2, nx ny, ny^2 of the normal-vector field.
 
     n(r) is the gradient of the distance to the nearest material boundary, i.e. the unit
@@ -217,8 +219,10 @@ def _normal_products(layer: Layer, period, gx: np.ndarray, gy: np.ndarray):
     every boundary, radial around corners, continuous except on the medial axis, where
     the tensor n n^T of equally near boundary points is averaged (so a symmetric cell
     gets a symmetric field). Sampled at the centres of an NV_GRID x NV_GRID grid and
-    transformed by FFT.
+    transformed by FFT. The field depends on the geometry only, not on the wavelength or
+    the angles, so it is cached per layer (a sweep computes it once).
     """
+    gx, gy = np.arange(-gx_max, gx_max + 1), np.arange(-gy_max, gy_max + 1)
     lx, ly = period
     xs = (np.arange(NV_GRID) + 0.5) * lx / NV_GRID
     ys = (np.arange(NV_GRID) + 0.5) * ly / NV_GRID

@@ -23,6 +23,12 @@ from rcwa.structure import Structure
 from workbench.conventions import Polarization, incident_tangential_k
 from workbench.errors import UserInputError
 
+# One BLAS thread inside the core: its matrices are small (2N <= ~1000), OpenBLAS's idle
+# threads spin after each call and then starve numpy's own BLAS on a 2-core machine
+# (measured: a 2D normal-vector solve at 11 x 11 took 177 ms with 2 threads, 64 ms with
+# 1), and sweeps parallelize across solves instead. Set once, here, at import.
+_core.set_blas_threads(1)
+
 # The superstrate must be lossless for the incident power to be defined; an index whose
 # imaginary part is below this (relative) is treated as lossless.
 LOSSLESS_TOLERANCE = 1e-12
