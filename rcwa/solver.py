@@ -33,6 +33,7 @@ _core.set_blas_threads(1)
 # imaginary part is below this (relative) is treated as lossless.
 LOSSLESS_TOLERANCE = 1e-12
 MAX_THETA_DEG = 90.0
+STACK_METHODS = ("etm", "smatrix")
 
 
 def solve(
@@ -43,6 +44,7 @@ def solve(
     orders: int | Sequence[int],
     pol: str | Polarization = Polarization.UNPOLARIZED,
     factorization: str = "auto",
+    stack: str = "etm",
 ) -> SolveResult:
     """Diffraction efficiencies of ``structure`` for one incident plane wave.
 
@@ -55,7 +57,14 @@ def solve(
         int means ``(N, N)``).
     pol: ``"s"``, ``"p"`` or ``"unpolarized"`` (the mean of s and p efficiencies).
     factorization: ``"auto"``, ``"li"``, ``"nv"`` or ``"laurent"`` (rcwa.factorization).
+    stack: how layers are combined (rcwa/cpp/stack.cpp), both free of growing exponentials:
+        ``"etm"``, the enhanced transmittance matrix (Moharam et al. 1995b; one bottom-up
+        sweep, the default: half the time of the other for one-sided solves), or
+        ``"smatrix"``, Redheffer's star product of layer scattering matrices (Rumpf 2011).
+        They agree to round-off (tests/rcwa/test_stack_methods.py).
     """
+    if stack not in STACK_METHODS:
+        raise UserInputError("unknown stack method", field="stack", expected=f"one of {STACK_METHODS}", got=stack)
     pol = _polarization(pol)
     counts = _order_counts(orders, structure.dimension)
     rule = resolve_rule(factorization, structure.dimension, structure.layers)
@@ -72,7 +81,7 @@ def solve(
 
     h, kx, ky, zero = _harmonics(structure.period, counts, wl_um, math.sqrt(eps_sup.real), theta, phi)
     layers = [_layer_input(layer, structure, eps_of, h, rule, 2 * math.pi / wl_um) for layer in structure.layers]
-    r, t, kz_sup, kz_sub = _core.solve_stack(kx, ky, zero, eps_sup, eps_sub, (-math.sin(phi), math.cos(phi)), layers)
+    r, t, kz_sup, kz_sub = _core.solve_stack(kx, ky, zero, eps_sup, eps_sub, (-math.sin(phi), math.cos(phi)), layers, stack)
     return _result(structure, wavelength_nm, theta_deg, phi_deg, pol, counts, rule, h, kx, ky, zero, eps_sup, eps_sub, r, t, kz_sup, kz_sub)
 
 

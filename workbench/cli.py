@@ -40,6 +40,8 @@ def _build_parser() -> argparse.ArgumentParser:
     solve.add_argument("--pol", choices=["s", "p", "unpolarized"], default="unpolarized")
     solve.add_argument("--factorization", choices=["auto", "li", "nv", "laurent"], default="auto",
                        help="Fourier factorization rule (default: li in 1D, nv in 2D)")
+    solve.add_argument("--stack", choices=["etm", "smatrix"], default="etm",
+                       help="layer stacking: enhanced transmittance matrix (default) or Redheffer star product")
     solve.add_argument("--json", action="store_true", help="print one JSON object instead of a table")
 
     commands.add_parser("demo", help="the main job on the built-in scene (for now: the CD's orders)")
@@ -51,7 +53,8 @@ def _run_rcwa_solve(args: argparse.Namespace) -> int:
     from workbench.report_text import solve_table
 
     structure = rcwa.load_structure(args.structure)
-    result = rcwa.solve(structure, args.wavelength, args.theta, args.phi, args.orders, args.pol, args.factorization)
+    result = rcwa.solve(structure, args.wavelength, args.theta, args.phi, args.orders, args.pol, args.factorization,
+                        args.stack)
     print(json.dumps(result.to_dict(), indent=2) if args.json else solve_table(result))
     return 0
 

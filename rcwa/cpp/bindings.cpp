@@ -64,7 +64,9 @@ struct LayerInput {
 // kx, ky: normalized harmonics; layers: (kind, k0*d, eps, [matrices]) from the top down.
 nb::tuple solve_stack_py(const RArray1& kx, const RArray1& ky, int zero_order, cplx eps_sup,
                          cplx eps_sub, std::tuple<double, double> s_direction,
-                         const std::vector<std::tuple<std::string, double, cplx, std::vector<CArray2>>>& layers) {
+                         const std::vector<std::tuple<std::string, double, cplx, std::vector<CArray2>>>& layers,
+                         const std::string& method) {
+    if (method != "smatrix" && method != "etm") throw std::invalid_argument("method must be 'smatrix' or 'etm'");
     rcwa::StackProblem pr;
     pr.harmonics.kx = to_vec(kx);
     pr.harmonics.ky = to_vec(ky);
@@ -104,7 +106,8 @@ nb::tuple solve_stack_py(const RArray1& kx, const RArray1& ky, int zero_order, c
             pr.layers.push_back(modes.back().get());
             pr.thickness.push_back(in.thickness);
         }
-        sol = rcwa::solve_stack(pr);
+        sol = rcwa::solve_stack(pr, method == "etm" ? rcwa::StackMethod::EnhancedTransmittance
+                                                    : rcwa::StackMethod::ScatteringMatrix);
     }
     return nb::make_tuple(to_numpy(sol.r), to_numpy(sol.t), to_numpy(sol.kz_superstrate),
                           to_numpy(sol.kz_substrate));
@@ -115,7 +118,7 @@ nb::tuple solve_stack_py(const RArray1& kx, const RArray1& ky, int zero_order, c
 NB_MODULE(_core, m) {
     m.doc() = "RCWA core (C++17, LAPACK from scipy-openblas32). See rcwa/cpp/*.hpp.";
     m.def("solve_stack", &solve_stack_py, "kx"_a, "ky"_a, "zero_order"_a, "eps_superstrate"_a,
-          "eps_substrate"_a, "s_direction"_a, "layers"_a,
+          "eps_substrate"_a, "s_direction"_a, "layers"_a, "method"_a = "etm",
           "Outgoing s/p amplitudes (r, t: 2N x 2 for unit s and p incidence) and the half-space kz.");
     m.def("set_blas_threads", &rcwa::set_blas_threads, "n"_a,
           "Number of OpenBLAS threads (1 when the core runs its own threads).");

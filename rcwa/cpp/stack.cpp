@@ -1,7 +1,12 @@
-// Enhanced transmittance matrix approach (Moharam, Pommet, Grann & Gaylord 1995, JOSA A 12,
-// 1077, Eqs. 10-15), generalized to the PQ modes of modes.hpp. The stack is walked from
-// the substrate up; each layer's growing exponential is never formed (only X = e^{i kz d},
-// |X| <= 1, appears), so thick and lossy layers stay stable.
+// Two stack methods over the PQ modes of modes.hpp; neither ever forms a growing
+// exponential (only X = e^{i kz d}, |X| <= 1, appears), so thick and lossy layers stay
+// stable:
+// * scattering matrices: each layer's S-matrix in a fictitious gap medium (zero thickness
+//   between every two layers), combined by the Redheffer star product (Rumpf 2011, PIER B
+//   35, 241, Eqs. 60-73). The gap medium is lossless with eps_gap = 1 + max kt^2, so
+//   every order propagates in it with kz >= 1: its basis never degenerates.
+// * enhanced transmittance matrix (Moharam, Pommet, Grann & Gaylord 1995, JOSA A 12,
+//   1077, Eqs. 10-15): the stack walked once from the substrate up.
 //
 // The half-spaces enter only through their outgoing waves, as tall 4N x 2N matrices whose
 // columns stay independent at kz = 0 (s waves normalized by E, p waves by h): an order
@@ -10,7 +15,9 @@
 // (rows kz E_s + h_p and E_p - kz/eps h_s per order) gives a 2N x 2N system.
 #include "stack.hpp"
 
+#include <algorithm>
 #include <cmath>
+#include <memory>
 
 namespace rcwa {
 
@@ -74,53 +81,88 @@ struct LayerStep {
     CVec X;
 };
 
-}  // namespace
+CVec propagation(const LayerModes& m, double k0d) {
+    CVec X(m.kz().size());
+    for (std::size_t i = 0; i < X.size(); ++i) X[i] = std::exp(cplx(0.0, 1.0) * m.kz()[i] * k0d);
+    return X;
+}
 
-StackSolution solve_stack(const StackProblem& pr) {
-    const int n = pr.harmonics.size();
-    const int n2 = 2 * n;
-    const std::size_t nl = pr.layers.size();
-    if (pr.thickness.size() != nl) throw std::invalid_argument("solve_stack: one thickness per layer");
-    const Basis basis = polarization_basis(pr);
+// S-matrix between gap-medium ports: [b1; b2] = [[S11, S12], [S21, S22]] [a1; a2], port 1
+// above (a1 down-going in, b1 up-going out), port 2 below (a2 up-going in, b2 down-going out).
+struct SMatrix {
+    Mat S11, S12, S21, S22;
+    static SMatrix identity(int n) { return {Mat(n, n), Mat::identity(n), Mat::identity(n), Mat(n, n)}; }
+};
 
-    StackSolution out;
-    out.kz_superstrate = half_space_kz(pr.harmonics, pr.eps_superstrate);
-    out.kz_substrate = half_space_kz(pr.harmonics, pr.eps_substrate);
+// The fictitious gap medium: lossless, eps = 1 + max kt^2, so kz >= 1 for every order.
+std::unique_ptr<LayerModes> gap_medium(const Harmonics& h) {
+    double kt2 = 0.0;
+    for (int i = 0; i < h.size(); ++i) kt2 = std::max(kt2, h.kx[i] * h.kx[i] + h.ky[i] * h.ky[i]);
+    return uniform_modes(h, cplx(1.0 + kt2, 0.0));
+}
 
-    Mat f, g;
-    outgoing_columns(basis, out.kz_substrate, pr.eps_substrate, -1.0, f, g);
-
-    std::vector<LayerStep> steps;
-    steps.reserve(nl);
-    for (std::size_t k = nl; k-- > 0;) {
-        const LayerModes& m = *pr.layers[k];
-        const Mat Wf = m.apply_W_inverse(f);
-        const Mat Vg = m.apply_V_inverse(g);
-        Mat a(n2, n2), b(n2, n2);
-        for (std::size_t q = 0; q < a.data.size(); ++q) {
-            a.data[q] = 0.5 * (Wf.data[q] - Vg.data[q]);
-            b.data[q] = 0.5 * (Wf.data[q] + Vg.data[q]);
-        }
-        CVec X(n2);
-        for (int i = 0; i < n2; ++i) X[i] = std::exp(cplx(0.0, 1.0) * m.kz()[i] * pr.thickness[k]);
-        LU lu(std::move(a));
-        Mat XMX = lu.solve_right(b);  // b a^{-1}
-        for (int j = 0; j < n2; ++j)
-            for (int i = 0; i < n2; ++i) XMX(i, j) *= X[i] * X[j];
-        Mat plus = XMX, minus = XMX;
-        for (int i = 0; i < n2; ++i) {
-            plus(i, i) += 1.0;
-            minus(i, i) -= 1.0;
-        }
-        f = m.apply_W(plus);
-        g = m.apply_V(minus);
-        steps.push_back(LayerStep{std::move(lu), std::move(X)});
+// One layer between gaps (Rumpf 2011, Eqs. 60-69 in our sign convention): with
+// A = W^-1 W0 + V^-1 V0, B = W^-1 W0 - V^-1 V0 (W0 = I) and D = A - X B A^-1 X B,
+// S11 = S22 = D^-1 (X B A^-1 X A - B),  S12 = S21 = D^-1 X (A - B A^-1 B).
+SMatrix layer_smatrix(const LayerModes& m, double k0d, const LayerModes& gap) {
+    const int n2 = static_cast<int>(m.kz().size());
+    const Mat G = m.apply_W_inverse(Mat::identity(n2));
+    const Mat H = m.apply_V_inverse(gap.apply_V(Mat::identity(n2)));
+    Mat A(n2, n2), B(n2, n2);
+    for (std::size_t q = 0; q < A.data.size(); ++q) {
+        A.data[q] = G.data[q] + H.data[q];
+        B.data[q] = G.data[q] - H.data[q];
     }
+    const CVec X = propagation(m, k0d);
+    auto scale_rows = [&](Mat M) {
+        for (int j = 0; j < n2; ++j)
+            for (int i = 0; i < n2; ++i) M(i, j) *= X[i];
+        return M;
+    };
+    const Mat XB = scale_rows(B);
+    const LU luA(A);
+    Mat D = A;
+    gemm(XB, luA.solve(XB), D, -1.0, 1.0);
+    const LU luD(std::move(D));
+    Mat num11 = B;
+    gemm(XB, luA.solve(scale_rows(A)), num11, 1.0, -1.0);
+    Mat num12 = A;
+    gemm(B, luA.solve(B), num12, -1.0, 1.0);
+    SMatrix s;
+    s.S11 = luD.solve(num11);
+    s.S12 = luD.solve(scale_rows(std::move(num12)));
+    s.S21 = s.S12;
+    s.S22 = s.S11;
+    return s;
+}
 
-    // Incident waves (down-going in the superstrate), s in column 0 and p in column 1.
+// Redheffer star product: a above b.
+SMatrix star(const SMatrix& a, const SMatrix& b) {
+    const int n2 = a.S11.rows;
+    Mat I_BA = Mat::identity(n2);
+    gemm(b.S11, a.S22, I_BA, -1.0, 1.0);  // I - B11 A22
+    Mat I_AB = Mat::identity(n2);
+    gemm(a.S22, b.S11, I_AB, -1.0, 1.0);  // I - A22 B11
+    const LU lu1(std::move(I_BA)), lu2(std::move(I_AB));
+    SMatrix s;
+    s.S11 = a.S11;
+    gemm(a.S12, lu1.solve(matmul(b.S11, a.S21)), s.S11, 1.0, 1.0);
+    s.S12 = matmul(a.S12, lu1.solve(b.S12));
+    s.S21 = matmul(b.S21, lu2.solve(a.S21));
+    s.S22 = b.S22;
+    gemm(b.S21, lu2.solve(matmul(a.S22, b.S12)), s.S22, 1.0, 1.0);
+    return s;
+}
+
+// The top of the stack seen from the superstrate: any field there is [f; g] T for some
+// T (2N). Closes it with the superstrate (incident + outgoing waves) and returns T for
+// unit s and p incidence (columns 0 and 1); fills out.r.
+Mat close_top(const StackProblem& pr, const Basis& basis, const Mat& f, const Mat& g, StackSolution& out) {
+    const int n = pr.harmonics.size(), n2 = 2 * n;
     const int i0 = pr.zero_order;
     const cplx eps1 = pr.eps_superstrate;
     const cplx kz0 = out.kz_superstrate[i0];
+    // Incident waves (down-going in the superstrate), s in column 0 and p in column 1.
     Mat Finc(n2, 2), Ginc(n2, 2);
     Finc(i0, 0) = basis.sx[i0];
     Finc(n + i0, 0) = basis.sy[i0];
@@ -158,6 +200,39 @@ StackSolution solve_stack(const StackProblem& pr) {
             out.r(n + i, j) = basis.sx[i] * (phi(i, j) - Ginc(i, j)) + basis.sy[i] * (phi(n + i, j) - Ginc(n + i, j));
         }
     }
+    return T;
+}
+
+void solve_etm(const StackProblem& pr, const Basis& basis, StackSolution& out) {
+    const int n2 = 2 * pr.harmonics.size();
+    Mat f, g;
+    outgoing_columns(basis, out.kz_substrate, pr.eps_substrate, -1.0, f, g);
+    std::vector<LayerStep> steps;
+    steps.reserve(pr.layers.size());
+    for (std::size_t k = pr.layers.size(); k-- > 0;) {
+        const LayerModes& m = *pr.layers[k];
+        const Mat Wf = m.apply_W_inverse(f);
+        const Mat Vg = m.apply_V_inverse(g);
+        Mat a(n2, n2), b(n2, n2);
+        for (std::size_t q = 0; q < a.data.size(); ++q) {
+            a.data[q] = 0.5 * (Wf.data[q] - Vg.data[q]);
+            b.data[q] = 0.5 * (Wf.data[q] + Vg.data[q]);
+        }
+        CVec X = propagation(m, pr.thickness[k]);
+        LU lu(std::move(a));
+        Mat XMX = lu.solve_right(b);  // b a^{-1}
+        for (int j = 0; j < n2; ++j)
+            for (int i = 0; i < n2; ++i) XMX(i, j) *= X[i] * X[j];
+        Mat plus = XMX, minus = XMX;
+        for (int i = 0; i < n2; ++i) {
+            plus(i, i) += 1.0;
+            minus(i, i) -= 1.0;
+        }
+        f = m.apply_W(plus);
+        g = m.apply_V(minus);
+        steps.push_back(LayerStep{std::move(lu), std::move(X)});
+    }
+    Mat T = close_top(pr, basis, f, g, out);
     // Walk down: T_below = a^{-1} X T_above (steps were stored bottom layer first).
     for (std::size_t k = steps.size(); k-- > 0;) {
         for (int j = 0; j < T.cols; ++j)
@@ -165,6 +240,56 @@ StackSolution solve_stack(const StackProblem& pr) {
         T = steps[k].a.solve(T);
     }
     out.t = std::move(T);
+}
+
+void solve_smatrix(const StackProblem& pr, const Basis& basis, StackSolution& out) {
+    const int n2 = 2 * pr.harmonics.size();
+    const auto gap = gap_medium(pr.harmonics);
+    SMatrix total = SMatrix::identity(n2);
+    for (std::size_t k = 0; k < pr.layers.size(); ++k) {
+        SMatrix layer = layer_smatrix(*pr.layers[k], pr.thickness[k], *gap);
+        total = k == 0 ? std::move(layer) : star(total, layer);
+    }
+
+    // Bottom: the gap fields equal the substrate's outgoing waves, [psi; phi] = [F; G] t.
+    // Gap amplitudes there: a2 (up, into the stack) = (F + V0^-1 G) t / 2, b2 (down) =
+    // (F - V0^-1 G) t / 2, and b2 = S21 a1 + S22 a2 gives S21 a1 = Mb t.
+    Mat F, G;
+    outgoing_columns(basis, out.kz_substrate, pr.eps_substrate, -1.0, F, G);
+    const Mat V0G = gap->apply_V_inverse(G);
+    Mat up(n2, n2), down(n2, n2);
+    for (std::size_t q = 0; q < up.data.size(); ++q) {
+        up.data[q] = 0.5 * (F.data[q] + V0G.data[q]);
+        down.data[q] = 0.5 * (F.data[q] - V0G.data[q]);
+    }
+    Mat Mb = down;
+    gemm(total.S22, up, Mb, -1.0, 1.0);
+    const LU luMb(std::move(Mb));
+    // Top: b1 = R_eff a1, R_eff = S11 + S12 up Mb^-1 S21; field [a1 + b1; V0 (b1 - a1)].
+    const Mat transfer = luMb.solve(total.S21);  // t = transfer a1
+    Mat Reff = total.S11;
+    gemm(total.S12, matmul(up, transfer), Reff, 1.0, 1.0);
+    Mat plus = Reff, minus = Reff;
+    for (int i = 0; i < n2; ++i) {
+        plus(i, i) += 1.0;
+        minus(i, i) -= 1.0;
+    }
+    const Mat a1 = close_top(pr, basis, plus, gap->apply_V(minus), out);
+    out.t = matmul(transfer, a1);
+}
+
+}  // namespace
+
+StackSolution solve_stack(const StackProblem& pr, StackMethod method) {
+    if (pr.thickness.size() != pr.layers.size()) throw std::invalid_argument("solve_stack: one thickness per layer");
+    const Basis basis = polarization_basis(pr);
+    StackSolution out;
+    out.kz_superstrate = half_space_kz(pr.harmonics, pr.eps_superstrate);
+    out.kz_substrate = half_space_kz(pr.harmonics, pr.eps_substrate);
+    if (method == StackMethod::EnhancedTransmittance)
+        solve_etm(pr, basis, out);
+    else
+        solve_smatrix(pr, basis, out);
     return out;
 }
 

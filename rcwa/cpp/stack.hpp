@@ -25,6 +25,15 @@ struct StackSolution {
     CVec kz_substrate;    // N
 };
 
-StackSolution solve_stack(const StackProblem& problem);
+enum class StackMethod {
+    // Redheffer star product of layer scattering matrices (Redheffer 1961; Rumpf 2011,
+    // PIER B 35, 241, Eqs. 60-73; as in S4, Liu & Fan 2012). Gives both sides of the stack.
+    ScatteringMatrix,
+    // Enhanced transmittance matrix (Moharam, Pommet, Grann & Gaylord 1995, JOSA A 12,
+    // 1077): one bottom-up sweep, about half the work for a one-sided solve.
+    EnhancedTransmittance,
+};
+
+StackSolution solve_stack(const StackProblem& problem, StackMethod method = StackMethod::EnhancedTransmittance);
 
 }  // namespace rcwa
