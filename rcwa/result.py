@@ -34,6 +34,14 @@ class OrderResult:
     direction_T: tuple[float, float] | None
     amplitudes: dict[str, complex] = field(repr=False, default_factory=dict)
 
+    @property
+    def R_unpolarized(self) -> float:
+        return 0.5 * (self.R_s + self.R_p)
+
+    @property
+    def T_unpolarized(self) -> float:
+        return 0.5 * (self.T_s + self.T_p)
+
     def to_dict(self) -> dict[str, Any]:
         return {"m": self.m, "n": self.n, "R": self.R, "T": self.T}
 

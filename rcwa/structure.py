@@ -217,7 +217,20 @@ def _parse_shape(item: Any, where: str, period: tuple[float, ...], material) -> 
         return _parse_stripe(item["x"], f"{where}.x", period[0], mat)
     if kind == "x":
         raise UserInputError("a 2D structure (period = [Lx, Ly]) takes rect, circle or polygon", field=f"{where}.x")
-    return _parse_2d(kind, item[kind], f"{where}.{kind}", mat)
+    shape = _parse_2d(kind, item[kind], f"{where}.{kind}", mat)
+    _check_fits_period(shape, period, f"{where}.{kind}")
+    return shape
+
+
+def _check_fits_period(shape: Shape, period: tuple[float, ...], where: str) -> None:
+    """A 2D shape wider than the cell would overlap its own periodic image."""
+    minx, miny, maxx, maxy = shape.outline().bounds
+    if maxx - minx > period[0] * (1 + 1e-12) or maxy - miny > period[1] * (1 + 1e-12):
+        raise UserInputError(
+            "the shape is larger than the unit cell (it would overlap its own periodic image)",
+            field=where, expected=f"a width <= {period[0]} and a height <= {period[1]}",
+            got=[round(maxx - minx, 12), round(maxy - miny, 12)],
+        )
 
 
 def _parse_stripe(value: Any, where: str, period: float, mat: Material) -> Stripe:

@@ -107,6 +107,21 @@ def test_wavelength_error_names_file_and_field(tmp_path, capsys):
     assert code == 2 and str(path) in err and "substrate" in err and "gold" in err
 
 
+def test_2d_shape_larger_than_the_cell(tmp_path, capsys):
+    text = textwrap.dedent("""\
+        period = [1.0, 1.0]
+        superstrate = "air"
+        substrate = "air"
+        [[layers]]
+        thickness = 0.2
+        material = "air"
+        shapes = [ { material = "gold", circle = { center = [0.5, 0.5], radius = 0.6 } } ]
+    """)
+    path = _write(tmp_path, text)
+    code, _, err = _run(capsys, "rcwa", "solve", str(path), "--wavelength", "550", "--orders", "5,5")
+    assert code == 2 and "layers[0].shapes[0].circle" in err and "larger than the unit cell" in err
+
+
 def test_unknown_structure_name(capsys):
     code, _, err = _run(capsys, "rcwa", "solve", "no_such_thing", "--wavelength", "550", "--orders", "11")
     assert code == 2 and "cd" in err and "gold2d" in err
