@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -34,6 +35,41 @@ _core.set_blas_threads(1)
 LOSSLESS_TOLERANCE = 1e-12
 MAX_THETA_DEG = 90.0
 STACK_METHODS = ("etm", "smatrix")
+
+
+@dataclass(frozen=True)
+class PreparedStructure:
+    """Everything about a request that does not depend on the incident direction."""
+
+    structure: Structure
+    wavelength_nm: float
+    counts: tuple[int, ...]
+    rule: str
+    harmonics: HarmonicIndices
+    dkx: np.ndarray  # kx of harmonic i is kx0 + dkx[i] (normalized by k0)
+    dky: np.ndarray
+    zero: int
+    eps_sup: complex
+    eps_sub: complex
+    layers: list
+
+
+def prepare(structure: Structure, wavelength_nm: float, orders: int | Sequence[int], factorization: str = "auto") -> PreparedStructure:
+    """Validate the request and build every layer's Fourier matrices (direction-free)."""
+    counts = _order_counts(orders, structure.dimension)
+    rule = resolve_rule(factorization, structure.dimension, structure.layers)
+    wl_um = _positive(wavelength_nm, "wavelength") / 1000.0
+    eps_of = _permittivity_lookup(structure, float(wavelength_nm))
+    eps_sup, eps_sub = eps_of(structure.superstrate), eps_of(structure.substrate)
+    if abs(eps_sup.imag) > LOSSLESS_TOLERANCE * abs(eps_sup) or eps_sup.real <= 0:
+        raise UserInputError(
+            "the superstrate must be a lossless dielectric (the incident power is measured there)",
+            file=structure.source, field="superstrate", expected="k = 0 and n > 0", got=complex(np.sqrt(eps_sup)),
+        )
+    h, dkx, dky, zero = _harmonics(structure.period, counts, wl_um)
+    layers = [_layer_input(layer, structure, eps_of, h, rule, 2 * math.pi / wl_um) for layer in structure.layers]
+    return PreparedStructure(structure, float(wavelength_nm), counts, rule, h, dkx, dky, zero,
+                             complex(eps_sup.real, 0.0), eps_sub, layers)
 
 
 def solve(
@@ -63,26 +99,46 @@ def solve(
         ``"smatrix"``, Redheffer's star product of layer scattering matrices (Rumpf 2011).
         They agree to round-off (tests/rcwa/test_stack_methods.py).
     """
+    pol = _polarization(pol)
+    check_stack(stack)
+    theta, phi = _angles(theta_deg, phi_deg)
+    prep = prepare(structure, wavelength_nm, orders, factorization)
+    kx0, ky0 = incident_tangential_k(math.sqrt(prep.eps_sup.real), theta, phi)
+    r, t, kz_sup, kz_sub = _core.solve_stack(
+        kx0 + prep.dkx, ky0 + prep.dky, prep.zero, prep.eps_sup, prep.eps_sub, s_direction(phi), prep.layers, stack
+    )
+    return _result(prep, theta_deg, phi_deg, pol, kx0 + prep.dkx, ky0 + prep.dky, r, t, kz_sup, kz_sub)
+
+
+def check_stack(stack: str) -> None:
     if stack not in STACK_METHODS:
         raise UserInputError("unknown stack method", field="stack", expected=f"one of {STACK_METHODS}", got=stack)
-    pol = _polarization(pol)
-    counts = _order_counts(orders, structure.dimension)
-    rule = resolve_rule(factorization, structure.dimension, structure.layers)
-    wl_um = _positive(wavelength_nm, "wavelength") / 1000.0
-    theta, phi = _angles(theta_deg, phi_deg)
-    eps_of = _permittivity_lookup(structure, float(wavelength_nm))
-    eps_sup, eps_sub = eps_of(structure.superstrate), eps_of(structure.substrate)
-    if abs(eps_sup.imag) > LOSSLESS_TOLERANCE * abs(eps_sup) or eps_sup.real <= 0:
-        raise UserInputError(
-            "the superstrate must be a lossless dielectric (the incident power is measured there)",
-            file=structure.source, field="superstrate", expected="k = 0 and n > 0", got=complex(np.sqrt(eps_sup)),
-        )
-    eps_sup = complex(eps_sup.real, 0.0)
 
-    h, kx, ky, zero = _harmonics(structure.period, counts, wl_um, math.sqrt(eps_sup.real), theta, phi)
-    layers = [_layer_input(layer, structure, eps_of, h, rule, 2 * math.pi / wl_um) for layer in structure.layers]
-    r, t, kz_sup, kz_sub = _core.solve_stack(kx, ky, zero, eps_sup, eps_sub, (-math.sin(phi), math.cos(phi)), layers, stack)
-    return _result(structure, wavelength_nm, theta_deg, phi_deg, pol, counts, rule, h, kx, ky, zero, eps_sup, eps_sub, r, t, kz_sup, kz_sub)
+
+def s_direction(phi: float) -> tuple[float, float]:
+    """s-hat of the plane of incidence at azimuth phi (used where kx = ky = 0)."""
+    return -math.sin(phi), math.cos(phi)
+
+
+def efficiencies(r: np.ndarray, t: np.ndarray, kz_sup: np.ndarray, kz_sub: np.ndarray, kz0: np.ndarray,
+                 eps_sup: complex, eps_sub: complex) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Efficiencies from amplitudes, vectorized over leading axes.
+
+    r, t: (..., 2K, 2) outgoing s rows then p rows, for s and p incidence (columns);
+    kz_*: (..., K); kz0: (...,) the incident wave's kz. s waves carry |a|^2 Re(kz), p
+    waves (h-normalized) |b|^2 Re(kz / eps), through a plane z = const; the incident s
+    wave carries kz0 and the p wave kz0 / eps_sup. Returns R, T and the power entering the
+    substrate, each (..., K, 2); T is zero over an absorbing substrate (nothing reaches
+    infinity there).
+    """
+    k = kz_sup.shape[-1]
+    power_in = np.stack([np.real(kz0), np.real(kz0 / eps_sup)], axis=-1)[..., None, :]
+    R = (np.abs(r[..., :k, :]) ** 2 * np.real(kz_sup)[..., None]
+         + np.abs(r[..., k:, :]) ** 2 * np.real(kz_sup / eps_sup)[..., None]) / power_in
+    into = (np.abs(t[..., :k, :]) ** 2 * np.real(kz_sub)[..., None]
+            + np.abs(t[..., k:, :]) ** 2 * np.real(kz_sub / eps_sub)[..., None]) / power_in
+    lossless_sub = eps_sub.imag == 0.0 and eps_sub.real > 0
+    return R, (into if lossless_sub else np.zeros_like(into)), into
 
 
 # ---------------------------------------------------------------- validation
@@ -143,21 +199,21 @@ def _permittivity_lookup(structure: Structure, wavelength_nm: float):
 # ---------------------------------------------------------------- assembly
 
 
-def _harmonics(period, counts, wl_um: float, n_sup: float, theta: float, phi: float):
-    kx0, ky0 = incident_tangential_k(n_sup, theta, phi)
+def _harmonics(period, counts, wl_um: float):
+    """Retained harmonics and their offsets from the incident wave vector (Eq. 2 sign)."""
     ms = np.arange(counts[0]) - counts[0] // 2
     if len(period) == 1:
         h = HarmonicIndices(ms, np.zeros_like(ms))
-        kx = kx0 - ms * wl_um / period[0]
-        ky = np.full(ms.shape, ky0)
+        dkx = -ms * wl_um / period[0]
+        dky = np.zeros(ms.shape)
     else:
         ns = np.arange(counts[1]) - counts[1] // 2
         M, N = np.meshgrid(ms, ns, indexing="ij")
         h = HarmonicIndices(M.ravel(), N.ravel())
-        kx = kx0 - h.m * wl_um / period[0]
-        ky = ky0 - h.n * wl_um / period[1]
+        dkx = -h.m * wl_um / period[0]
+        dky = -h.n * wl_um / period[1]
     zero = int(np.flatnonzero((h.m == 0) & (h.n == 0))[0])
-    return h, np.ascontiguousarray(kx, dtype=float), np.ascontiguousarray(ky, dtype=float), zero
+    return h, np.ascontiguousarray(dkx, dtype=float), np.ascontiguousarray(dky, dtype=float), zero
 
 
 def _layer_input(layer, structure: Structure, eps_of, h: HarmonicIndices, rule: str, k0: float):
@@ -174,23 +230,17 @@ def _layer_input(layer, structure: Structure, eps_of, h: HarmonicIndices, rule: 
     return ("general", k0d, 0j, [pm.E, pm.exx, exy, eyx, pm.eyy])
 
 
-def _result(structure, wavelength_nm, theta_deg, phi_deg, pol, counts, rule, h, kx, ky, zero, eps_sup, eps_sub, r, t, kz_sup, kz_sub) -> SolveResult:
+def _result(prep: PreparedStructure, theta_deg, phi_deg, pol, kx, ky, r, t, kz_sup, kz_sub) -> SolveResult:
     n = kx.size
-    kz0 = kz_sup[zero]
-    power_in = np.array([kz0.real, (kz0 / eps_sup).real])  # s (E-normalized), p (h-normalized)
+    eps_sup, eps_sub, h = prep.eps_sup, prep.eps_sub, prep.harmonics
+    R, T, T_into = efficiencies(r, t, kz_sup, kz_sub, kz_sup[prep.zero], eps_sup, eps_sub)
     lossless_sub = eps_sub.imag == 0.0 and eps_sub.real > 0
-    # eff[k][i, col]: efficiency of outgoing k-part (s or p) of order i for incidence col.
-    R = np.abs(r[:n]) ** 2 * kz_sup.real[:, None] + np.abs(r[n:]) ** 2 * (kz_sup / eps_sup).real[:, None]
-    T_into = np.abs(t[:n]) ** 2 * kz_sub.real[:, None] + np.abs(t[n:]) ** 2 * (kz_sub / eps_sub).real[:, None]
-    R = R / power_in
-    T_into = T_into / power_in
-    T = T_into if lossless_sub else np.zeros_like(T_into)
     weights = {"s": np.array([1.0, 0.0]), "p": np.array([0.0, 1.0]), "unpolarized": np.array([0.5, 0.5])}[pol.value]
     R_pol, T_pol = R @ weights, T @ weights
 
     kt = np.hypot(kx, ky)
     prop_R = (eps_sup.real - kt**2) > 0
-    prop_T = lossless_sub & ((eps_sub.real - kt**2) > 0) if lossless_sub else np.zeros(n, dtype=bool)
+    prop_T = ((eps_sub.real - kt**2) > 0) if lossless_sub else np.zeros(n, dtype=bool)
     azimuth = np.degrees(np.arctan2(ky, kx))
     orders = []
     for i in np.flatnonzero(prop_R | prop_T):
@@ -213,8 +263,8 @@ def _result(structure, wavelength_nm, theta_deg, phi_deg, pol, counts, rule, h, 
     R_total = float(np.sum(R_pol))
     T_total = float(np.sum(T_pol))
     return SolveResult(
-        structure=structure.name, wavelength_nm=float(wavelength_nm), theta_deg=float(theta_deg), phi_deg=float(phi_deg),
-        pol=pol.value, orders_retained=counts, factorization=rule, R_total=R_total, T_total=T_total,
+        structure=prep.structure.name, wavelength_nm=prep.wavelength_nm, theta_deg=float(theta_deg), phi_deg=float(phi_deg),
+        pol=pol.value, orders_retained=prep.counts, factorization=prep.rule, R_total=R_total, T_total=T_total,
         absorption=1.0 - R_total - T_total, orders=orders,
         all_orders={"m": h.m, "n": h.n, "R": R, "T": T, "T_into_substrate": T_into, "kz_superstrate": kz_sup, "kz_substrate": kz_sub},
     )

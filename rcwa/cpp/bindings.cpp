@@ -9,7 +9,7 @@
 #include <stdexcept>
 #include <string>
 
-#include "stack.hpp"
+#include "sweep.hpp"
 
 namespace nb = nanobind;
 using namespace nb::literals;
@@ -54,63 +54,94 @@ nb::ndarray<nb::numpy, std::complex<double>, nb::ndim<1>> to_numpy(const rcwa::C
     return nb::ndarray<nb::numpy, std::complex<double>, nb::ndim<1>>(data, {v.size()}, owner);
 }
 
-struct LayerInput {
-    std::string kind;  // "uniform" | "lamellar" | "general"
-    double thickness;  // k0 * d
-    cplx eps;          // uniform layers
-    std::vector<Mat> matrices;  // lamellar: E, Exx; general: E, Exx, Exy, Eyx, Eyy
-};
+using LayerTuple = std::tuple<std::string, double, cplx, std::vector<CArray2>>;
 
-// kx, ky: normalized harmonics; layers: (kind, k0*d, eps, [matrices]) from the top down.
-nb::tuple solve_stack_py(const RArray1& kx, const RArray1& ky, int zero_order, cplx eps_sup,
-                         cplx eps_sub, std::tuple<double, double> s_direction,
-                         const std::vector<std::tuple<std::string, double, cplx, std::vector<CArray2>>>& layers,
-                         const std::string& method) {
-    if (method != "smatrix" && method != "etm") throw std::invalid_argument("method must be 'smatrix' or 'etm'");
-    rcwa::StackProblem pr;
-    pr.harmonics.kx = to_vec(kx);
-    pr.harmonics.ky = to_vec(ky);
-    const int n = pr.harmonics.size();
-    if (static_cast<int>(pr.harmonics.ky.size()) != n) throw std::invalid_argument("kx and ky differ in length");
+rcwa::StackMethod stack_method(const std::string& method) {
+    if (method == "etm") return rcwa::StackMethod::EnhancedTransmittance;
+    if (method == "smatrix") return rcwa::StackMethod::ScatteringMatrix;
+    throw std::invalid_argument("method must be 'etm' or 'smatrix'");
+}
+
+// The direction-independent part of a problem: harmonic offsets, media, layers.
+rcwa::SweepProblem base_problem(const RArray1& dkx, const RArray1& dky, int zero_order, cplx eps_sup,
+                                cplx eps_sub, const std::vector<LayerTuple>& layers, const std::string& method) {
+    rcwa::SweepProblem pr;
+    pr.dkx = to_vec(dkx);
+    pr.dky = to_vec(dky);
+    const int n = static_cast<int>(pr.dkx.size());
+    if (static_cast<int>(pr.dky.size()) != n) throw std::invalid_argument("kx and ky differ in length");
     if (zero_order < 0 || zero_order >= n) throw std::invalid_argument("zero_order out of range");
     pr.zero_order = zero_order;
     pr.eps_superstrate = eps_sup;
     pr.eps_substrate = eps_sub;
-    pr.s_x = std::get<0>(s_direction);
-    pr.s_y = std::get<1>(s_direction);
-
-    std::vector<LayerInput> inputs;
+    pr.method = stack_method(method);
     for (const auto& [kind, d, eps, mats] : layers) {
-        LayerInput in{kind, d, eps, {}};
+        rcwa::LayerInput in{kind, d, eps, {}};
         const std::size_t need = kind == "uniform" ? 0 : kind == "lamellar" ? 2 : kind == "general" ? 5 : 99;
         if (need == 99) throw std::invalid_argument("unknown layer kind '" + kind + "'");
         if (mats.size() != need) throw std::invalid_argument("layer kind '" + kind + "' needs " + std::to_string(need) + " matrices");
         for (const auto& m : mats) in.matrices.push_back(to_mat(m, n, kind.c_str()));
-        inputs.push_back(std::move(in));
+        pr.layers.push_back(std::move(in));
     }
+    return pr;
+}
 
+// One solve: kx, ky are the harmonics themselves (offsets from a zero incident vector).
+nb::tuple solve_stack_py(const RArray1& kx, const RArray1& ky, int zero_order, cplx eps_sup, cplx eps_sub,
+                         std::tuple<double, double> s_direction, const std::vector<LayerTuple>& layers,
+                         const std::string& method) {
+    rcwa::SweepProblem pr = base_problem(kx, ky, zero_order, eps_sup, eps_sub, layers, method);
+    pr.kx0 = {0.0};
+    pr.ky0 = {0.0};
+    pr.s_x = {std::get<0>(s_direction)};
+    pr.s_y = {std::get<1>(s_direction)};
     rcwa::StackSolution sol;
     {
         nb::gil_scoped_release release;
-        std::vector<std::unique_ptr<rcwa::LayerModes>> modes;
-        for (const auto& in : inputs) {
-            if (in.kind == "uniform") {
-                modes.push_back(rcwa::uniform_modes(pr.harmonics, in.eps));
-            } else if (in.kind == "lamellar") {
-                const auto e = rcwa::lamellar_eigen(pr.harmonics.kx, in.matrices[0], in.matrices[1]);
-                modes.push_back(rcwa::lamellar_modes(pr.harmonics.kx, e, pr.harmonics.ky[0]));
-            } else {
-                const auto& M = in.matrices;
-                modes.push_back(rcwa::general_modes(pr.harmonics, M[0], M[1], M[2], M[3], M[4]));
-            }
-            pr.layers.push_back(modes.back().get());
-            pr.thickness.push_back(in.thickness);
-        }
-        sol = rcwa::solve_stack(pr, method == "etm" ? rcwa::StackMethod::EnhancedTransmittance
-                                                    : rcwa::StackMethod::ScatteringMatrix);
+        sol = rcwa::solve_point(pr, 0);
     }
     return nb::make_tuple(to_numpy(sol.r), to_numpy(sol.t), to_numpy(sol.kz_superstrate),
                           to_numpy(sol.kz_substrate));
+}
+
+// Stack point-major results into one (P, rows, cols) array.
+template <class Get>
+nb::ndarray<nb::numpy, std::complex<double>> stack_points(std::size_t np, std::size_t rows, std::size_t cols, Get get) {
+    auto* data = new std::complex<double>[np * rows * cols];
+    for (std::size_t p = 0; p < np; ++p)
+        for (std::size_t i = 0; i < rows; ++i)
+            for (std::size_t j = 0; j < cols; ++j) data[(p * rows + i) * cols + j] = get(p, i, j);
+    nb::capsule owner(data, [](void* q) noexcept { delete[] static_cast<std::complex<double>*>(q); });
+    return nb::ndarray<nb::numpy, std::complex<double>>(data, {np, rows, cols}, owner);
+}
+
+nb::tuple sweep_py(const RArray1& dkx, const RArray1& dky, int zero_order, cplx eps_sup, cplx eps_sub,
+                   const std::vector<LayerTuple>& layers, const RArray1& kx0, const RArray1& ky0,
+                   const RArray1& s_x, const RArray1& s_y, const std::vector<int>& keep,
+                   const std::string& method, int threads) {
+    rcwa::SweepProblem pr = base_problem(dkx, dky, zero_order, eps_sup, eps_sub, layers, method);
+    pr.kx0 = to_vec(kx0);
+    pr.ky0 = to_vec(ky0);
+    pr.s_x = to_vec(s_x);
+    pr.s_y = to_vec(s_y);
+    const std::size_t np = pr.kx0.size();
+    if (pr.ky0.size() != np || pr.s_x.size() != np || pr.s_y.size() != np)
+        throw std::invalid_argument("kx0, ky0, s_x and s_y must have one value per point");
+    for (int k : keep)
+        if (k < 0 || k >= static_cast<int>(pr.dkx.size())) throw std::invalid_argument("keep index out of range");
+    pr.keep = keep;
+    pr.threads = threads;
+    rcwa::SweepResult res;
+    {
+        nb::gil_scoped_release release;
+        res = rcwa::sweep(pr);
+    }
+    const std::size_t k = keep.size();
+    auto r = stack_points(np, 2 * k, 2, [&](auto p, auto i, auto j) { return res.r[p](static_cast<int>(i), static_cast<int>(j)); });
+    auto t = stack_points(np, 2 * k, 2, [&](auto p, auto i, auto j) { return res.t[p](static_cast<int>(i), static_cast<int>(j)); });
+    auto kz1 = stack_points(np, k, 1, [&](auto p, auto i, auto) { return res.kz_superstrate[p][i]; });
+    auto kz2 = stack_points(np, k, 1, [&](auto p, auto i, auto) { return res.kz_substrate[p][i]; });
+    return nb::make_tuple(r, t, kz1, kz2);
 }
 
 }  // namespace
@@ -120,6 +151,10 @@ NB_MODULE(_core, m) {
     m.def("solve_stack", &solve_stack_py, "kx"_a, "ky"_a, "zero_order"_a, "eps_superstrate"_a,
           "eps_substrate"_a, "s_direction"_a, "layers"_a, "method"_a = "etm",
           "Outgoing s/p amplitudes (r, t: 2N x 2 for unit s and p incidence) and the half-space kz.");
+    m.def("sweep", &sweep_py, "dkx"_a, "dky"_a, "zero_order"_a, "eps_superstrate"_a, "eps_substrate"_a,
+          "layers"_a, "kx0"_a, "ky0"_a, "s_x"_a, "s_y"_a, "keep"_a, "method"_a = "etm", "threads"_a = 1,
+          "Amplitudes of the kept harmonics for many incident directions (P points): r, t of shape "
+          "(P, 2K, 2) and kz of shape (P, K, 1); points sharing kx0 share 1D eigen-solves.");
     m.def("set_blas_threads", &rcwa::set_blas_threads, "n"_a,
           "Number of OpenBLAS threads (1 when the core runs its own threads).");
 }
