@@ -12,6 +12,12 @@
 // eigenvectors do not depend on ky; only kz and the assembly below do.
 //   family A:  psi = [0; WA],                      phi = [-WA muA; ky Kx WA] / kzA
 //   family B:  psi = [(I - Kx Z Kx) VB; -ky Z Kx VB] / kzB,  phi = [0; VB]
+// so W = [[0, C], [WA, D]] and V = [[V11, 0], [V21, VB]] (C = B VB KzB^-1, D = -ky Z Kx
+// VB KzB^-1, V11 = -WA muA KzA^-1, V21 = ky Kx WA KzA^-1), with block inverses
+//   W^-1 = [[ky M1, WA^-1], [KzB (B VB)^-1, 0]]
+//   V^-1 = [[-KzA muA^-1 WA^-1, 0], [ky M3, VB^-1]]
+// whose N x N blocks do not depend on ky: applying W, V or their inverses to 2N columns
+// costs three N x N products and no factorization per direction.
 #include "modes.hpp"
 
 namespace rcwa {
@@ -38,30 +44,94 @@ LamellarEigen lamellar_eigen(const std::vector<double>& kx, const Mat& E, const 
     for (int j = 0; j < n; ++j)
         for (int i = 0; i < n; ++i) KxVB(i, j) *= kx[i];
     out.ZKx_VB = matmul(out.Z, KxVB);
+
+    out.kx = kx;
+    out.WA_inv = LU(out.WA).inverse();
+    out.VB_inv = LU(out.VB).inverse();
+    out.B_VB_inv = LU(out.B_VB).inverse();
+    out.M1 = matmul(out.WA_inv, matmul(out.ZKx_VB, out.B_VB_inv));
+    Mat KxWA_mu = out.WA;  // Kx WA muA^-1
+    for (int j = 0; j < n; ++j)
+        for (int i = 0; i < n; ++i) KxWA_mu(i, j) *= kx[i] / out.muA[j];
+    out.M3 = matmul(out.VB_inv, matmul(KxWA_mu, out.WA_inv));
     return out;
 }
 
-std::unique_ptr<LayerModes> lamellar_modes(const std::vector<double>& kx, const LamellarEigen& e,
-                                           double ky) {
-    const int n = static_cast<int>(kx.size());
-    CVec kz(2 * static_cast<std::size_t>(n));
-    for (int i = 0; i < n; ++i) {
-        kz[i] = regularize_kz(outgoing_sqrt(e.muA[i] - ky * ky));
-        kz[n + i] = regularize_kz(outgoing_sqrt(e.muB[i] - ky * ky));
+namespace {
+
+// Top (rows 0..N-1) and bottom (N..2N-1) halves of a 2N-row matrix, and back.
+Mat rows(const Mat& B, int first, int count) {
+    Mat out(count, B.cols);
+    for (int j = 0; j < B.cols; ++j)
+        for (int i = 0; i < count; ++i) out(i, j) = B(first + i, j);
+    return out;
+}
+Mat stacked(const Mat& top, const Mat& bottom) {
+    Mat out(top.rows + bottom.rows, top.cols);
+    for (int j = 0; j < top.cols; ++j) {
+        for (int i = 0; i < top.rows; ++i) out(i, j) = top(i, j);
+        for (int i = 0; i < bottom.rows; ++i) out(top.rows + i, j) = bottom(i, j);
     }
-    Mat W(2 * n, 2 * n), V(2 * n, 2 * n);
-    for (int j = 0; j < n; ++j) {
-        const cplx kzA = kz[j], kzB = kz[n + j];
-        for (int i = 0; i < n; ++i) {
-            W(n + i, j) = e.WA(i, j);
-            W(i, n + j) = e.B_VB(i, j) / kzB;
-            W(n + i, n + j) = -ky * e.ZKx_VB(i, j) / kzB;
-            V(i, j) = -e.WA(i, j) * e.muA[j] / kzA;
-            V(n + i, j) = ky * kx[i] * e.WA(i, j) / kzA;
-            V(n + i, n + j) = e.VB(i, j);
+    return out;
+}
+Mat scaled_rows(Mat M, const CVec& d, int offset = 0, bool invert = false) {
+    for (int j = 0; j < M.cols; ++j)
+        for (int i = 0; i < M.rows; ++i) M(i, j) = invert ? M(i, j) / d[offset + i] : M(i, j) * d[offset + i];
+    return M;
+}
+
+class LamellarModes : public LayerModes {
+  public:
+    LamellarModes(const LamellarEigen& e, double ky) : e_(e), ky_(ky), n_(static_cast<int>(e.kx.size())) {
+        kz_.resize(2 * static_cast<std::size_t>(n_));
+        for (int i = 0; i < n_; ++i) {
+            kz_[i] = regularize_kz(outgoing_sqrt(e.muA[i] - ky * ky));
+            kz_[n_ + i] = regularize_kz(outgoing_sqrt(e.muB[i] - ky * ky));
         }
     }
-    return std::make_unique<DenseModes>(std::move(W), std::move(V), std::move(kz));
+
+    Mat apply_W(const Mat& B) const override {  // [[0, C], [WA, D]]
+        const Mat y = scaled_rows(rows(B, n_, n_), kz_, n_, true);  // KzB^-1 B_bottom
+        Mat bottom = matmul(e_.WA, rows(B, 0, n_));
+        gemm(e_.ZKx_VB, y, bottom, -ky_, 1.0);
+        return stacked(matmul(e_.B_VB, y), bottom);
+    }
+    Mat apply_V(const Mat& B) const override {  // [[V11, 0], [V21, VB]]
+        const Mat y = scaled_rows(rows(B, 0, n_), kz_, 0, true);  // KzA^-1 B_top
+        const Mat wy = matmul(e_.WA, y);
+        Mat top = matmul(e_.WA, scaled_rows(y, e_.muA));
+        for (auto& v : top.data) v = -v;
+        Mat bottom = matmul(e_.VB, rows(B, n_, n_));
+        for (int j = 0; j < B.cols; ++j)
+            for (int i = 0; i < n_; ++i) bottom(i, j) += ky_ * e_.kx[i] * wy(i, j);
+        return stacked(top, bottom);
+    }
+    Mat apply_W_inverse(const Mat& B) const override {  // [[ky M1, WA^-1], [KzB (B VB)^-1, 0]]
+        const Mat top_in = rows(B, 0, n_);
+        Mat top = matmul(e_.WA_inv, rows(B, n_, n_));
+        gemm(e_.M1, top_in, top, ky_, 1.0);
+        return stacked(top, scaled_rows(matmul(e_.B_VB_inv, top_in), kz_, n_));
+    }
+    Mat apply_V_inverse(const Mat& B) const override {  // [[-KzA muA^-1 WA^-1, 0], [ky M3, VB^-1]]
+        const Mat top_in = rows(B, 0, n_);
+        Mat top = matmul(e_.WA_inv, top_in);
+        for (int j = 0; j < top.cols; ++j)
+            for (int i = 0; i < n_; ++i) top(i, j) *= -kz_[i] / e_.muA[i];
+        Mat bottom = matmul(e_.VB_inv, rows(B, n_, n_));
+        gemm(e_.M3, top_in, bottom, ky_, 1.0);
+        return stacked(top, bottom);
+    }
+
+  private:
+    const LamellarEigen& e_;
+    double ky_;
+    int n_;
+};
+
+}  // namespace
+
+std::unique_ptr<LayerModes> lamellar_modes(const std::vector<double>&, const LamellarEigen& e, double ky) {
+    return std::make_unique<LamellarModes>(e, ky);
 }
 
 }  // namespace rcwa

@@ -55,6 +55,7 @@ std::unique_ptr<LayerModes> uniform_modes(const Harmonics& h, cplx eps);
 // matrix [[eps]], Exx the matrix used for Dx (Li's inverse rule [[1/eps]]^{-1}, or [[eps]]
 // for the Laurent rule). Two N x N eigen-solves, independent of ky (see lamellar.cpp).
 struct LamellarEigen {
+    std::vector<double> kx;
     Mat WA;        // eigenvectors of MA = E - Kx^2 (TE-like family, pure Ey)
     CVec muA;      // its eigenvalues
     Mat VB;        // eigenvectors of MB = Exx (I - Kx Z Kx) (TM-like family, pure hy)
@@ -62,6 +63,10 @@ struct LamellarEigen {
     Mat Z;         // [[eps]]^{-1}
     Mat B_VB;      // (I - Kx Z Kx) VB
     Mat ZKx_VB;    // Z Kx VB
+    // For the block inverses of W and V (lamellar.cpp), all independent of ky:
+    Mat WA_inv, VB_inv, B_VB_inv;
+    Mat M1;        // WA^-1 Z Kx VB (B VB)^-1
+    Mat M3;        // VB^-1 Kx WA muA^-1 WA^-1
 };
 LamellarEigen lamellar_eigen(const std::vector<double>& kx, const Mat& E, const Mat& Exx);
 std::unique_ptr<LayerModes> lamellar_modes(const std::vector<double>& kx, const LamellarEigen& eig,
