@@ -44,6 +44,24 @@ def _build_parser() -> argparse.ArgumentParser:
                        help="layer stacking: enhanced transmittance matrix (default) or Redheffer star product")
     solve.add_argument("--json", action="store_true", help="print one JSON object instead of a table")
 
+    table = rcwa_commands.add_parser("table", help="efficiency table over wavelength x incidence angles (for rendering)")
+    table.add_argument("structure", help="a built-in structure (cd, gold2d) or a TOML file")
+    table.add_argument("--out", required=True, metavar="PATH", help="table directory (zarr); resumed if unfinished")
+    table.add_argument("--preset", choices=["paper", "draft", "fine"], default="paper")
+    table.add_argument("--theta-step", type=float, metavar="DEG")
+    table.add_argument("--phi-step", type=float, metavar="DEG")
+    table.add_argument("--wavelengths", metavar="START:STOP:COUNT", help="nm, inclusive (e.g. 400:700:31), or NM,NM,...")
+    table.add_argument("--orders", type=_orders_argument, metavar="N|NX,NY", help="retained harmonics (odd)")
+    table.add_argument("--keep-orders", type=_orders_argument, metavar="N|NX,NY", help="orders stored (odd, <= --orders)")
+    table.add_argument("--pol", choices=["unpolarized", "s", "p", "all"], default="unpolarized")
+    table.add_argument("--reflection-only", action="store_true")
+    table.add_argument("--both-sides", action="store_true", help="also light from below (see-through elements)")
+    table.add_argument("--factorization", choices=["auto", "li", "nv", "laurent"], default="auto")
+    table.add_argument("--no-symmetry", action="store_true", help="compute the whole azimuth range")
+    table.add_argument("--threads", type=int, default=None, help="solver threads (default: all cores)")
+    table.add_argument("--force", action="store_true", help="overwrite a different table at --out")
+    table.add_argument("--quiet", action="store_true", help="no progress bar")
+
     commands.add_parser("demo", help="the main job on the built-in scene (for now: the CD's orders)")
     return parser
 
@@ -59,6 +77,31 @@ def _run_rcwa_solve(args: argparse.Namespace) -> int:
     return 0
 
 
+def _run_rcwa_table(args: argparse.Namespace) -> int:
+    import rcwa
+    from rcwa.table import build_table, settings_for
+
+    structure = rcwa.load_structure(args.structure)
+    settings = settings_for(
+        structure, args.preset, theta_step=args.theta_step, phi_step=args.phi_step, wavelengths=args.wavelengths,
+        orders=args.orders, keep=args.keep_orders, pol=args.pol, reflection_only=args.reflection_only,
+        both_sides=args.both_sides, factorization=args.factorization, use_symmetry=not args.no_symmetry,
+    )
+    if args.threads is not None and args.threads < 1:
+        raise UserInputError("must be at least 1", field="--threads", got=args.threads)
+    report = build_table(structure, settings, args.out, threads=args.threads, progress=not args.quiet, force=args.force)
+    points = len(settings.wavelengths_nm) * len(settings.theta_deg) * len(settings.phi_deg)
+    if report.cached:
+        print(f"{args.out}: up to date (request {report.key[:12]}), served from the cache in {report.seconds * 1e3:.1f} ms")
+        return 0
+    print(f"{args.out}: {structure.name}, {len(settings.wavelengths_nm)} wavelengths x {len(settings.theta_deg)} theta x "
+          f"{len(settings.phi_deg)} phi = {points} directions, {'x'.join(map(str, settings.orders))} harmonics, "
+          f"{'x'.join(map(str, settings.keep))} kept; symmetry: {report.symmetry}")
+    print(f"computed {report.chunks_computed} of {report.chunks_total} wavelength chunks ({report.chunks_reused} resumed) "
+          f"in {report.seconds:.1f} s; {report.bytes_on_disk / 1e6:.2f} MB on disk")
+    return 0
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     signal.signal(signal.SIGPIPE, signal.SIG_DFL)  # quiet when piped into head or less
     parser = _build_parser()
@@ -66,6 +109,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     try:
         if args.command == "rcwa" and args.rcwa_command == "solve":
             return _run_rcwa_solve(args)
+        if args.command == "rcwa" and args.rcwa_command == "table":
+            return _run_rcwa_table(args)
         if args.command == "demo":
             from workbench.demo import run_demo
 

@@ -1,0 +1,399 @@
+"""Efficiency tables: the renderer's input, built by sweeps, stored chunked on disk.
+
+A table holds, for the kept orders of a structure, the diffraction efficiencies over a
+grid of wavelength x polar angle x azimuth of the incident light (rcwa conventions:
+(theta, phi) of the incident tangential wave vector), for reflection and, where the
+substrate lets light through, transmission; optionally also for light from below (the
+z-inverted structure, Lange et al. 2021, Sec. 2.2, for see-through elements).
+
+Storage: a zarr v3 directory store, one chunk per wavelength, float32. A chunk counts as
+written only once its SHA-256 is in ``progress.json`` (replaced atomically after each
+chunk), so a killed build resumes from its finished chunks and a truncated or altered
+table is detected (checksums) instead of read as data. The request's content hash
+(structure text, grid, settings, solver version) names what a table holds; asking again
+for a finished table returns it at once.
+
+Azimuths: mirror symmetries of the cell (rcwa.symmetry) shrink the azimuth range that is
+computed; ``Table.fold_azimuth`` maps any azimuth into it (with the order flips).
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import math
+import os
+import time
+from dataclasses import asdict, dataclass, field, replace
+from pathlib import Path
+
+import numpy as np
+
+import workbench
+from rcwa import symmetry
+from rcwa.structure import Layer, Structure
+from rcwa.sweep import default_threads, sweep_directions
+from workbench.errors import UserInputError
+
+FORMAT_VERSION = 1
+GRAZING_THETA_DEG = 89.999  # theta = 90 (no incident power) is solved at this limit
+POLARIZATIONS = ("unpolarized", "s", "p", "all")
+
+
+@dataclass(frozen=True)
+class TableSettings:
+    wavelengths_nm: tuple[float, ...]
+    theta_deg: tuple[float, ...]
+    phi_deg: tuple[float, ...]
+    orders: tuple[int, ...]
+    keep: tuple[int, ...]
+    pol: str = "unpolarized"
+    reflection_only: bool = False
+    both_sides: bool = False
+    factorization: str = "auto"
+    use_symmetry: bool = True
+
+    def to_json(self) -> dict:
+        return asdict(self)
+
+
+PRESETS: dict[str, dict] = {
+    # the paper's table: 2 deg steps over 0-90 deg, 31 wavelengths, 61 orders, 11 kept
+    "paper": {"wavelengths": (400.0, 700.0, 31), "theta_step": 2.0, "phi_step": 2.0, "orders": {1: 61, 2: 11}, "keep": {1: 11, 2: 5}},
+    "draft": {"wavelengths": (400.0, 700.0, 11), "theta_step": 5.0, "phi_step": 10.0, "orders": {1: 31, 2: 7}, "keep": {1: 11, 2: 5}},
+    "fine": {"wavelengths": (380.0, 780.0, 81), "theta_step": 1.0, "phi_step": 1.0, "orders": {1: 81, 2: 15}, "keep": {1: 15, 2: 7}},
+}
+
+
+def parse_wavelengths(text: str) -> tuple[float, ...]:
+    """``START:STOP:COUNT`` (inclusive, like numpy.linspace) or a comma-separated list, in nm."""
+    try:
+        if ":" in text:
+            start, stop, count = text.split(":")
+            start_f, stop_f, count_i = float(start), float(stop), int(count)
+            if count_i < 1 or stop_f < start_f or (count_i > 1 and stop_f == start_f):
+                raise ValueError
+            return tuple(float(v) for v in np.linspace(start_f, stop_f, count_i))
+        values = tuple(float(v) for v in text.split(",") if v.strip())
+        if not values:
+            raise ValueError
+        return values
+    except ValueError:
+        raise UserInputError(
+            "not a wavelength range", field="--wavelengths",
+            expected="START:STOP:COUNT with STOP >= START and COUNT >= 1 (e.g. 400:700:31), or NM,NM,...", got=text,
+        ) from None
+
+
+def angle_grid(step: float, start: float, stop: float, name: str) -> tuple[float, ...]:
+    if not (isinstance(step, (int, float)) and math.isfinite(step) and step > 0):
+        raise UserInputError("the angular step must be positive", field=name, expected="a step > 0 degrees", got=step)
+    count = int(math.floor((stop - start) / step + 1e-9)) + 1
+    values = start + step * np.arange(count)
+    return tuple(float(v) for v in values)
+
+
+def settings_for(structure: Structure, preset: str = "paper", *, theta_step: float | None = None, phi_step: float | None = None,
+                 wavelengths: str | None = None, orders: int | tuple[int, ...] | None = None,
+                 keep: int | tuple[int, ...] | None = None, pol: str = "unpolarized", reflection_only: bool = False,
+                 both_sides: bool = False, factorization: str = "auto", use_symmetry: bool = True) -> TableSettings:
+    """Settings from a preset and explicit overrides, validated (errors name the option)."""
+    if preset not in PRESETS:
+        raise UserInputError("unknown preset", field="--preset", expected=f"one of {sorted(PRESETS)}", got=preset)
+    if pol not in POLARIZATIONS:
+        raise UserInputError("unknown polarization", field="--pol", expected=f"one of {POLARIZATIONS}", got=pol)
+    p = PRESETS[preset]
+    dim = structure.dimension
+    wl = parse_wavelengths(wavelengths) if wavelengths else tuple(float(v) for v in np.linspace(*p["wavelengths"][:2], p["wavelengths"][2]))
+    counts = _counts(orders if orders is not None else p["orders"][dim], dim, "--orders")
+    kept = _counts(keep if keep is not None else min(p["keep"][dim], counts[0]), dim, "--keep-orders")
+    if any(k > c for k, c in zip(kept, counts)):
+        raise UserInputError("cannot keep more orders than are retained", field="--keep-orders",
+                             expected=f"at most {list(counts)}", got=list(kept))
+    sym = symmetry.detect(structure) if use_symmetry else symmetry.MirrorSymmetry(False, False)
+    lo, hi = sym.azimuth_range()
+    theta = angle_grid(theta_step if theta_step is not None else p["theta_step"], 0.0, 90.0, "--theta-step")
+    phi = angle_grid(phi_step if phi_step is not None else p["phi_step"], lo, hi - (1e-9 if hi - lo == 360 else 0.0), "--phi-step")
+    return TableSettings(wl, theta, phi, counts, kept, pol, reflection_only, both_sides, factorization, use_symmetry)
+
+
+def _counts(value, dim: int, name: str) -> tuple[int, ...]:
+    values = (value,) * dim if isinstance(value, (int, np.integer)) else tuple(value)
+    if len(values) != dim or any(isinstance(v, bool) or not isinstance(v, (int, np.integer)) or v < 1 or v % 2 == 0 for v in values):
+        raise UserInputError("order counts must be positive odd integers, one per periodic direction", field=name,
+                             expected="N" if dim == 1 else "NX,NY", got=value)
+    return tuple(int(v) for v in values)
+
+
+def request_key(structure: Structure, settings: TableSettings) -> str:
+    """Content hash of what a table holds (structure text, settings, solver version)."""
+    payload = json.dumps({"structure": structure.text, "settings": settings.to_json(), "format": FORMAT_VERSION,
+                          "version": workbench.__version__}, sort_keys=True)
+    return hashlib.sha256(payload.encode()).hexdigest()
+
+
+def flipped(structure: Structure) -> Structure:
+    """The z-inverted structure: light from below sees the substrate as its superstrate."""
+    layers = tuple(Layer(layer.thickness, layer.material, layer.shapes, layer.name) for layer in reversed(structure.layers))
+    return replace(structure, superstrate=structure.substrate, substrate=structure.superstrate, layers=layers)
+
+
+# ---------------------------------------------------------------- building
+
+
+@dataclass
+class BuildReport:
+    path: Path
+    key: str
+    chunks_total: int
+    chunks_computed: int
+    chunks_reused: int
+    seconds: float
+    cached: bool = False
+    symmetry: str = ""
+    bytes_on_disk: int = 0
+    notes: list[str] = field(default_factory=list)
+
+
+def compute_chunk(structure: Structure, settings: TableSettings, wavelength_nm: float, threads: int) -> dict[str, np.ndarray]:
+    """All arrays of one wavelength: R (and T; and from below), (theta, phi, order, pol)."""
+    theta = np.array([min(t, GRAZING_THETA_DEG) for t in settings.theta_deg])
+    th, ph = np.meshgrid(theta, np.array(settings.phi_deg), indexing="ij")
+    out = {}
+    sides = [("", structure)] + ([("_below", flipped(structure))] if settings.both_sides else [])
+    for suffix, s in sides:
+        sw = sweep_directions(s, wavelength_nm, th.ravel(), ph.ravel(), settings.orders, keep=settings.keep,
+                              factorization=settings.factorization, threads=threads)
+        shape = th.shape + (sw.m.size,)
+        for name, values in (("R", sw.R), ("T", sw.T)):
+            if name == "T" and (settings.reflection_only or not _transmits(s, settings)):
+                continue
+            out[name + suffix] = _select_pol(values, settings.pol).reshape(shape + (-1,)).astype(np.float32)
+    return out
+
+
+def _select_pol(values: np.ndarray, pol: str) -> np.ndarray:
+    unpolarized = values.mean(axis=-1, keepdims=True)
+    return {"s": values[..., :1], "p": values[..., 1:], "unpolarized": unpolarized,
+            "all": np.concatenate([values, unpolarized], axis=-1)}[pol]
+
+
+def pol_names(pol: str) -> list[str]:
+    return ["s", "p", "unpolarized"] if pol == "all" else [pol]
+
+
+def build_table(structure: Structure, settings: TableSettings, out: str | Path, *, threads: int | None = None,
+                progress: bool = True, force: bool = False, executor=None) -> BuildReport:
+    """Build (or resume, or return the finished) table at ``out``.
+
+    ``executor``: an object with ``submit(fn, *args)`` returning futures (a
+    dask.distributed Client); by default chunks run here on ``threads`` threads.
+    """
+    from tqdm import tqdm
+
+    out = Path(out)
+    key = request_key(structure, settings)
+    start = time.perf_counter()
+    store = _open_store(out, structure, settings, key, force)
+    done = _read_progress(out)
+    sym = symmetry.detect(structure) if settings.use_symmetry else symmetry.MirrorSymmetry(False, False)
+    report = BuildReport(out, key, len(settings.wavelengths_nm), 0, len(done), 0.0, symmetry=sym.describe())
+    todo = [i for i in range(len(settings.wavelengths_nm)) if str(i) not in done]
+    if not todo and store.attrs.get("complete"):
+        report.cached = True
+        report.seconds = time.perf_counter() - start
+        report.bytes_on_disk = _size(out)
+        return report
+    threads = threads or default_threads()
+    bar = tqdm(total=len(settings.wavelengths_nm), initial=len(done), unit="wavelength", disable=not progress,
+               desc=f"table {structure.name}")
+    if executor is None:
+        results = ((i, _timed(compute_chunk, structure, settings, settings.wavelengths_nm[i], threads)) for i in todo)
+    else:
+        futures = {i: executor.submit(_timed, compute_chunk, structure, settings, settings.wavelengths_nm[i], 1) for i in todo}
+        results = ((i, futures[i].result()) for i in todo)
+    for i, (arrays, seconds) in results:
+        _write_chunk(out, store, i, arrays, seconds, done)
+        report.chunks_computed += 1
+        bar.update(1)
+    bar.close()
+    store.attrs.update({"complete": True, "chunk_seconds": {k: v["seconds"] for k, v in done.items()}})
+    report.seconds = time.perf_counter() - start
+    report.bytes_on_disk = _size(out)
+    return report
+
+
+def _timed(fn, *args):
+    t = time.perf_counter()
+    result = fn(*args)
+    return result, time.perf_counter() - t
+
+
+def _open_store(out: Path, structure: Structure, settings: TableSettings, key: str, force: bool):
+    import zarr
+
+    if out.exists():
+        meta = _read_meta(out)
+        if meta is not None and meta.get("key") == key:
+            return zarr.open_group(str(out), mode="a")
+        if not force:
+            raise UserInputError(
+                "the output already holds a different table (or something else)", file=out,
+                expected="a new path, the same request, or --force to overwrite",
+            )
+        import shutil
+
+        shutil.rmtree(out)
+    group = zarr.open_group(str(out), mode="w")
+    sym = symmetry.detect(structure) if settings.use_symmetry else symmetry.MirrorSymmetry(False, False)
+    shape = (len(settings.wavelengths_nm), len(settings.theta_deg), len(settings.phi_deg), int(np.prod(settings.keep)),
+             len(pol_names(settings.pol)))
+    names = ["R"] + ([] if settings.reflection_only or not _transmits(structure, settings) else ["T"])
+    if settings.both_sides:
+        names += [n + "_below" for n in names]
+    for name in names:
+        group.create_array(name, shape=shape, chunks=(1,) + shape[1:], dtype="float32", fill_value=np.nan)
+    from rcwa.factorization import resolve_rule
+
+    meta = {
+        "format": "workbench-efficiency-table", "format_version": FORMAT_VERSION, "key": key,
+        "structure_name": structure.name, "structure_source": structure.source, "structure_text": structure.text,
+        "structure_sha256": structure.content_hash, "settings": settings.to_json(), "arrays": names,
+        "axes": ["wavelength_nm", "theta_deg", "phi_deg", "order", "pol"], "pol_names": pol_names(settings.pol),
+        "orders_m": [int(m) for m in _kept_indices(settings.keep)[0]], "orders_n": [int(n) for n in _kept_indices(settings.keep)[1]],
+        "symmetry": {"mirror_x": sym.x, "mirror_y": sym.y, "phi_range_deg": list(sym.azimuth_range())},
+        "grazing_theta_deg": GRAZING_THETA_DEG, "factorization": resolve_rule(settings.factorization, structure.dimension, structure.layers),
+        "solver_version": workbench.__version__, "complete": False,
+    }
+    group.attrs.update(meta)
+    _atomic_write_json(out / "progress.json", {})
+    return group
+
+
+def _transmits(structure: Structure, settings: TableSettings) -> bool:
+    """Whether any light reaches infinity below (a lossless substrate at some wavelength)."""
+    eps = np.asarray(structure.substrate.epsilon(np.asarray(settings.wavelengths_nm)))
+    return bool(np.any((eps.imag == 0) & (eps.real > 0)))
+
+
+def _kept_indices(keep: tuple[int, ...]) -> tuple[np.ndarray, np.ndarray]:
+    """Kept orders in the order the sweep returns them (m-major, as the solver's harmonics)."""
+    ms = np.arange(keep[0]) - keep[0] // 2
+    if len(keep) == 1:
+        return ms, np.zeros_like(ms)
+    ns = np.arange(keep[1]) - keep[1] // 2
+    M, N = np.meshgrid(ms, ns, indexing="ij")
+    return M.ravel(), N.ravel()
+
+
+def _write_chunk(out: Path, store, index: int, arrays: dict[str, np.ndarray], seconds: float, done: dict) -> None:
+    for name, values in arrays.items():
+        store[name][index] = values
+    done[str(index)] = {"sha256": _chunk_hash(arrays), "seconds": round(seconds, 4)}
+    _atomic_write_json(out / "progress.json", done)
+
+
+def _chunk_hash(arrays: dict[str, np.ndarray]) -> str:
+    h = hashlib.sha256()
+    for name in sorted(arrays):
+        h.update(name.encode())
+        h.update(np.ascontiguousarray(arrays[name], dtype=np.float32).tobytes())
+    return h.hexdigest()
+
+
+def _atomic_write_json(path: Path, data) -> None:
+    tmp = path.with_suffix(path.suffix + ".tmp")
+    with open(tmp, "w") as f:
+        json.dump(data, f)
+        f.flush()
+        os.fsync(f.fileno())
+    os.replace(tmp, path)
+
+
+def _read_progress(out: Path) -> dict:
+    try:
+        return json.loads((out / "progress.json").read_text())
+    except (OSError, json.JSONDecodeError):
+        return {}
+
+
+def _read_meta(out: Path) -> dict | None:
+    try:
+        return json.loads((out / "zarr.json").read_text()).get("attributes", {})
+    except (OSError, json.JSONDecodeError, AttributeError):
+        return None
+
+
+def _size(path: Path) -> int:
+    return sum(f.stat().st_size for f in path.rglob("*") if f.is_file())
+
+
+# ---------------------------------------------------------------- reading
+
+
+@dataclass
+class Table:
+    """A finished, verified table. ``arrays[name]``: (wavelength, theta, phi, order, pol)."""
+
+    path: Path
+    meta: dict
+    arrays: dict[str, np.ndarray]
+
+    @property
+    def wavelengths_nm(self) -> np.ndarray:
+        return np.asarray(self.meta["settings"]["wavelengths_nm"])
+
+    @property
+    def theta_deg(self) -> np.ndarray:
+        return np.asarray(self.meta["settings"]["theta_deg"])
+
+    @property
+    def phi_deg(self) -> np.ndarray:
+        return np.asarray(self.meta["settings"]["phi_deg"])
+
+    @property
+    def orders(self) -> list[tuple[int, int]]:
+        return list(zip(self.meta["orders_m"], self.meta["orders_n"]))
+
+    def fold_azimuth(self, phi_deg: float) -> tuple[float, bool, bool]:
+        """Map an azimuth into the stored range: (phi, flip m, flip n) (rcwa.symmetry)."""
+        sym = self.meta["symmetry"]
+        phi = phi_deg % 360.0
+        flip_m = flip_n = False
+        if sym["mirror_y"] and phi > 180.0:
+            phi, flip_n = 360.0 - phi, True
+        if sym["mirror_x"] and sym["mirror_y"] and phi > 90.0:
+            phi, flip_m = 180.0 - phi, True
+        if sym["mirror_x"] and not sym["mirror_y"] and 90.0 < phi < 270.0:
+            phi, flip_m = 180.0 - phi, True
+        if sym["mirror_x"] and not sym["mirror_y"] and phi >= 270.0:
+            phi -= 360.0
+        return phi, flip_m, flip_n
+
+
+def open_table(path: str | Path) -> Table:
+    """Open a finished table, verifying every chunk's checksum; clear errors otherwise."""
+    import zarr
+
+    path = Path(path)
+    meta = _read_meta(path)
+    if meta is None or meta.get("format") != "workbench-efficiency-table":
+        raise UserInputError("not an efficiency table (no readable zarr.json with our format)", file=path)
+    if not meta.get("complete"):
+        raise UserInputError("the table is unfinished; run the same `workbench rcwa table` command again to resume it", file=path)
+    done = _read_progress(path)
+    group = zarr.open_group(str(path), mode="r")
+    try:
+        arrays = {name: group[name][...] for name in meta["arrays"]}
+    except Exception as exc:  # a missing or truncated chunk file
+        raise UserInputError(f"the table's data cannot be read ({type(exc).__name__}: {exc})", file=path) from None
+    n = len(meta["settings"]["wavelengths_nm"])
+    for i in range(n):
+        record = done.get(str(i))
+        chunk = {name: arrays[name][i] for name in arrays}
+        if record is None or _chunk_hash(chunk) != record["sha256"]:
+            raise UserInputError(
+                f"chunk {i} (wavelength {meta['settings']['wavelengths_nm'][i]:g} nm) is corrupted or missing: its checksum "
+                "does not match; rebuild the table (delete it, or --force)", file=path,
+            )
+    return Table(path, meta, arrays)
