@@ -36,6 +36,7 @@ bench: install
 	bash rcwa/benchmarks/setup_peers.sh
 	$(BIN)/python rcwa/benchmarks/bench_solve.py
 	$(BIN)/python -m rcwa.convergence
+	$(BIN)/python -m rcwa.bench_table
 
 clean:
 	rm -rf build $(VENV)
