@@ -59,6 +59,8 @@ def _build_parser() -> argparse.ArgumentParser:
     table.add_argument("--factorization", choices=["auto", "li", "nv", "laurent"], default="auto")
     table.add_argument("--no-symmetry", action="store_true", help="compute the whole azimuth range")
     table.add_argument("--threads", type=int, default=None, help="solver threads (default: all cores)")
+    table.add_argument("--scheduler", metavar="ADDRESS", help="run the chunks on this dask.distributed scheduler")
+    table.add_argument("--workers", type=int, metavar="N", help="start a local dask cluster with N worker processes")
     table.add_argument("--force", action="store_true", help="overwrite a different table at --out")
     table.add_argument("--quiet", action="store_true", help="no progress bar")
 
@@ -89,7 +91,15 @@ def _run_rcwa_table(args: argparse.Namespace) -> int:
     )
     if args.threads is not None and args.threads < 1:
         raise UserInputError("must be at least 1", field="--threads", got=args.threads)
-    report = build_table(structure, settings, args.out, threads=args.threads, progress=not args.quiet, force=args.force)
+    if args.workers is not None and args.workers < 1:
+        raise UserInputError("must be at least 1", field="--workers", got=args.workers)
+    if args.scheduler or args.workers:
+        from rcwa.table import DaskExecutor
+
+        with DaskExecutor(args.scheduler, args.workers) as executor:
+            report = build_table(structure, settings, args.out, progress=not args.quiet, force=args.force, executor=executor)
+    else:
+        report = build_table(structure, settings, args.out, threads=args.threads, progress=not args.quiet, force=args.force)
     points = len(settings.wavelengths_nm) * len(settings.theta_deg) * len(settings.phi_deg)
     if report.cached:
         print(f"{args.out}: up to date (request {report.key[:12]}), served from the cache in {report.seconds * 1e3:.1f} ms")

@@ -150,3 +150,25 @@ def test_bad_table_arguments(tmp_path, capsys, args, field):
     err = capsys.readouterr().err
     assert code == 2 and field in err and "Traceback" not in err
     assert not (tmp_path / "x.zarr").exists()
+
+
+def test_dask_local_cluster_equals_local_run(tmp_path):
+    """Two worker processes on loopback give exactly the local result."""
+    from rcwa.table import DaskExecutor
+
+    s = rcwa.load_structure("cd")
+    st = _small(s)
+    build_table(s, st, tmp_path / "local.zarr", progress=False, threads=1)
+    with DaskExecutor(workers=2) as executor:
+        report = build_table(s, st, tmp_path / "dask.zarr", progress=False, executor=executor)
+    assert report.chunks_computed == len(st.wavelengths_nm)
+    assert np.array_equal(open_table(tmp_path / "dask.zarr").arrays["R"], open_table(tmp_path / "local.zarr").arrays["R"])
+
+
+def test_unreachable_scheduler_is_a_clear_error(tmp_path, capsys):
+    from workbench.cli import main
+
+    code = main(["rcwa", "table", "cd", "--out", str(tmp_path / "x.zarr"), "--preset", "draft", "--quiet",
+                 "--scheduler", "tcp://127.0.0.1:9"])
+    err = capsys.readouterr().err
+    assert code == 2 and "--scheduler" in err and "Traceback" not in err
