@@ -96,8 +96,14 @@ def angle_grid(step: float, start: float, stop: float, name: str) -> tuple[float
 def settings_for(structure: Structure, preset: str = "paper", *, theta_step: float | None = None, phi_step: float | None = None,
                  wavelengths: str | None = None, orders: int | tuple[int, ...] | None = None,
                  keep: int | tuple[int, ...] | None = None, pol: str = "unpolarized", reflection_only: bool = False,
-                 both_sides: bool = False, factorization: str = "auto", use_symmetry: bool = True) -> TableSettings:
-    """Settings from a preset and explicit overrides, validated (errors name the option)."""
+                 both_sides: bool = False, factorization: str = "auto", use_symmetry: bool = True,
+                 theta_range: tuple[float, float] | None = None, phi_range: tuple[float, float] | None = None) -> TableSettings:
+    """Settings from a preset and explicit overrides, validated (errors name the option).
+
+    ``theta_range`` / ``phi_range`` (degrees, inclusive) restrict the grid to the part of
+    the domain a scene can reach; azimuths are those of the stored (symmetry-folded)
+    range, which a range must lie inside.
+    """
     if preset not in PRESETS:
         raise UserInputError("unknown preset", field="--preset", expected=f"one of {sorted(PRESETS)}", got=preset)
     if pol not in POLARIZATIONS:
@@ -112,9 +118,21 @@ def settings_for(structure: Structure, preset: str = "paper", *, theta_step: flo
                              expected=f"at most {list(counts)}", got=list(kept))
     sym = symmetry.detect(structure) if use_symmetry else symmetry.MirrorSymmetry(False, False)
     lo, hi = sym.azimuth_range()
-    theta = angle_grid(theta_step if theta_step is not None else p["theta_step"], 0.0, 90.0, "--theta-step")
-    phi = angle_grid(phi_step if phi_step is not None else p["phi_step"], lo, hi - (1e-9 if hi - lo == 360 else 0.0), "--phi-step")
+    t_lo, t_hi = _range(theta_range, (0.0, 90.0), "--theta-range")
+    p_lo, p_hi = _range(phi_range, (lo, hi), "--phi-range")
+    theta = angle_grid(theta_step if theta_step is not None else p["theta_step"], t_lo, t_hi, "--theta-step")
+    phi = angle_grid(phi_step if phi_step is not None else p["phi_step"], p_lo, p_hi - (1e-9 if p_hi - p_lo == 360 else 0.0), "--phi-step")
     return TableSettings(wl, theta, phi, counts, kept, pol, reflection_only, both_sides, factorization, use_symmetry)
+
+
+def _range(value: tuple[float, float] | None, bounds: tuple[float, float], name: str) -> tuple[float, float]:
+    if value is None:
+        return bounds
+    lo, hi = (float(v) for v in value)
+    if not (bounds[0] <= lo <= hi <= bounds[1]):
+        raise UserInputError("the range must be ordered and inside the stored domain", field=name,
+                             expected=f"{bounds[0]:g} <= LO <= HI <= {bounds[1]:g} degrees", got=[lo, hi])
+    return lo, hi
 
 
 def _counts(value, dim: int, name: str) -> tuple[int, ...]:

@@ -24,6 +24,14 @@ def _orders_argument(text: str) -> int | tuple[int, ...]:
     return values[0] if len(values) == 1 else values
 
 
+def _pair_argument(text: str) -> tuple[float, float]:
+    try:
+        lo, hi = (float(v) for v in text.split(","))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected LO,HI in degrees, got {text!r}") from None
+    return lo, hi
+
+
 def _build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="workbench", description=__doc__.splitlines()[0])
     commands = parser.add_subparsers(dest="command", required=True)
@@ -51,6 +59,8 @@ def _build_parser() -> argparse.ArgumentParser:
     table.add_argument("--theta-step", type=float, metavar="DEG")
     table.add_argument("--phi-step", type=float, metavar="DEG")
     table.add_argument("--wavelengths", metavar="START:STOP:COUNT", help="nm, inclusive (e.g. 400:700:31), or NM,NM,...")
+    table.add_argument("--theta-range", type=_pair_argument, metavar="LO,HI", help="polar angles to cover (deg)")
+    table.add_argument("--phi-range", type=_pair_argument, metavar="LO,HI", help="azimuths to cover (deg, in the stored range)")
     table.add_argument("--orders", type=_orders_argument, metavar="N|NX,NY", help="retained harmonics (odd)")
     table.add_argument("--keep-orders", type=_orders_argument, metavar="N|NX,NY", help="orders stored (odd, <= --orders)")
     table.add_argument("--pol", choices=["unpolarized", "s", "p", "all"], default="unpolarized")
@@ -88,6 +98,7 @@ def _run_rcwa_table(args: argparse.Namespace) -> int:
         structure, args.preset, theta_step=args.theta_step, phi_step=args.phi_step, wavelengths=args.wavelengths,
         orders=args.orders, keep=args.keep_orders, pol=args.pol, reflection_only=args.reflection_only,
         both_sides=args.both_sides, factorization=args.factorization, use_symmetry=not args.no_symmetry,
+        theta_range=args.theta_range, phi_range=args.phi_range,
     )
     if args.threads is not None and args.threads < 1:
         raise UserInputError("must be at least 1", field="--threads", got=args.threads)

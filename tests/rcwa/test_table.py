@@ -142,6 +142,8 @@ def test_same_request_is_served_from_the_cache(tmp_path):
     (["--orders", "21", "--keep-orders", "23"], "--keep-orders"),
     (["--orders", "20"], "--orders"),
     (["--keep-orders", "4"], "--keep-orders"),
+    (["--theta-range", "50,20"], "--theta-range"),
+    (["--phi-range", "0,120"], "--phi-range"),  # the CD's stored azimuths are 0-90 (mirror symmetric)
 ])
 def test_bad_table_arguments(tmp_path, capsys, args, field):
     from workbench.cli import main
@@ -172,3 +174,14 @@ def test_unreachable_scheduler_is_a_clear_error(tmp_path, capsys):
                  "--scheduler", "tcp://127.0.0.1:9"])
     err = capsys.readouterr().err
     assert code == 2 and "--scheduler" in err and "Traceback" not in err
+
+
+def test_sub_domain_is_the_same_as_the_full_grid_there(tmp_path):
+    s = rcwa.load_structure("cd")
+    full = _small(s, theta_step=10.0, phi_step=15.0)
+    part = _small(s, theta_step=10.0, phi_step=15.0, theta_range=(20.0, 50.0), phi_range=(30.0, 60.0))
+    assert part.theta_deg == (20.0, 30.0, 40.0, 50.0) and part.phi_deg == (30.0, 45.0, 60.0)
+    build_table(s, full, tmp_path / "full.zarr", progress=False)
+    build_table(s, part, tmp_path / "part.zarr", progress=False)
+    f, p = open_table(tmp_path / "full.zarr"), open_table(tmp_path / "part.zarr")
+    np.testing.assert_array_equal(p.arrays["R"], f.arrays["R"][:, 2:6, 2:5])
