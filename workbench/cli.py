@@ -74,6 +74,12 @@ def _build_parser() -> argparse.ArgumentParser:
     table.add_argument("--force", action="store_true", help="overwrite a different table at --out")
     table.add_argument("--quiet", action="store_true", help="no progress bar")
 
+    study = commands.add_parser("study", help="accuracy-versus-time studies")
+    study_commands = study.add_subparsers(dest="study_command", required=True)
+    study_rcwa = study_commands.add_parser("rcwa", help="truncation and interpolation error versus time for tables")
+    study_rcwa.add_argument("structure", help="a built-in structure (cd, gold2d) or a TOML file")
+    study_rcwa.add_argument("--out", required=True, metavar="DIR")
+
     commands.add_parser("demo", help="the main job on the built-in scene (for now: the CD's orders)")
     return parser
 
@@ -123,6 +129,24 @@ def _run_rcwa_table(args: argparse.Namespace) -> int:
     return 0
 
 
+def _run_study_rcwa(args: argparse.Namespace) -> int:
+    import rcwa
+    from rcwa.study import run_study
+
+    structure = rcwa.load_structure(args.structure)
+    if structure.dimension != 1:
+        raise UserInputError("the study covers 1D structures for now", field="structure", got=args.structure)
+    data = run_study(structure, args.out)
+    print(f"wrote {args.out}/study_rcwa.json, truncation.csv, interpolation.csv, presets.csv, study_rcwa.png/.svg")
+    for p in data["presets"]:
+        if p["reachable"]:
+            print(f"target {p['target_error']:g}: {p['orders']} harmonics, {p['grid']} grid, {p['step_deg']:g} deg step, "
+                  f"~{p['estimated_table_seconds']:.0f} s for a full table, {p['table_bytes'] / 1e6:.2f} MB")
+        else:
+            print(f"target {p['target_error']:g}: not reached by the measured settings")
+    return 0
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     signal.signal(signal.SIGPIPE, signal.SIG_DFL)  # quiet when piped into head or less
     parser = _build_parser()
@@ -132,6 +156,8 @@ def main(argv: Sequence[str] | None = None) -> int:
             return _run_rcwa_solve(args)
         if args.command == "rcwa" and args.rcwa_command == "table":
             return _run_rcwa_table(args)
+        if args.command == "study" and args.study_command == "rcwa":
+            return _run_study_rcwa(args)
         if args.command == "demo":
             from workbench.demo import run_demo
 

