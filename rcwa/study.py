@@ -147,13 +147,21 @@ def recommend(truncation: list[dict], interpolation: list[dict], cfg: StudyConfi
 
 
 def run_study(structure: Structure, out: str | Path, cfg: StudyConfig = StudyConfig()) -> dict:
+    import platform
+
+    import workbench
+
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
+    start = time.perf_counter()
     truncation = truncation_study(structure, cfg)
     interpolation = interpolation_study(structure, cfg)
     presets = recommend(truncation, interpolation, cfg)
     data = {"structure": structure.name, "config": asdict(cfg), "truncation": truncation,
-            "interpolation": interpolation, "presets": presets, "version": rcwa.__name__}
+            "interpolation": interpolation, "presets": presets,
+            "run": {"workbench_version": workbench.__version__, "numpy": np.__version__, "python": platform.python_version(),
+                    "machine": platform.machine(), "seconds": time.perf_counter() - start,
+                    "structure_sha256": structure.content_hash}}
     (out / "study_rcwa.json").write_text(json.dumps(data, indent=2))
     for name, rows in (("truncation", truncation), ("interpolation", interpolation), ("presets", presets)):
         _write_csv(out / f"{name}.csv", rows)
