@@ -17,6 +17,9 @@ install: $(STAMP)
 # in editable mode: Python edits take effect at once, C++ edits rebuild through this rule.
 $(STAMP): $(SOURCES)
 	@command -v c++ >/dev/null || { echo "installing g++ (Debian)"; apt-get update -q && apt-get install -y -q g++; }
+	@# Mitsuba's LLVM backend needs libLLVM 19 (drjit 1.5 crashes with Debian's default 15).
+	@ls /usr/lib/*/libLLVM-19.so* >/dev/null 2>&1 || { echo "installing libllvm19 (Debian)"; \
+	  (apt-get update -q && apt-get install -y -q libllvm19) || echo "warning: libllvm19 not installed; rendering will use the scalar variant"; }
 	@test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
 	$(BIN)/python -m pip install -q --upgrade pip
 	$(BIN)/python -m pip install -q "scikit-build-core>=0.10" "nanobind>=2.4" "scipy-openblas32>=0.3.28" cmake ninja

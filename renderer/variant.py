@@ -1,0 +1,96 @@
+"""Choosing Mitsuba's variant, and the libLLVM its LLVM backend needs, in one place.
+
+Mitsuba's ``mi.set_variant`` is process-global, so it is called here and nowhere else
+(tests use the same function). drjit 1.5's LLVM backend works with LLVM 19 (Debian's
+libllvm19, which ``make`` installs) and crashes with LLVM 15, which Debian 12 also ships;
+the workbench therefore looks for libLLVM itself, newest first, skips versions known not
+to work, sets ``DRJIT_LIBLLVM_PATH`` before drjit loads, and falls back to the scalar
+spectral variant with one clear warning when it finds none.
+"""
+
+from __future__ import annotations
+
+import glob
+import logging
+import os
+import re
+from pathlib import Path
+
+LOG = logging.getLogger("workbench.renderer")
+
+PREFERRED_VARIANT = "llvm_ad_spectral"
+FALLBACK_VARIANT = "scalar_spectral"
+# drjit 1.5 ran here with LLVM 19 and crashed with LLVM 15 (DESIGN.md, section 5); the
+# versions in between are untested, so only 16 and up are tried, newest first.
+MIN_LLVM_MAJOR = 16
+SEARCH_GLOBS = (
+    "/usr/lib/x86_64-linux-gnu/libLLVM-*.so*",
+    "/usr/lib/x86_64-linux-gnu/libLLVM.so.*",
+    "/usr/lib/aarch64-linux-gnu/libLLVM-*.so*",
+    "/usr/lib/aarch64-linux-gnu/libLLVM.so.*",
+    "/usr/lib/llvm-*/lib/libLLVM*.so*",
+    "/usr/local/lib/libLLVM*.so*",
+)
+
+_chosen: str | None = None
+
+
+def llvm_major(path: str | Path) -> int | None:
+    """LLVM major version from a library file name (libLLVM-19.so, libLLVM.so.19.1)."""
+    name = Path(path).name
+    match = re.search(r"libLLVM-(\d+)", name) or re.search(r"libLLVM\.so\.(\d+)", name)
+    if match is None:
+        match = re.search(r"llvm-(\d+)", str(path))
+    return int(match.group(1)) if match else None
+
+
+def find_libllvm(search_globs: tuple[str, ...] | None = None, environ: dict | None = None) -> str | None:
+    """The libLLVM to use: ``DRJIT_LIBLLVM_PATH`` if it names an existing file, else the
+    newest LLVM >= MIN_LLVM_MAJOR found by ``search_globs`` (default SEARCH_GLOBS), else None."""
+    environ = os.environ if environ is None else environ
+    search_globs = SEARCH_GLOBS if search_globs is None else search_globs
+    given = environ.get("DRJIT_LIBLLVM_PATH")
+    if given and Path(given).is_file():
+        return given
+    candidates = []
+    for pattern in search_globs:
+        for path in glob.glob(pattern):
+            major = llvm_major(path)
+            if major is not None and major >= MIN_LLVM_MAJOR and Path(path).is_file():
+                candidates.append((major, path))
+    return max(candidates)[1] if candidates else None
+
+
+def set_variant(preferred: str = PREFERRED_VARIANT) -> str:
+    """Set Mitsuba's variant once for this process and return it.
+
+    LLVM variants need libLLVM; without one, the scalar spectral variant is used and a
+    single warning says why and how to fix it.
+    """
+    global _chosen
+    if _chosen is not None:
+        return _chosen
+    variant = preferred
+    if preferred.startswith("llvm"):
+        path = find_libllvm()
+        if path is None:
+            LOG.warning(
+                "no usable libLLVM (>= %d) found: rendering falls back to the slower %s variant. "
+                "Install Debian's libllvm19 (`make install` does) or set DRJIT_LIBLLVM_PATH.",
+                MIN_LLVM_MAJOR, FALLBACK_VARIANT,
+            )
+            variant = FALLBACK_VARIANT
+        else:
+            os.environ["DRJIT_LIBLLVM_PATH"] = path
+    import mitsuba as mi
+
+    try:
+        mi.set_variant(variant)
+    except (ImportError, AttributeError, RuntimeError) as exc:
+        if variant == FALLBACK_VARIANT:
+            raise
+        LOG.warning("Mitsuba's %s variant failed to start (%s); using %s.", variant, exc, FALLBACK_VARIANT)
+        variant = FALLBACK_VARIANT
+        mi.set_variant(variant)
+    _chosen = variant
+    return variant
