@@ -93,8 +93,16 @@ class Structure:
     def from_dict(
         cls, data: dict[str, Any], *, source: str = "<dict>", base_dir: Path | None = None, text: str | None = None
     ) -> "Structure":
+        if text is None:
+            import tomli_w
+
+            # The same structure as TOML, so that tables can store and re-read it.
+            try:
+                text = tomli_w.dumps(data)
+            except (TypeError, ValueError):
+                text = repr(data)  # not TOML-serializable; _parse reports what is wrong
         try:
-            return _parse(data, source, base_dir, text if text is not None else repr(data))
+            return _parse(data, source, base_dir, text)
         except UserInputError as exc:
             raise exc.located(file=source) from None
 

@@ -1,0 +1,168 @@
+"""The BWDF plugin at the level of single samples (renderer/bwdf.py).
+
+* Orders are sampled with the probabilities claimed (chi-square test, p > 1e-3, fixed
+  seed): in proportion to efficiency (improved) or uniformly (paper).
+* Every sampled direction satisfies the grating equation for an integer kept order,
+  computed here independently from the structure's superstrate index (tolerance 1e-4 on
+  the implied order: float32 directions).
+* A table of a flat aluminium mirror reduces to the Fresnel reflectance of aluminium
+  (independent Airy/Fresnel formula; tolerance 2e-4: bilinear interpolation of the
+  table's 1-degree theta grid on a smooth curve).
+* Grazing directions, wavelengths outside the table and the exact centre of a radial
+  (CD) mapping give finite weights.
+"""
+
+import math
+
+import numpy as np
+import pytest
+from scipy.stats import chisquare
+
+import rcwa
+from rcwa.table import build_table, settings_for
+from tests.rcwa.helpers import airy_rt
+
+WAVELENGTHS = (450.0, 520.0, 600.0, 680.0)
+
+
+@pytest.fixture(scope="module")
+def bwdf_factory(mitsuba_variant, cd_table):
+    import mitsuba as mi
+
+    from renderer.bwdf import register
+
+    register()
+
+    def make(**props):
+        return mi.load_dict({"type": "bwdf", "filename": str(cd_table.path), **props})
+
+    return make
+
+
+def _interaction(n, wi, wavelengths=WAVELENGTHS):
+    import drjit as dr
+    import mitsuba as mi
+
+    si = dr.zeros(mi.SurfaceInteraction3f, n)
+    si.wi = mi.Vector3f(*(float(c) for c in wi))
+    si.wavelengths = mi.Spectrum(*wavelengths)
+    return si
+
+
+def _sample(bsdf, si, u1):
+    import mitsuba as mi
+
+    bs, w = bsdf.sample(mi.BSDFContext(), si, mi.Float(u1), mi.Point2f(0.5, 0.5))
+    return np.array(bs.wo), np.array(w), np.array(bs.pdf)
+
+
+def _implied_orders(wo, wi, wavelength_nm, period_um=1.6):
+    n1 = float(np.real(rcwa.structure.material_from_spec("polycarbonate").refractive_index(wavelength_nm)))
+    return (-wo[0] - wi[0]) * n1 * period_um * 1000.0 / wavelength_nm
+
+
+@pytest.mark.parametrize("mode", ["improved", "paper"])
+def test_sampled_order_frequencies(bwdf_factory, cd_table, mode):
+    bsdf = bwdf_factory(mode=mode)
+    theta = math.radians(25.0)
+    wi = (math.sin(theta), 0.0, math.cos(theta))
+    n = 200_000
+    rng = np.random.default_rng(7)
+    hero = 2  # fix the hero wavelength: u1 in [0.5, 0.75)
+    u1 = (hero + rng.random(n)) / 4.0
+    wo, w, pdf = _sample(bsdf, _interaction(n, wi), u1)
+    valid = pdf > 0
+    orders = np.rint(_implied_orders(wo, wi, WAVELENGTHS[hero])).astype(int)
+    kept = [m for m, _ in cd_table.orders]
+    # The intended probabilities, from efficiencies the plugin reports via its weights.
+    from renderer.efficiency import EfficiencyLookup
+    import mitsuba as mi
+
+    look = EfficiencyLookup.from_table(cd_table)
+    n1 = float(np.real(rcwa.structure.material_from_spec("polycarbonate").refractive_index(WAVELENGTHS[hero])))
+    de = []
+    for k, m in enumerate(kept):
+        ux = -wi[0] - m * WAVELENGTHS[hero] / (1000 * n1 * 1.6)
+        if abs(ux) >= 1:
+            de.append(0.0)
+            continue
+        th = math.degrees(math.acos(math.sqrt(1 - ux * ux)))
+        de.append(float(np.array(look.eval(mi.UInt32([k]), mi.Float([WAVELENGTHS[hero]]), mi.Float([th]),
+                                           mi.Float([math.degrees(math.atan2(0.0, -ux))])))[0]))
+    de = np.array(de)
+    propagating = de > 0
+    if mode == "improved":
+        expected = de / de.sum()
+        assert np.all(valid)
+    else:
+        expected = np.full(len(kept), 1.0 / len(kept))
+    counts = np.array([np.sum((orders == m) & valid) for m in kept])
+    if mode == "paper":  # non-propagating choices are counted as invalid samples
+        assert counts[~propagating].sum() == 0
+        assert np.sum(~valid) == pytest.approx(n * expected[~propagating].sum(), rel=0.05)
+    mask = expected > 0
+    if mode == "paper":
+        mask &= propagating
+    observed = counts[mask]
+    exp_counts = expected[mask] / expected[mask].sum() * observed.sum()
+    assert chisquare(observed, exp_counts).pvalue > 1e-3
+
+
+def test_directions_obey_the_grating_equation(bwdf_factory):
+    bsdf = bwdf_factory()
+    rng = np.random.default_rng(3)
+    for theta_deg, phi_deg in ((10.0, 0.0), (40.0, 30.0), (70.0, 120.0)):
+        t, p = math.radians(theta_deg), math.radians(phi_deg)
+        wi = (math.sin(t) * math.cos(p), math.sin(t) * math.sin(p), math.cos(t))
+        n = 4000
+        u1 = rng.random(n)
+        wo, w, pdf = _sample(bsdf, _interaction(n, wi), u1)
+        hero = np.minimum((u1 * 4).astype(int), 3)
+        for h in range(4):
+            sel = (hero == h) & (pdf > 0)
+            implied = _implied_orders(wo[:, sel], wi, WAVELENGTHS[h])
+            assert np.all(np.abs(implied - np.rint(implied)) < 1e-4)
+            assert np.allclose(wo[1, sel], -wi[1], atol=1e-6)  # k_y is conserved by a 1D grating
+            assert np.all(np.abs(np.linalg.norm(wo[:, sel], axis=0) - 1) < 1e-5)
+
+
+def test_flat_aluminium_reduces_to_fresnel(mitsuba_variant, tmp_path):
+    import mitsuba as mi
+
+    from renderer.bwdf import register
+
+    register()
+    mirror = rcwa.Structure.from_dict({"period": [1.0], "superstrate": "air", "substrate": "aluminum", "layers": []})
+    st = settings_for(mirror, "draft", wavelengths="450:690:4", theta_step=1.0, phi_step=45.0, orders=1, keep=1)
+    build_table(mirror, st, tmp_path / "al.zarr", progress=False)
+    bsdf = mi.load_dict({"type": "bwdf", "filename": str(tmp_path / "al.zarr")})
+    wavelengths = tuple(st.wavelengths_nm)
+    al = rcwa.structure.material_from_spec("aluminum")
+    for theta_deg in (5.0, 33.3, 61.7, 80.2):
+        t = math.radians(theta_deg)
+        wi = (math.sin(t), 0.0, math.cos(t))
+        wo, w, _ = _sample(bsdf, _interaction(4, wi, wavelengths), (np.arange(4) + 0.5) / 4)
+        mean_weight = w.mean(axis=1)  # averaging over the hero choice
+        for i, wl in enumerate(wavelengths):
+            n = complex(al.refractive_index(wl))
+            fresnel = 0.5 * sum(airy_rt([1.0, n], [], wl, theta_deg, pol)[0] for pol in "sp")
+            assert mean_weight[i] == pytest.approx(fresnel, abs=2e-4)
+        assert np.allclose(wo[:, 0], [-wi[0], -wi[1], wi[2]], atol=1e-6)  # the mirror direction
+
+
+def test_hard_cases_are_finite(bwdf_factory, mitsuba_variant):
+    import drjit as dr
+    import mitsuba as mi
+
+    for props in ({}, {"mode": "paper"}, {"mapping": "radial"}):
+        bsdf = bwdf_factory(**props)
+        n = 64
+        cases = [((1e-7, 0.0, 1.0), WAVELENGTHS), ((math.sqrt(1 - 1e-12), 0.0, 1e-6), WAVELENGTHS),
+                 ((0.3, 0.2, math.sqrt(1 - 0.13)), (300.0, 1000.0, 2000.0, 390.0))]
+        for wi, wls in cases:
+            si = _interaction(n, wi, wls)
+            si.dp_du = mi.Vector3f(0.0, 0.0, 0.0)  # the exact centre of a CD
+            si.sh_frame = mi.Frame3f(mi.Vector3f(0, 0, 1))
+            wo, w, pdf = _sample(bsdf, si, np.linspace(0, 0.999, n))
+            assert np.all(np.isfinite(wo)) and np.all(np.isfinite(w)) and np.all(np.isfinite(pdf))
+            assert np.all(w >= 0)
