@@ -69,9 +69,12 @@ class GratingBWDF(mi.BSDF):
             raise ValueError(f"bwdf: 'mapping' must be one of {MAPPINGS}, got {self.mapping!r}")
         self.angle = math.radians(props.get("grating_angle", 0.0))
         self.delta = float(props.get("delta", 0.05))
-        table = open_table(path)
+        table = open_table(path)  # clear errors for missing, unfinished or damaged tables
         self.lookup = EfficiencyLookup.from_table(table, "R")
         structure = Structure.from_toml_string(table.meta["structure_text"], source=str(path))
+        if self.mapping == "radial" and structure.dimension != 1:
+            raise ValueError(f"bwdf: {path}: the radial (CD) mapping needs a 1D grating table, this one is 2D "
+                             f"(period {list(structure.period)}); use mapping = \"constant\"")
         self.period = tuple(structure.period) + ((1.0,) if structure.dimension == 1 else ())
         self.orders = list(zip(table.meta["orders_m"], table.meta["orders_n"]))
         wl = table.wavelengths_nm
