@@ -30,6 +30,15 @@ DE / p(order), i.e. the sum of the efficiencies of all propagating orders. The p
 pbrt-v3 weight carries an extra cos(theta_i)/cos(theta_o); paper mode keeps it, as
 written, so the two can be compared (the accuracy-vs-time study reports the difference).
 
+See-through elements (tables built with ``--both-sides`` and a transmitting substrate):
+four channels, for a camera above (superstrate side) or below: reflection from the
+camera's side and transmission from the other (R, T_below above; R_below, T below). The
+grating equation keeps the tangential wave vector: n_l omega_i,t = -n_c omega_o,t -
+(m lambda / Lambda_x, n lambda / Lambda_y) with the indices of the light's and camera's
+sides, and a transmitted radiance scales by (n_c / n_l)^2 (the n^2 law of radiance).
+Improved mode samples orders of all channels by efficiency; paper mode tosses a fair
+coin between reflection and transmission (weight x2), as the paper's Sec. 2.2 does.
+
 Directions (Mitsuba's si.wi is the paper's omega_o, toward the camera; bs.wo is its
 omega_i, toward the light). In the grating frame, order (m, n) relates them by the
 grating equation with the order sign of workbench.conventions:
@@ -57,41 +66,63 @@ WAVELENGTHS_PER_RAY = 4
 
 class GratingBWDF(mi.BSDF):
     def __init__(self, props: mi.Properties) -> None:
+        # Read and validate everything before the base class registers this instance with
+        # Dr.Jit: symbolic calls trace every registered BSDF, so a half-built one left
+        # behind by a failed constructor would break later renders.
+        config = self._configure(props)
         mi.BSDF.__init__(self, props)
+        self.__dict__.update(config)
+        self.m_flags = mi.BSDFFlags.DeltaReflection | mi.BSDFFlags.FrontSide
+        if self.see_through:
+            self.m_flags = self.m_flags | mi.BSDFFlags.DeltaTransmission | mi.BSDFFlags.BackSide
+        self.m_components = [self.m_flags]
+
+    @staticmethod
+    def _configure(props: mi.Properties) -> dict:
         path = props.get("filename", "")
         if not path:
             raise ValueError("bwdf: the 'filename' property (an efficiency table) is missing")
-        self.mode = props.get("mode", "improved")
-        self.mapping = props.get("mapping", "constant")
-        if self.mode not in MODES:
-            raise ValueError(f"bwdf: 'mode' must be one of {MODES}, got {self.mode!r}")
-        if self.mapping not in MAPPINGS:
-            raise ValueError(f"bwdf: 'mapping' must be one of {MAPPINGS}, got {self.mapping!r}")
-        self.angle = math.radians(props.get("grating_angle", 0.0))
-        self.delta = float(props.get("delta", 0.05))
+        mode = props.get("mode", "improved")
+        mapping = props.get("mapping", "constant")
+        if mode not in MODES:
+            raise ValueError(f"bwdf: 'mode' must be one of {MODES}, got {mode!r}")
+        if mapping not in MAPPINGS:
+            raise ValueError(f"bwdf: 'mapping' must be one of {MAPPINGS}, got {mapping!r}")
         table = open_table(path)  # clear errors for missing, unfinished or damaged tables
-        self.lookup = EfficiencyLookup.from_table(table, "R")
+        arrays = set(table.meta["arrays"])
+        see_through = "T" in arrays
+        if see_through and not {"R_below", "T_below"} <= arrays:
+            raise ValueError(f"bwdf: {path}: the substrate transmits, so the element is see-through and needs light "
+                             "from both sides: build the table with --both-sides")
         structure = Structure.from_toml_string(table.meta["structure_text"], source=str(path))
-        if self.mapping == "radial" and structure.dimension != 1:
+        if mapping == "radial" and structure.dimension != 1:
             raise ValueError(f"bwdf: {path}: the radial (CD) mapping needs a 1D grating table, this one is 2D "
                              f"(period {list(structure.period)}); use mapping = \"constant\"")
-        self.period = tuple(structure.period) + ((1.0,) if structure.dimension == 1 else ())
-        self.orders = list(zip(table.meta["orders_m"], table.meta["orders_n"]))
         wl = table.wavelengths_nm
         grid = np.linspace(wl.min(), wl.max(), max(2, int(round((wl.max() - wl.min()) / 5.0)) + 1))
-        self._n1_axis = (float(grid[0]), float(grid[1] - grid[0]), grid.size)
-        self._n1 = mi.Float(np.real(structure.superstrate.refractive_index(grid)).astype(np.float32))
-        self.m_flags = mi.BSDFFlags.DeltaReflection | mi.BSDFFlags.FrontSide
-        self.m_components = [self.m_flags]
+        return {
+            "mode": mode, "mapping": mapping, "see_through": see_through,
+            "angle": math.radians(props.get("grating_angle", 0.0)), "delta": float(props.get("delta", 0.05)),
+            "lookups": {name: EfficiencyLookup.from_table(table, name) for name in ("R", "T", "R_below", "T_below")
+                        if name in arrays},
+            "period": tuple(structure.period) + ((1.0,) if structure.dimension == 1 else ()),
+            "orders": list(zip(table.meta["orders_m"], table.meta["orders_n"])),
+            "_n1_axis": (float(grid[0]), float(grid[1] - grid[0]), grid.size),
+            "_n1": mi.Float(np.real(structure.superstrate.refractive_index(grid)).astype(np.float32)),
+            "_n3": mi.Float(np.real(structure.substrate.refractive_index(grid)).astype(np.float32)),
+        }
 
     # ---------------------------------------------------------------- helpers
 
     def _superstrate_index(self, wavelength: mi.Float) -> mi.Float:
+        return self._index(self._n1, wavelength)
+
+    def _index(self, values: mi.Float, wavelength: mi.Float) -> mi.Float:
         start, step, count = self._n1_axis
         t = dr.clip((wavelength - start) / step, 0.0, count - 1)
         i0 = mi.UInt32(dr.minimum(dr.floor(t), count - 2))
         f = t - mi.Float(i0)
-        return (1.0 - f) * dr.gather(mi.Float, self._n1, i0) + f * dr.gather(mi.Float, self._n1, i0 + 1)
+        return (1.0 - f) * dr.gather(mi.Float, values, i0) + f * dr.gather(mi.Float, values, i0 + 1)
 
     def _grating_axis(self, si: mi.SurfaceInteraction3f) -> tuple[mi.Float, mi.Float]:
         if self.mapping == "constant":
@@ -101,87 +132,129 @@ class GratingBWDF(mi.BSDF):
         ok = norm > 1e-12  # the exact centre of a disk has no radial direction
         return dr.select(ok, g.x / norm, 1.0), dr.select(ok, g.y / norm, 0.0)
 
-    def _incident(self, u_o, v_o, m: float, n: float, lam, n1):
-        """omega_i (grating frame) for order (m, n); propagating mask; table (theta, phi) in degrees."""
-        ux = -u_o - m * lam / (1000.0 * n1 * self.period[0])
-        uy = -v_o - n * lam / (1000.0 * n1 * self.period[1])
+    def _incident(self, u_o, v_o, m: float, n: float, lam, n1, n_light=None, z_sign: float = 1.0):
+        """omega_i (grating frame) for order (m, n); propagating mask; table (theta, phi) in degrees.
+
+        n1: the camera side's index; n_light: the light side's (default: the same side).
+        """
+        n_light = n1 if n_light is None else n_light
+        ux = (-n1 * u_o - m * lam / (1000.0 * self.period[0])) / n_light
+        uy = (-n1 * v_o - n * lam / (1000.0 * self.period[1])) / n_light
         s2 = ux * ux + uy * uy
         propagating = s2 < 1.0
-        z = dr.safe_sqrt(1.0 - s2)
-        theta = dr.acos(dr.clip(z, 0.0, 1.0)) * (180.0 / math.pi)
+        z = z_sign * dr.safe_sqrt(1.0 - s2)
+        theta = dr.acos(dr.clip(dr.abs(z), 0.0, 1.0)) * (180.0 / math.pi)
         phi = dr.atan2(-uy, -ux) * (180.0 / math.pi)
         return ux, uy, z, propagating, theta, phi
 
     # ---------------------------------------------------------------- BSDF interface
 
+    def _candidates(self, u_o, v_o, lam, below, valid):
+        """Every (channel, order) the camera direction can come from: directions, masks,
+        table angles, and efficiency times the radiance factor (n_c / n_l)^2."""
+        n1, n3 = self._index(self._n1, lam), self._index(self._n3, lam)
+        n_cam = dr.select(below, n3, n1)
+        out = []
+        channels = [("R", "R_below", False)] + ([("T_below", "T", True)] if self.see_through else [])
+        for above_name, below_name, transmitted in channels:
+            n_light = dr.select(below, n1, n3) if transmitted else n_cam
+            factor = (n_cam / n_light) ** 2 if transmitted else mi.Float(1.0)
+            for k, (m, n) in enumerate(self.orders):
+                ux, uy, z, prop, theta, phi = self._incident(u_o, v_o, float(m), float(n), lam, n_cam, n_light,
+                                                             -1.0 if transmitted else 1.0)
+                look_above, look_below = self.lookups[above_name], self.lookups.get(below_name)
+                de = look_above.eval(mi.UInt32(k), lam, theta, phi, valid & prop & ~below)
+                if look_below is not None:
+                    de = dr.select(below, look_below.eval(mi.UInt32(k), lam, theta, phi, valid & prop & below), de)
+                value = dr.select(prop, de * factor, 0.0)
+                out.append({"ux": ux, "uy": uy, "z": z, "prop": prop, "theta": theta, "phi": phi, "value": value,
+                            "transmitted": transmitted, "k": k, "n_cam": n_cam, "n_light": n_light, "factor": factor})
+        return out
+
     def sample(self, ctx, si, sample1, sample2, active=True):
         bs = dr.zeros(mi.BSDFSample3f)
         wi = si.wi
-        active = mi.Bool(active) & (mi.Frame3f.cos_theta(wi) > 0)
+        below = mi.Frame3f.cos_theta(wi) < 0  # camera on the substrate side
+        active = mi.Bool(active) & (dr.abs(mi.Frame3f.cos_theta(wi)) > 0)
+        if not self.see_through:
+            active &= ~below
         ca, sa = self._grating_axis(si)
         u_o = wi.x * ca + wi.y * sa
         v_o = -wi.x * sa + wi.y * ca
+        cos_o = dr.abs(mi.Frame3f.cos_theta(wi))
         wl = si.wavelengths
         hero = dr.minimum(dr.floor(sample1 * WAVELENGTHS_PER_RAY), WAVELENGTHS_PER_RAY - 1)
         rest = sample1 * WAVELENGTHS_PER_RAY - hero
         lam = dr.select(hero == 0, wl[0], dr.select(hero == 1, wl[1], dr.select(hero == 2, wl[2], wl[3])))
-        n1 = self._superstrate_index(lam)
 
-        per_order = [self._incident(u_o, v_o, float(m), float(n), lam, n1) for m, n in self.orders]
+        cands = self._candidates(u_o, v_o, lam, below, active)
         count = len(self.orders)
         if self.mode == "improved":
-            de = [dr.select(d[3], self.lookup.eval(mi.UInt32(k), lam, d[4], d[5], active & d[3]), 0.0)
-                  for k, d in enumerate(per_order)]
-            total = sum(de[1:], de[0])
+            total = sum((c["value"] for c in cands[1:]), cands[0]["value"])
             target = rest * total
-            chosen = mi.UInt32(count - 1)
+            chosen = mi.UInt32(len(cands) - 1)
             running = mi.Float(0.0)
-            for k in range(count - 1):
-                running = running + de[k]
-                chosen = dr.select((target < running) & (chosen == count - 1), k, chosen)
-            chosen_de = self._pick(de, chosen)
-            pdf = dr.select(total > 0, chosen_de / total, 0.0)
+            for i in range(len(cands) - 1):
+                running = running + cands[i]["value"]
+                chosen = dr.select((target < running) & (chosen == len(cands) - 1), i, chosen)
+            pdf = dr.select(total > 0, self._pick([c["value"] for c in cands], chosen) / total, 0.0)
         else:
-            chosen = mi.UInt32(dr.minimum(dr.floor(rest * count), count - 1))
-            pdf = mi.Float(1.0 / count)
-        ux = self._pick([d[0] for d in per_order], chosen)
-        uy = self._pick([d[1] for d in per_order], chosen)
-        z = self._pick([d[2] for d in per_order], chosen)
-        propagating = self._pick_bool([d[3] for d in per_order], chosen)
-        theta = self._pick([d[4] for d in per_order], chosen)
-        phi = self._pick([d[5] for d in per_order], chosen)
-        valid = active & propagating & (pdf > 0)
+            channels = 2 if self.see_through else 1
+            channel = mi.UInt32(dr.minimum(dr.floor(rest * channels), channels - 1))
+            rest2 = rest * channels - mi.Float(channel)
+            chosen = channel * count + mi.UInt32(dr.minimum(dr.floor(rest2 * count), count - 1))
+            pdf = mi.Float(1.0 / (count * channels))
+        pick = lambda key: self._pick([c[key] for c in cands], chosen)  # noqa: E731
+        ux, uy, z, theta, phi = pick("ux"), pick("uy"), pick("z"), pick("theta"), pick("phi")
+        transmitted = self._pick([mi.Bool(c["transmitted"]) for c in cands], chosen)
+        valid = active & self._pick([c["prop"] for c in cands], chosen) & (pdf > 0)
 
         if self.mode == "improved":
-            weight_hero = WAVELENGTHS_PER_RAY * total
-            weight = mi.Spectrum([dr.select(valid & (hero == i), weight_hero, 0.0) for i in range(WAVELENGTHS_PER_RAY)])
+            weight = mi.Spectrum([dr.select(valid & (hero == i), WAVELENGTHS_PER_RAY * total, 0.0)
+                                  for i in range(WAVELENGTHS_PER_RAY)])
         else:
-            weight = self._paper_weights(u_o, v_o, ux, uy, z, theta, phi, wl, wi, count, valid)
+            weight = self._paper_weights(u_o, v_o, ux, uy, z, theta, phi, wl, cos_o, below, transmitted, chosen, valid)
 
-        bs.wo = mi.Vector3f(ux * ca - uy * sa, ux * sa + uy * ca, z)
+        z_world = dr.select(below, -z, z)
+        bs.wo = mi.Vector3f(ux * ca - uy * sa, ux * sa + uy * ca, z_world)
         bs.pdf = dr.select(valid, pdf, 0.0)
-        bs.eta = 1.0
-        bs.sampled_type = mi.UInt32(+mi.BSDFFlags.DeltaReflection)
+        n_cam, n_light = pick("n_cam"), pick("n_light")
+        bs.eta = dr.select(transmitted, n_light / n_cam, 1.0)
+        bs.sampled_type = dr.select(transmitted, mi.UInt32(+mi.BSDFFlags.DeltaTransmission),
+                                    mi.UInt32(+mi.BSDFFlags.DeltaReflection))
         bs.sampled_component = mi.UInt32(0)
         return bs, dr.select(valid, weight, 0.0)
 
-    def _paper_weights(self, u_o, v_o, ux, uy, z, theta, phi, wl, wi, count, valid):
-        """Eqs. 4-5: each wavelength at its own implied order, kept if within Delta."""
+    def _paper_weights(self, u_o, v_o, ux, uy, z, theta, phi, wl, cos_o, below, transmitted, chosen, valid):
+        """Eqs. 4-5: each wavelength at its own implied order, kept if within Delta; the
+        order was chosen uniformly (x N_tot) and, for see-through elements, the side by a
+        fair coin (x 2); weight DE * N_tot / cos(theta_o) * |cos(theta_i)| as in pbrt-v3."""
+        count = len(self.orders)
+        channels = 2 if self.see_through else 1
+        cos_ratio = dr.abs(z) / cos_o
         weights = []
-        cos_ratio = z / mi.Frame3f.cos_theta(wi)
         for i in range(WAVELENGTHS_PER_RAY):
             lam_i = wl[i]
-            n1 = self._superstrate_index(lam_i)
-            nx = (-ux - u_o) * n1 * 1000.0 * self.period[0] / lam_i
-            ny = (-uy - v_o) * n1 * 1000.0 * self.period[1] / lam_i
+            n1, n3 = self._index(self._n1, lam_i), self._index(self._n3, lam_i)
+            n_cam = dr.select(below, n3, n1)
+            n_light = dr.select(transmitted, dr.select(below, n1, n3), n_cam)
+            nx = (-n_light * ux - n_cam * u_o) * 1000.0 * self.period[0] / lam_i
+            ny = (-n_light * uy - n_cam * v_o) * 1000.0 * self.period[1] / lam_i
             mx = dr.sign(nx) * dr.floor(dr.abs(nx) + 0.5)
             my = dr.sign(ny) * dr.floor(dr.abs(ny) + 0.5)
-            passes = (dr.abs(nx - mx) < self.delta) & (dr.abs(ny - my) < self.delta)
+            passes = valid & (dr.abs(nx - mx) < self.delta) & (dr.abs(ny - my) < self.delta)
             de = mi.Float(0.0)
+            names = (("R", "R_below"), ("T_below", "T"))
             for k, (m, n) in enumerate(self.orders):
                 hit = passes & (mx == m) & (my == n)
-                de = dr.select(hit, self.lookup.eval(mi.UInt32(k), lam_i, theta, phi, valid & hit), de)
-            weights.append(de * count * cos_ratio)
+                for t_flag, (above_name, below_name) in enumerate(names[:channels]):
+                    sel = hit & (transmitted == bool(t_flag))
+                    value = self.lookups[above_name].eval(mi.UInt32(k), lam_i, theta, phi, sel & ~below)
+                    if below_name in self.lookups:
+                        value = dr.select(below, self.lookups[below_name].eval(mi.UInt32(k), lam_i, theta, phi, sel & below), value)
+                    de = dr.select(sel, value, de)
+            factor = dr.select(transmitted, (n_cam / n_light) ** 2, 1.0)
+            weights.append(de * factor * count * channels * cos_ratio)
         return mi.Spectrum(weights)
 
     @staticmethod

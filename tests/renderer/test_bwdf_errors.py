@@ -43,11 +43,21 @@ def test_2d_table_on_the_radial_mapping(mitsuba_variant, tmp_path):
     import mitsuba as mi
 
     s = rcwa.load_structure("gold2d")
-    st = settings_for(s, "draft", wavelengths="550", theta_step=45.0, phi_step=45.0, orders=3, keep=3)
+    st = settings_for(s, "draft", wavelengths="550", theta_step=45.0, phi_step=45.0, orders=3, keep=3, both_sides=True)
     build_table(s, st, tmp_path / "g2.zarr", progress=False)
     with pytest.raises(Exception, match="radial .*1D grating table"):
         _load(mi, filename=str(tmp_path / "g2.zarr"), mapping="radial")
     _load(mi, filename=str(tmp_path / "g2.zarr"), mapping="constant")  # fine
+
+
+def test_see_through_table_needs_both_sides(mitsuba_variant, tmp_path):
+    import mitsuba as mi
+
+    s = rcwa.load_structure("gold2d")
+    st = settings_for(s, "draft", wavelengths="550", theta_step=45.0, phi_step=45.0, orders=3, keep=3)
+    build_table(s, st, tmp_path / "one_side.zarr", progress=False)
+    with pytest.raises(Exception, match="one_side.zarr.*--both-sides"):
+        _load(mi, filename=str(tmp_path / "one_side.zarr"))
 
 
 def test_bad_mode_and_mapping(mitsuba_variant, cd_table):
