@@ -85,8 +85,8 @@ class LamellarModes : public LayerModes {
     LamellarModes(const LamellarEigen& e, double ky) : e_(e), ky_(ky), n_(static_cast<int>(e.kx.size())) {
         kz_.resize(2 * static_cast<std::size_t>(n_));
         for (int i = 0; i < n_; ++i) {
-            kz_[i] = regularize_kz(outgoing_sqrt(e.muA[i] - ky * ky));
-            kz_[n_ + i] = regularize_kz(outgoing_sqrt(e.muB[i] - ky * ky));
+            kz_[i] = layer_kz(e.muA[i] - ky * ky);
+            kz_[n_ + i] = layer_kz(e.muB[i] - ky * ky);
         }
     }
 

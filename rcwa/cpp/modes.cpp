@@ -1,5 +1,6 @@
 #include "modes.hpp"
 
+#include <algorithm>
 #include <cmath>
 
 namespace rcwa {
@@ -12,6 +13,19 @@ cplx outgoing_sqrt(cplx kz2) {
     cplx r = std::sqrt(kz2);
     if (r.imag() < 0.0 || (r.imag() == 0.0 && r.real() < 0.0)) r = -r;
     return r;
+}
+
+cplx layer_kz(cplx kz2) {
+    // Eigenvalues of a lossless layer carry round-off imaginary parts of either sign.
+    // The outgoing rule (Im >= 0) would then flip some propagating modes to Re(kz) < 0,
+    // labelling an up-going wave "down-going"; the S-matrix does not mind, but the
+    // enhanced transmittance method matches the substrate's down-going field onto the
+    // layer's down-going modes and breaks (an 18% energy error was found by hypothesis).
+    // So: the principal root (Re >= 0), flipped only when Im(kz) is clearly negative
+    // (evanescent or lossy modes), never for round-off on a propagating mode.
+    cplx r = std::sqrt(kz2);
+    if (r.imag() < -1e-8 * std::max(1.0, std::abs(r))) r = -r;
+    return regularize_kz(r);
 }
 
 cplx regularize_kz(cplx kz) {
@@ -119,7 +133,7 @@ std::unique_ptr<LayerModes> general_modes(const Harmonics& h, const Mat& E, cons
     }
     Eigen e = eig(matmul(P, Q));
     CVec kz(2 * static_cast<std::size_t>(n));
-    for (int i = 0; i < 2 * n; ++i) kz[i] = regularize_kz(outgoing_sqrt(e.values[i]));
+    for (int i = 0; i < 2 * n; ++i) kz[i] = layer_kz(e.values[i]);
     Mat V = matmul(Q, e.vectors);
     for (int j = 0; j < 2 * n; ++j)
         for (int i = 0; i < 2 * n; ++i) V(i, j) /= kz[j];

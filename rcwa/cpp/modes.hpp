@@ -34,6 +34,8 @@ constexpr double kKzFloor = 1e-8;
 // sqrt with Im >= 0 (Re >= 0 when Im == 0), exact for purely real arguments.
 cplx outgoing_sqrt(cplx kz2);
 cplx regularize_kz(cplx kz);
+// kz of a mode of a finite layer from its eigenvalue kz^2 (see modes.cpp).
+cplx layer_kz(cplx kz2);
 
 class LayerModes {
   public:

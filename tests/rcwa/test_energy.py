@@ -33,13 +33,26 @@ def lamellar_layers(draw):
 
 @settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(lamellar_layers(), index, index, angles, st.floats(400, 800), st.sampled_from([11, 21, 31]),
-       st.sampled_from(["s", "p"]), st.sampled_from(["li", "laurent"]))
-def test_lossless_1d_conserves_energy(cell, n_sup, n_sub, angle, wavelength, orders, pol, rule):
+       st.sampled_from(["s", "p"]), st.sampled_from(["li", "laurent"]), st.sampled_from(["etm", "smatrix"]))
+def test_lossless_1d_conserves_energy(cell, n_sup, n_sub, angle, wavelength, orders, pol, rule, stack):
     period, layers = cell
     s = structure([period], nk(n_sup), nk(n_sub), layers)
-    result = rcwa.solve(s, wavelength, angle[0], angle[1], orders, pol, rule)
+    result = rcwa.solve(s, wavelength, angle[0], angle[1], orders, pol, rule, stack)
     assert abs(result.R_total + result.T_total - 1.0) < TOLERANCE_ENERGY
     assert abs(result.absorption) < TOLERANCE_ENERGY
+
+
+def test_layer_painted_back_to_its_background_in_conical_incidence():
+    """Found by hypothesis: round-off on the eigenvalues of a contrast-free patterned layer
+    flipped propagating modes to Re(kz) < 0 and broke the ETM stack (R + T = 1.18)."""
+    period = 0.9329896538126565
+    shapes = [{"material": nk(2.0), "x": [0.0, period]}, {"material": nk(1.0), "x": [0.0, period]}]
+    for thickness in (0.0, 0.1):
+        s = structure([period], nk(1.0), nk(1.0), [{"thickness": thickness, "material": nk(1.0), "shapes": shapes}])
+        for stack in ("etm", "smatrix"):
+            r = rcwa.solve(s, 400.0, 1.0, 1.921875, 11, "s", "li", stack)
+            assert abs(r.R_total + r.T_total - 1.0) < TOLERANCE_ENERGY
+            assert r.T_total > 1.0 - TOLERANCE_ENERGY  # it is just air
 
 
 @st.composite
