@@ -40,6 +40,7 @@ bench: install
 	$(BIN)/python rcwa/benchmarks/bench_solve.py
 	$(BIN)/python -m rcwa.convergence
 	$(BIN)/python -m rcwa.bench_table
+	$(BIN)/python -m renderer.bench_bwdf
 
 clean:
 	rm -rf build $(VENV)
