@@ -21,10 +21,11 @@ import numpy as np
 TABLE_DIR = Path("build/tables")
 
 
-def cd_table(path: Path = TABLE_DIR / "cd_bench.zarr") -> Path:
+def cd_table(path: Path | None = None) -> Path:
     import rcwa
     from rcwa.table import build_table, settings_for
 
+    path = path or TABLE_DIR / "cd_bench.zarr"
     s = rcwa.load_structure("cd")
     st = settings_for(s, "draft", wavelengths="360:830:48", theta_step=3.0, phi_step=6.0, orders=31, keep=11)
     path.parent.mkdir(parents=True, exist_ok=True)
