@@ -17,6 +17,7 @@ from typing import Any
 
 from rcwa.materials import Material, material_from_spec
 from rcwa.shapes import Circle, Polygon, Rect, Shape, Stripe
+from workbench import validation
 from workbench.errors import UserInputError
 
 BUILTIN_STRUCTURES: tuple[str, ...] = ("cd", "gold2d")
@@ -145,33 +146,10 @@ def _parse(data: dict[str, Any], source: str, base_dir: Path | None, text: str) 
     return Structure(name, period, superstrate, substrate, layers, source=source, text=text)
 
 
-def _required(table: dict[str, Any], key: str, where: str) -> Any:
-    if key not in table:
-        raise UserInputError("is missing", field=f"{where}{key}")
-    return table[key]
-
-
-def _reject_unknown(table: dict[str, Any], known: set[str], where: str) -> None:
-    for key in table:
-        if key not in known:
-            raise UserInputError("unknown field", field=f"{where}{key}", expected=f"one of {sorted(known)}")
-
-
-def _number(value: Any, where: str, *, positive: bool = False, nonnegative: bool = False) -> float:
-    if isinstance(value, bool) or not isinstance(value, (int, float)):
-        raise UserInputError("must be a number", field=where, got=value)
-    x = float(value)
-    if positive and not x > 0:
-        raise UserInputError("must be positive", field=where, expected="a number > 0", got=value)
-    if nonnegative and not x >= 0:
-        raise UserInputError("must not be negative", field=where, expected="a number >= 0", got=value)
-    return x
-
-
-def _pair(value: Any, where: str) -> tuple[float, float]:
-    if not isinstance(value, list) or len(value) != 2:
-        raise UserInputError("must be a pair of numbers", field=where, expected="[a, b]", got=value)
-    return _number(value[0], f"{where}[0]"), _number(value[1], f"{where}[1]")
+_required = validation.required
+_reject_unknown = validation.reject_unknown
+_number = validation.number
+_pair = validation.pair
 
 
 def _parse_period(value: Any) -> tuple[float, ...]:

@@ -24,6 +24,16 @@ def _orders_argument(text: str) -> int | tuple[int, ...]:
     return values[0] if len(values) == 1 else values
 
 
+def _resolution_argument(text: str) -> tuple[int, int]:
+    try:
+        w, h = (int(v) for v in text.lower().split("x"))
+        if w < 1 or h < 1:
+            raise ValueError
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected WxH with positive integers (e.g. 640x480), got {text!r}") from None
+    return w, h
+
+
 def _pair_argument(text: str) -> tuple[float, float]:
     try:
         lo, hi = (float(v) for v in text.split(","))
@@ -73,6 +83,17 @@ def _build_parser() -> argparse.ArgumentParser:
     table.add_argument("--workers", type=int, metavar="N", help="start a local dask cluster with N worker processes")
     table.add_argument("--force", action="store_true", help="overwrite a different table at --out")
     table.add_argument("--quiet", action="store_true", help="no progress bar")
+
+    render = commands.add_parser("render", help="render a scene to linear camera RGB (EXR, PNG preview, JSON)")
+    render.add_argument("scene", help="a built-in scene (cornell_cd) or a TOML file")
+    render.add_argument("--out", required=True, metavar="PATH.exr")
+    render.add_argument("--preset", choices=["draft", "paper"], default="draft")
+    render.add_argument("--spp", type=int)
+    render.add_argument("--resolution", type=_resolution_argument, metavar="WxH")
+    render.add_argument("--integrator", choices=["path", "direct"], default="path")
+    render.add_argument("--mode", choices=["paper", "improved"], default="improved", help="BWDF sampling mode")
+    render.add_argument("--seed", type=int, default=0)
+    render.add_argument("--quiet", action="store_true")
 
     study = commands.add_parser("study", help="accuracy-versus-time studies")
     study_commands = study.add_subparsers(dest="study_command", required=True)
@@ -160,6 +181,15 @@ def main(argv: Sequence[str] | None = None) -> int:
             return _run_rcwa_solve(args)
         if args.command == "rcwa" and args.rcwa_command == "table":
             return _run_rcwa_table(args)
+        if args.command == "render":
+            from renderer.render import render as run_render
+
+            info = run_render(args.scene, args.out, preset=args.preset, spp=args.spp, resolution=args.resolution,
+                              integrator=args.integrator, mode=args.mode, seed=args.seed, progress=not args.quiet)
+            print(f"wrote {info['output']} (linear camera RGB), {info['preview']} and the sidecar "
+                  f"{info['output'][:-4]}.json: {info['resolution'][0]}x{info['resolution'][1]}, {info['spp']} spp, "
+                  f"{info['seconds_total']:.1f} s ({info['variant']})")
+            return 0
         if args.command == "study" and args.study_command == "rcwa":
             return _run_study_rcwa(args)
         if args.command == "study" and args.study_command == "render":

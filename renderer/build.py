@@ -1,0 +1,195 @@
+"""Build a Mitsuba scene from a scene spec (renderer.scene): geometry, spectra, CD tables.
+
+Spectra are Mitsuba ``irregular`` spectra over 360-830 nm; data that stop inside that
+range (the Cornell reflectances, 400-700 nm) are held constant beyond their ends.
+Meshes (box quads, CD annuli) are written as PLY files into a cache folder named by
+their content, atomically. A CD's efficiency table is built through the table cache
+(rcwa.table) when missing, and checked to cover where the camera sees.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import math
+import os
+from pathlib import Path
+
+import numpy as np
+
+from renderer.scene import CD_TOP_THICKNESS_M, MM, SPECTRAL_RANGE_NM, SceneSpec, cornell_data
+
+CACHE = Path("build")
+CD_SEGMENTS = 256
+GRID_NM = np.arange(SPECTRAL_RANGE_NM[0], SPECTRAL_RANGE_NM[1] + 1e-9, 5.0)
+
+
+def irregular(wavelengths, values) -> dict:
+    wl = np.asarray(wavelengths, dtype=float)
+    vals = np.asarray(values, dtype=float)
+    if wl[0] > SPECTRAL_RANGE_NM[0]:
+        wl, vals = np.r_[SPECTRAL_RANGE_NM[0], wl], np.r_[vals[0], vals]
+    if wl[-1] < SPECTRAL_RANGE_NM[1]:
+        wl, vals = np.r_[wl, SPECTRAL_RANGE_NM[1]], np.r_[vals, vals[-1]]
+    return {"type": "irregular", "wavelengths": ", ".join(f"{w:g}" for w in wl), "values": ", ".join(f"{x:.6g}" for x in vals)}
+
+
+def light_spectrum(name: str) -> tuple[np.ndarray, np.ndarray]:
+    if name == "flat":
+        return GRID_NM, np.ones_like(GRID_NM)
+    if name == "cornell":
+        e = cornell_data()["light_emission"]
+        return GRID_NM, np.interp(GRID_NM, e["wavelength_nm"], e["value"])
+    import colour
+
+    sd = colour.SDS_ILLUMINANTS[name]
+    return GRID_NM, np.interp(GRID_NM, sd.wavelengths, sd.values, left=0.0, right=0.0)
+
+
+def camera_sensitivities(name: str) -> list[tuple[np.ndarray, np.ndarray]]:
+    import colour
+
+    msds = colour.MSDS_CAMERA_SENSITIVITIES[name]
+    return [(msds.wavelengths, msds.values[:, i]) for i in range(3)]
+
+
+def _write_ply(vertices: np.ndarray, faces: np.ndarray, uv: np.ndarray | None = None) -> Path:
+    lines = ["ply", "format ascii 1.0", f"element vertex {len(vertices)}", "property float x", "property float y", "property float z"]
+    if uv is not None:
+        lines += ["property float u", "property float v"]
+    lines += [f"element face {len(faces)}", "property list uchar int vertex_indices", "end_header"]
+    rows = [" ".join(f"{c:.9g}" for c in (list(p) + (list(uv[i]) if uv is not None else []))) for i, p in enumerate(vertices)]
+    rows += [f"3 {a} {b} {c}" for a, b, c in faces]
+    text = "\n".join(lines + rows) + "\n"
+    path = CACHE / "meshes" / (hashlib.sha256(text.encode()).hexdigest()[:20] + ".ply")
+    if not path.exists():
+        path.parent.mkdir(parents=True, exist_ok=True)
+        tmp = path.with_suffix(f".{os.getpid()}.tmp")
+        tmp.write_text(text)
+        os.replace(tmp, path)
+    return path
+
+
+def quad_mesh(points_mm) -> Path:
+    p = np.asarray(points_mm, dtype=float) * MM
+    return _write_ply(p, np.array([[0, 1, 2], [0, 2, 3]]))
+
+
+def annulus_mesh(inner: float, outer: float) -> Path:
+    """An annulus in the xy-plane (normal +z) with u radial and v the angle (dp/du radial)."""
+    angles = np.linspace(0, 2 * np.pi, CD_SEGMENTS + 1)
+    ring = lambda r: np.stack([r * np.cos(angles), r * np.sin(angles), np.zeros_like(angles)], 1)  # noqa: E731
+    vertices = np.concatenate([ring(inner), ring(outer)])
+    n = len(angles)
+    uv = np.concatenate([np.stack([np.zeros(n), angles / (2 * np.pi)], 1), np.stack([np.ones(n), angles / (2 * np.pi)], 1)])
+    faces = []
+    for i in range(CD_SEGMENTS):
+        faces += [[i, n + i, n + i + 1], [i, n + i + 1, i + 1]]
+    return _write_ply(vertices, np.array(faces), uv)
+
+
+def frame_to(normal, rotation_deg: float) -> np.ndarray:
+    """Rotation taking +z to ``normal``, after rotating by ``rotation_deg`` about z."""
+    n = np.asarray(normal, dtype=float)
+    z = np.array([0.0, 0.0, 1.0])
+    axis = np.cross(z, n)
+    s, c = np.linalg.norm(axis), float(np.dot(z, n))
+    if s < 1e-12:
+        R = np.eye(3) if c > 0 else np.diag([1.0, -1.0, -1.0])
+    else:
+        k = axis / s
+        K = np.array([[0, -k[2], k[1]], [k[2], 0, -k[0]], [-k[1], k[0], 0]])
+        R = np.eye(3) + s * K + (1 - c) * K @ K
+    a = math.radians(rotation_deg)
+    Rz = np.array([[math.cos(a), -math.sin(a), 0], [math.sin(a), math.cos(a), 0], [0, 0, 1]])
+    return R @ Rz
+
+
+def transform(translation, rotation: np.ndarray, scale=(1.0, 1.0, 1.0)) -> np.ndarray:
+    T = np.eye(4)
+    T[:3, :3] = rotation @ np.diag(scale)
+    T[:3, 3] = translation
+    return T
+
+
+def cd_table(cd, camera_sens) -> Path:
+    import rcwa
+    from rcwa.table import build_table, request_key, settings_for
+    from renderer.checks import require_table_covers_camera
+
+    structure = rcwa.load_structure(cd.structure)
+    options = dict(cd.table)
+    preset = options.pop("preset", "draft")
+    settings = settings_for(structure, preset, **options)
+    path = CACHE / "tables" / f"{structure.name}-{request_key(structure, settings)[:16]}.zarr"
+    build_table(structure, settings, path, progress=True)
+    wl = np.unique(np.concatenate([w for w, _ in camera_sens]))
+    curves = np.stack([np.interp(wl, w, s, left=0, right=0) for w, s in camera_sens])
+    require_table_covers_camera(str(path), np.asarray(settings.wavelengths_nm), wl, curves)
+    return path
+
+
+def scene_dict(mi, spec: SceneSpec, *, spp: int, integrator: str = "path", mode: str = "improved", max_depth: int = 8) -> tuple[dict, dict]:
+    """The Mitsuba scene dict and what was built for it (tables, the pinhole plan)."""
+    from renderer.bwdf import register
+
+    register()
+    data = cornell_data()
+    refl = data["reflectance"]
+    spectra = {c: irregular(refl["wavelength_nm"], refl[c]) for c in ("white", "red", "green")}
+    for colour in ("white", "red", "green"):
+        if colour in spec.box:
+            spectra[colour] = {"type": "uniform", "value": spec.box[colour]}
+    scene: dict = {"type": "scene", "integrator": {"type": integrator, "max_depth": max_depth}}
+    for name, quad in data["geometry"].items():
+        if name in ("units", "notes", "light") or ("block" in name and not spec.box["blocks"]):
+            continue
+        colour = name.rsplit("_", 1)[-1]
+        quads = quad if "block" in name else [quad]
+        for i, q in enumerate(quads):
+            scene[f"{name}_{i}"] = {"type": "ply", "filename": str(quad_mesh(q)), "face_normals": True,
+                                    "bsdf": {"type": "twosided", "bsdf": {"type": "diffuse", "reflectance": spectra[colour]}}}
+    wl, s = light_spectrum(spec.light.spectrum)
+    area = spec.light.size[0] * spec.light.size[1]
+    radiance = s * spec.light.power_w / (math.pi * area * np.trapezoid(s, wl))
+    down = frame_to([0.0, -1.0, 0.0], 0.0)
+    scene["light"] = {"type": "rectangle", "emitter": {"type": "area", "radiance": irregular(wl, radiance)},
+                      "to_world": mi.ScalarTransform4f(transform(spec.light.center, down, (spec.light.size[0] / 2, spec.light.size[1] / 2, 1)).tolist())}
+    sens = camera_sensitivities(spec.camera.sensitivities)
+    built: dict = {"tables": []}
+    from rcwa.materials import material_from_spec
+
+    pc = float(np.real(material_from_spec("polycarbonate").refractive_index(550.0)))
+    for i, cd in enumerate(spec.cds):
+        table = cd_table(cd, sens)
+        built["tables"].append(str(table))
+        R = frame_to(cd.normal, cd.rotation_deg)
+        mesh = str(annulus_mesh(cd.inner_radius, cd.outer_radius))
+        scene[f"cd{i}"] = {"type": "ply", "filename": mesh, "to_world": mi.ScalarTransform4f(transform(cd.center, R).tolist()),
+                           "bsdf": {"type": "bwdf", "filename": str(table), "mapping": "radial", "mode": mode}}
+        if cd.top_surface:
+            top = np.asarray(cd.center) + CD_TOP_THICKNESS_M * np.asarray(cd.normal)
+            scene[f"cd{i}_top"] = {"type": "ply", "filename": mesh, "to_world": mi.ScalarTransform4f(transform(top, R).tolist()),
+                                   "bsdf": {"type": "dielectric", "int_ior": pc, "ext_ior": 1.0}}
+    for i, g in enumerate(spec.glass):
+        n = float(np.real(material_from_spec(g.material).refractive_index(550.0)))
+        bsdf = {"type": "dielectric", "int_ior": n, "ext_ior": 1.0}
+        if g.shape == "sphere":
+            scene[f"glass{i}"] = {"type": "sphere", "center": list(g.center), "radius": g.size, "bsdf": bsdf}
+        else:
+            R = frame_to([0, 0, 1], 0.0) @ np.array([[math.cos(math.radians(g.rotation_deg)), 0, math.sin(math.radians(g.rotation_deg))],
+                                                      [0, 1, 0], [-math.sin(math.radians(g.rotation_deg)), 0, math.cos(math.radians(g.rotation_deg))]])
+            scene[f"glass{i}"] = {"type": "cube", "bsdf": bsdf,
+                                  "to_world": mi.ScalarTransform4f(transform(g.center, R, (g.size / 2,) * 3).tolist())}
+    scene["sensor"], built["plan"] = sensor_dict(mi, spec.camera, spp)
+    return scene, built
+
+
+def sensor_dict(mi, camera, spp: int):
+    """Mitsuba's sensor for a scene camera: the ideal pinhole plan (renderer.camera) with a
+    spectral film whose three channels are the camera's sensitivities (camera RGB)."""
+    plan = camera.model.pinhole_plan()
+    film = {f"channel_{c}": irregular(w, v) for c, (w, v) in zip("rgb", camera_sensitivities(camera.sensitivities))}
+    sensor = plan.sensor_dict(mi, spp)
+    sensor["film"] = {"type": "specfilm", "width": plan.width, "height": plan.height, "rfilter": {"type": "box"},
+                      "component_format": "float32", **film}
+    return sensor, plan

@@ -1,0 +1,274 @@
+"""Scene files (TOML): the Cornell box, its LED light, CDs, glass and the camera.
+
+Format (renderer/scenes/cornell_cd.toml is a complete example). Lengths in metres,
+angles in degrees, wavelengths in nm.
+
+[box]     ``model = "cornell"``: the measured box (renderer/data/cornell_box.json: the
+          geometry in mm is scaled to metres and its open front faces -z), white floor,
+          ceiling and back wall, red left and green right walls with the measured
+          reflectances (``white``/``red``/``green`` may override them with a number);
+          ``blocks = true`` adds the two white blocks.
+[light]   an area light in the ceiling: ``center``, ``size`` ([x, z]), ``power_w``
+          (radiant power, Lambertian), ``spectrum``: ``"flat"``, ``"cornell"`` (the
+          measured relative emission) or a CIE LED illuminant (``"LED-B1"``..``"LED-B5"``,
+          ``"LED-BH1"``, ``"LED-RGB1"``, ``"LED-V1"``, ``"LED-V2"``; colour-science's data).
+[[cd]]    ``center``, ``normal``, ``rotation_deg``, ``outer_radius`` (0.060),
+          ``inner_radius`` (0.0075), ``structure`` (built-in name or file; relative to the
+          scene file), ``table`` (options of ``workbench rcwa table``: preset, orders, ...),
+          ``top_surface`` (true: a 1.2 mm polycarbonate face above the grating).
+[[glass]] ``shape = "cube" | "sphere"``, ``center``, ``size`` (cube edge) or ``radius``,
+          ``rotation_deg`` (about y), ``material`` (built-in name or index).
+[camera]  ``resolution`` [w, h], ``look_at`` {origin, target, up}, ``fov_deg`` (horizontal)
+          or ``focal_mm`` with ``sensor_mm`` [w, h], ``principal_offset_px``, ``dist``
+          [k1, k2, p1, p2, k3] (OpenCV), ``exposure`` (a scale on camera RGB),
+          ``sensitivities`` (a colour-science camera, default "Nikon 5100 (NPL)").
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import tomllib
+from dataclasses import dataclass, field
+from importlib import resources
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from renderer.camera import CameraModel, look_at
+from workbench import validation as v
+from workbench.errors import UserInputError
+
+BUILTIN_SCENES: tuple[str, ...] = ("cornell_cd",)
+MM = 1e-3
+CD_TOP_THICKNESS_M = 1.2e-3
+LED_SPECTRA = ("LED-B1", "LED-B2", "LED-B3", "LED-B4", "LED-B5", "LED-BH1", "LED-RGB1", "LED-V1", "LED-V2")
+SPECTRAL_RANGE_NM = (360.0, 830.0)
+
+
+@dataclass(frozen=True)
+class LightSpec:
+    center: tuple[float, float, float]
+    size: tuple[float, float]
+    power_w: float
+    spectrum: str
+
+
+@dataclass(frozen=True)
+class CDSpec:
+    center: tuple[float, float, float]
+    normal: tuple[float, float, float]
+    rotation_deg: float
+    outer_radius: float
+    inner_radius: float
+    structure: str
+    table: dict
+    top_surface: bool
+
+
+@dataclass(frozen=True)
+class GlassSpec:
+    shape: str
+    center: tuple[float, float, float]
+    size: float
+    rotation_deg: float
+    material: Any
+
+
+@dataclass(frozen=True)
+class CameraSpec:
+    model: CameraModel
+    exposure: float
+    sensitivities: str
+
+
+@dataclass(frozen=True)
+class SceneSpec:
+    name: str
+    source: str
+    text: str
+    box: dict
+    light: LightSpec
+    camera: CameraSpec
+    cds: tuple[CDSpec, ...] = ()
+    glass: tuple[GlassSpec, ...] = ()
+    base_dir: Path | None = field(default=None, compare=False)
+
+
+def cornell_data() -> dict:
+    return json.loads(resources.files("renderer.data").joinpath("cornell_box.json").read_text())
+
+
+def load_scene(name_or_path: str | Path) -> SceneSpec:
+    name = str(name_or_path)
+    if name in BUILTIN_SCENES:
+        text = resources.files("renderer.scenes").joinpath(f"{name}.toml").read_text()
+        return parse_scene(text, source=f"<built-in {name}>", base_dir=None)
+    path = Path(name)
+    if not path.exists():
+        raise UserInputError("no such scene", field="scene", expected=f"a built-in name ({', '.join(BUILTIN_SCENES)}) or a TOML file", got=name)
+    return parse_scene(path.read_text(), source=str(path), base_dir=path.parent)
+
+
+def parse_scene(text: str, *, source: str, base_dir: Path | None) -> SceneSpec:
+    try:
+        data = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise UserInputError(f"not valid TOML ({exc})", file=source) from None
+    try:
+        return _parse(data, source, text, base_dir)
+    except UserInputError as exc:
+        raise exc.located(file=source) from None
+
+
+def _parse(data: dict, source: str, text: str, base_dir: Path | None) -> SceneSpec:
+    v.reject_unknown(data, {"name", "description", "box", "light", "cd", "glass", "camera"}, "")
+    box = _parse_box(v.required(data, "box", ""))
+    light = _parse_light(v.required(data, "light", ""))
+    cds = tuple(_parse_cd(c, f"cd[{i}]", base_dir) for i, c in enumerate(data.get("cd", [])))
+    glass = tuple(_parse_glass(g, f"glass[{i}]") for i, g in enumerate(data.get("glass", [])))
+    camera = _parse_camera(v.required(data, "camera", ""))
+    _check_camera_placement(camera.model, box)
+    return SceneSpec(str(data.get("name", "scene")), source, text, box, light, camera, cds, glass, base_dir)
+
+
+def _parse_box(d: Any) -> dict:
+    if not isinstance(d, dict):
+        raise UserInputError("must be a table", field="box", got=d)
+    v.reject_unknown(d, {"model", "blocks", "white", "red", "green"}, "box.")
+    model = d.get("model", "cornell")
+    if model != "cornell":
+        raise UserInputError("unknown box model", field="box.model", expected='"cornell"', got=model)
+    out = {"model": model, "blocks": bool(d.get("blocks", False))}
+    for colour in ("white", "red", "green"):
+        if colour in d:
+            value = v.number(d[colour], f"box.{colour}")
+            if not 0 <= value <= 1:
+                raise UserInputError("a reflectance must be in [0, 1]", field=f"box.{colour}", got=value)
+            out[colour] = value
+    return out
+
+
+def _parse_light(d: Any) -> LightSpec:
+    if not isinstance(d, dict):
+        raise UserInputError("must be a table", field="light", got=d)
+    v.reject_unknown(d, {"center", "size", "power_w", "spectrum"}, "light.")
+    spectrum = d.get("spectrum", "flat")
+    if spectrum not in ("flat", "cornell", *LED_SPECTRA):
+        raise UserInputError("unknown light spectrum", field="light.spectrum", expected=f"flat, cornell or one of {LED_SPECTRA}", got=spectrum)
+    geometry = cornell_data()["geometry"]["light"]
+    pts = np.asarray(geometry) * MM
+    default_center = tuple(pts.mean(axis=0) - [0, 1e-4, 0])
+    default_size = (float(np.ptp(pts[:, 0])), float(np.ptp(pts[:, 2])))
+    return LightSpec(
+        center=v.vector(d["center"], "light.center", 3) if "center" in d else default_center,
+        size=v.vector(d["size"], "light.size", 2, positive=True) if "size" in d else default_size,
+        power_w=v.number(d.get("power_w", 10.0), "light.power_w", positive=True),
+        spectrum=spectrum,
+    )
+
+
+def _parse_cd(d: Any, where: str, base_dir: Path | None) -> CDSpec:
+    if not isinstance(d, dict):
+        raise UserInputError("must be a table", field=where, got=d)
+    v.reject_unknown(d, {"center", "normal", "rotation_deg", "outer_radius", "inner_radius", "structure", "table", "top_surface"}, f"{where}.")
+    outer = v.number(d.get("outer_radius", 0.060), f"{where}.outer_radius", positive=True)
+    inner = v.number(d.get("inner_radius", 0.0075), f"{where}.inner_radius", nonnegative=True)
+    if inner >= outer:
+        raise UserInputError("the hole must be smaller than the disc", field=f"{where}.inner_radius", expected=f"< {outer}", got=inner)
+    structure = str(d.get("structure", "cd"))
+    from rcwa.structure import BUILTIN_STRUCTURES
+
+    if structure not in BUILTIN_STRUCTURES:
+        path = (base_dir / structure) if base_dir is not None else Path(structure)
+        if not path.exists():
+            raise UserInputError("the CD's structure file does not exist", field=f"{where}.structure",
+                                 expected=f"a built-in structure ({', '.join(BUILTIN_STRUCTURES)}) or an existing TOML file", got=structure)
+        structure = str(path)
+    normal = np.asarray(v.vector(d.get("normal", [0.0, 1.0, 0.0]), f"{where}.normal", 3))
+    if np.linalg.norm(normal) == 0:
+        raise UserInputError("the normal must not be zero", field=f"{where}.normal", got=list(normal))
+    table = d.get("table", {"preset": "draft"})
+    if not isinstance(table, dict):
+        raise UserInputError("must be a table of `workbench rcwa table` options", field=f"{where}.table", got=table)
+    return CDSpec(v.vector(v.required(d, "center", f"{where}."), f"{where}.center", 3), tuple(normal / np.linalg.norm(normal)),
+                  v.number(d.get("rotation_deg", 0.0), f"{where}.rotation_deg"), outer, inner, structure, table,
+                  bool(d.get("top_surface", True)))
+
+
+def _parse_glass(d: Any, where: str) -> GlassSpec:
+    if not isinstance(d, dict):
+        raise UserInputError("must be a table", field=where, got=d)
+    v.reject_unknown(d, {"shape", "center", "size", "radius", "rotation_deg", "material"}, f"{where}.")
+    shape = d.get("shape", "cube")
+    if shape not in ("cube", "sphere"):
+        raise UserInputError("unknown glass shape", field=f"{where}.shape", expected='"cube" or "sphere"', got=shape)
+    size = v.number(v.required(d, "size" if shape == "cube" else "radius", f"{where}."), f"{where}.{'size' if shape == 'cube' else 'radius'}", positive=True)
+    material = d.get("material", "n-bk7")
+    from rcwa.materials import material_from_spec
+
+    try:
+        material_from_spec(material)
+    except UserInputError as exc:
+        raise exc.located(field_prefix=f"{where}.material") from None
+    return GlassSpec(shape, v.vector(v.required(d, "center", f"{where}."), f"{where}.center", 3), size,
+                     v.number(d.get("rotation_deg", 0.0), f"{where}.rotation_deg"), material)
+
+
+def _parse_camera(d: Any) -> CameraSpec:
+    if not isinstance(d, dict):
+        raise UserInputError("must be a table", field="camera", got=d)
+    v.reject_unknown(d, {"resolution", "look_at", "fov_deg", "focal_mm", "sensor_mm", "principal_offset_px", "dist",
+                         "exposure", "sensitivities"}, "camera.")
+    w, h = (int(x) for x in v.vector(v.required(d, "resolution", "camera."), "camera.resolution", 2, positive=True))
+    la = v.required(d, "look_at", "camera.")
+    if not isinstance(la, dict):
+        raise UserInputError("must be a table {origin, target, up}", field="camera.look_at", got=la)
+    origin = v.vector(v.required(la, "origin", "camera.look_at."), "camera.look_at.origin", 3)
+    target = v.vector(v.required(la, "target", "camera.look_at."), "camera.look_at.target", 3)
+    up = v.vector(la.get("up", [0.0, 1.0, 0.0]), "camera.look_at.up", 3)
+    if "fov_deg" in d:
+        fov = v.number(d["fov_deg"], "camera.fov_deg", positive=True)
+    elif "focal_mm" in d:
+        focal = v.number(d["focal_mm"], "camera.focal_mm", positive=True)
+        sensor = v.vector(v.required(d, "sensor_mm", "camera."), "camera.sensor_mm", 2, positive=True)
+        fov = 2 * math.degrees(math.atan(0.5 * sensor[0] / focal))
+    else:
+        raise UserInputError("is missing", field="camera.fov_deg", expected="fov_deg, or focal_mm with sensor_mm")
+    if not fov < 180:
+        raise UserInputError("the field of view must be under 180 degrees", field="camera.fov_deg", got=fov)
+    dist = v.vector(d.get("dist", [0.0] * 5), "camera.dist", 5)
+    offset = v.vector(d.get("principal_offset_px", [0.0, 0.0]), "camera.principal_offset_px", 2)
+    sens = str(d.get("sensitivities", "Nikon 5100 (NPL)"))
+    import colour
+
+    if sens not in colour.MSDS_CAMERA_SENSITIVITIES:
+        raise UserInputError("unknown camera sensitivities", field="camera.sensitivities",
+                             expected=f"one of {sorted(colour.MSDS_CAMERA_SENSITIVITIES)}", got=sens)
+    try:
+        pose = look_at(origin, target, up)
+    except ValueError as exc:
+        raise UserInputError(str(exc), field="camera.look_at") from None
+    model = CameraModel.from_fov(w, h, fov, pose, dist, offset)
+    return CameraSpec(model, v.number(d.get("exposure", 1.0), "camera.exposure", positive=True), sens)
+
+
+def _box_bounds() -> tuple[np.ndarray, np.ndarray]:
+    pts = np.concatenate([np.asarray(q, dtype=float) for k, q in cornell_data()["geometry"].items()
+                          if k.endswith(("_white", "_green", "_red")) and "block" not in k]) * MM
+    return pts.min(axis=0), pts.max(axis=0)
+
+
+def _check_camera_placement(camera: CameraModel, box: dict) -> None:
+    """The camera must be inside the box or in front of its open face (z < 0), not in or
+    behind a wall (1 mm clearance)."""
+    origin = -camera.world_to_camera[:3, :3].T @ camera.world_to_camera[:3, 3]
+    lo, hi = _box_bounds()
+    clearance = 1e-3
+    inside = np.all(origin > lo + clearance) and np.all(origin < hi - clearance)
+    in_front = origin[2] < lo[2] - clearance and lo[0] - 1.0 < origin[0] < hi[0] + 1.0
+    if not (inside or in_front):
+        raise UserInputError("the camera is inside or behind a wall of the box", field="camera.look_at.origin",
+                             expected=f"inside the box ({lo.round(3).tolist()} to {hi.round(3).tolist()} m) or in front of its open side (z < 0)",
+                             got=origin.round(4).tolist())

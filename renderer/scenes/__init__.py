@@ -1,0 +1,1 @@
+"""Built-in scene files (TOML), loaded by name through renderer.scene.load_scene."""

@@ -1,0 +1,42 @@
+"""Field validation shared by every file format (structures, scenes): each failure is a
+UserInputError naming the field and what was expected; callers add the file."""
+
+from __future__ import annotations
+
+from typing import Any
+
+from workbench.errors import UserInputError
+
+
+def required(table: dict[str, Any], key: str, where: str) -> Any:
+    if key not in table:
+        raise UserInputError("is missing", field=f"{where}{key}")
+    return table[key]
+
+
+def reject_unknown(table: dict[str, Any], known: set[str], where: str) -> None:
+    for key in table:
+        if key not in known:
+            raise UserInputError("unknown field", field=f"{where}{key}", expected=f"one of {sorted(known)}")
+
+
+def number(value: Any, where: str, *, positive: bool = False, nonnegative: bool = False) -> float:
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        raise UserInputError("must be a number", field=where, got=value)
+    x = float(value)
+    if positive and not x > 0:
+        raise UserInputError("must be positive", field=where, expected="a number > 0", got=value)
+    if nonnegative and not x >= 0:
+        raise UserInputError("must not be negative", field=where, expected="a number >= 0", got=value)
+    return x
+
+
+def vector(value: Any, where: str, length: int, *, positive: bool = False) -> tuple[float, ...]:
+    if not isinstance(value, list) or len(value) != length:
+        names = {2: "[a, b]", 3: "[x, y, z]"}.get(length, f"{length} numbers")
+        raise UserInputError(f"must be a list of {length} numbers", field=where, expected=names, got=value)
+    return tuple(number(v, f"{where}[{i}]", positive=positive) for i, v in enumerate(value))
+
+
+def pair(value: Any, where: str) -> tuple[float, float]:
+    return vector(value, where, 2)  # type: ignore[return-value]
