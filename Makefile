@@ -42,6 +42,7 @@ bench: install
 	$(BIN)/python -m rcwa.bench_table
 	$(BIN)/python -m renderer.bench_bwdf
 	$(BIN)/python -m renderer.fit
+	$(BIN)/python -m renderer.bench_render
 
 clean:
 	rm -rf build $(VENV)
