@@ -111,14 +111,18 @@ def transform(translation, rotation: np.ndarray, scale=(1.0, 1.0, 1.0)) -> np.nd
     return T
 
 
-def cd_table(cd, camera_sens) -> Path:
+def element_table(element, camera_sens) -> Path:
+    """The efficiency table of a CD or grating element, built through the table cache."""
     import rcwa
     from rcwa.table import build_table, request_key, settings_for
     from renderer.checks import require_table_covers_camera
 
-    structure = rcwa.load_structure(cd.structure)
-    options = dict(cd.table)
+    structure = rcwa.load_structure(element.structure)
+    options = dict(element.table)
     preset = options.pop("preset", "draft")
+    eps = np.asarray(structure.substrate.epsilon(np.array([550.0])))
+    if np.all((eps.imag == 0) & (eps.real > 0)):
+        options.setdefault("both_sides", True)  # see-through: light from below too
     settings = settings_for(structure, preset, **options)
     path = CACHE / "tables" / f"{structure.name}-{request_key(structure, settings)[:16]}.zarr"
     build_table(structure, settings, path, progress=True)
@@ -160,7 +164,7 @@ def scene_dict(mi, spec: SceneSpec, *, spp: int, integrator: str = "path", mode:
 
     pc = float(np.real(material_from_spec("polycarbonate").refractive_index(550.0)))
     for i, cd in enumerate(spec.cds):
-        table = cd_table(cd, sens)
+        table = element_table(cd, sens)
         built["tables"].append(str(table))
         R = frame_to(cd.normal, cd.rotation_deg)
         mesh = str(annulus_mesh(cd.inner_radius, cd.outer_radius))
@@ -170,6 +174,12 @@ def scene_dict(mi, spec: SceneSpec, *, spp: int, integrator: str = "path", mode:
             top = np.asarray(cd.center) + CD_TOP_THICKNESS_M * np.asarray(cd.normal)
             scene[f"cd{i}_top"] = {"type": "ply", "filename": mesh, "to_world": mi.ScalarTransform4f(transform(top, R).tolist()),
                                    "bsdf": {"type": "dielectric", "int_ior": pc, "ext_ior": 1.0}}
+    for i, g in enumerate(spec.gratings):
+        table = element_table(g, sens)
+        built["tables"].append(str(table))
+        R = frame_to(g.normal, g.rotation_deg)
+        scene[f"grating{i}"] = {"type": "rectangle", "to_world": mi.ScalarTransform4f(transform(g.center, R, (g.size[0] / 2, g.size[1] / 2, 1.0)).tolist()),
+                                "bsdf": {"type": "bwdf", "filename": str(table), "mapping": "constant", "mode": mode}}
     for i, g in enumerate(spec.glass):
         n = float(np.real(material_from_spec(g.material).refractive_index(550.0)))
         bsdf = {"type": "dielectric", "int_ior": n, "ext_ior": 1.0}

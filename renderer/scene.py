@@ -16,6 +16,9 @@ angles in degrees, wavelengths in nm.
           ``inner_radius`` (0.0075), ``structure`` (built-in name or file; relative to the
           scene file), ``table`` (options of ``workbench rcwa table``: preset, orders, ...),
           ``top_surface`` (true: a 1.2 mm polycarbonate face above the grating).
+[[grating]] a flat grating plate (a rectangle): ``center``, ``normal``, ``size`` [w, h],
+          ``rotation_deg`` (of the grating vector about the normal), ``structure``,
+          ``table``; see-through structures get their table with both sides.
 [[glass]] ``shape = "cube" | "sphere"``, ``center``, ``size`` (cube edge) or ``radius``,
           ``rotation_deg`` (about y), ``material`` (built-in name or index).
 [camera]  ``resolution`` [w, h], ``look_at`` {origin, target, up}, ``fov_deg`` (horizontal)
@@ -40,7 +43,7 @@ from renderer.camera import CameraModel, look_at
 from workbench import validation as v
 from workbench.errors import UserInputError
 
-BUILTIN_SCENES: tuple[str, ...] = ("cornell_cd",)
+BUILTIN_SCENES: tuple[str, ...] = ("cornell_cd", "cornell_cd_view2", "grating2d_gold")
 MM = 1e-3
 CD_TOP_THICKNESS_M = 1.2e-3
 LED_SPECTRA = ("LED-B1", "LED-B2", "LED-B3", "LED-B4", "LED-B5", "LED-BH1", "LED-RGB1", "LED-V1", "LED-V2")
@@ -65,6 +68,16 @@ class CDSpec:
     structure: str
     table: dict
     top_surface: bool
+
+
+@dataclass(frozen=True)
+class GratingSpec:
+    center: tuple[float, float, float]
+    normal: tuple[float, float, float]
+    size: tuple[float, float]
+    rotation_deg: float
+    structure: str
+    table: dict
 
 
 @dataclass(frozen=True)
@@ -93,6 +106,7 @@ class SceneSpec:
     camera: CameraSpec
     cds: tuple[CDSpec, ...] = ()
     glass: tuple[GlassSpec, ...] = ()
+    gratings: tuple[GratingSpec, ...] = ()
     base_dir: Path | None = field(default=None, compare=False)
 
 
@@ -123,14 +137,15 @@ def parse_scene(text: str, *, source: str, base_dir: Path | None) -> SceneSpec:
 
 
 def _parse(data: dict, source: str, text: str, base_dir: Path | None) -> SceneSpec:
-    v.reject_unknown(data, {"name", "description", "box", "light", "cd", "glass", "camera"}, "")
+    v.reject_unknown(data, {"name", "description", "box", "light", "cd", "glass", "grating", "camera"}, "")
     box = _parse_box(v.required(data, "box", ""))
     light = _parse_light(v.required(data, "light", ""))
     cds = tuple(_parse_cd(c, f"cd[{i}]", base_dir) for i, c in enumerate(data.get("cd", [])))
     glass = tuple(_parse_glass(g, f"glass[{i}]") for i, g in enumerate(data.get("glass", [])))
+    gratings = tuple(_parse_grating(g, f"grating[{i}]", base_dir) for i, g in enumerate(data.get("grating", [])))
     camera = _parse_camera(v.required(data, "camera", ""))
     _check_camera_placement(camera.model, box)
-    return SceneSpec(str(data.get("name", "scene")), source, text, box, light, camera, cds, glass, base_dir)
+    return SceneSpec(str(data.get("name", "scene")), source, text, box, light, camera, cds, glass, gratings, base_dir)
 
 
 def _parse_box(d: Any) -> dict:
@@ -177,24 +192,50 @@ def _parse_cd(d: Any, where: str, base_dir: Path | None) -> CDSpec:
     inner = v.number(d.get("inner_radius", 0.0075), f"{where}.inner_radius", nonnegative=True)
     if inner >= outer:
         raise UserInputError("the hole must be smaller than the disc", field=f"{where}.inner_radius", expected=f"< {outer}", got=inner)
-    structure = str(d.get("structure", "cd"))
-    from rcwa.structure import BUILTIN_STRUCTURES
-
-    if structure not in BUILTIN_STRUCTURES:
-        path = (base_dir / structure) if base_dir is not None else Path(structure)
-        if not path.exists():
-            raise UserInputError("the CD's structure file does not exist", field=f"{where}.structure",
-                                 expected=f"a built-in structure ({', '.join(BUILTIN_STRUCTURES)}) or an existing TOML file", got=structure)
-        structure = str(path)
-    normal = np.asarray(v.vector(d.get("normal", [0.0, 1.0, 0.0]), f"{where}.normal", 3))
-    if np.linalg.norm(normal) == 0:
-        raise UserInputError("the normal must not be zero", field=f"{where}.normal", got=list(normal))
-    table = d.get("table", {"preset": "draft"})
-    if not isinstance(table, dict):
-        raise UserInputError("must be a table of `workbench rcwa table` options", field=f"{where}.table", got=table)
-    return CDSpec(v.vector(v.required(d, "center", f"{where}."), f"{where}.center", 3), tuple(normal / np.linalg.norm(normal)),
+    structure = _structure_reference(d.get("structure", "cd"), f"{where}.structure", base_dir)
+    normal = _normal(d.get("normal", [0.0, 1.0, 0.0]), f"{where}.normal")
+    table = _table_options(d.get("table", {"preset": "draft"}), f"{where}.table")
+    return CDSpec(v.vector(v.required(d, "center", f"{where}."), f"{where}.center", 3), normal,
                   v.number(d.get("rotation_deg", 0.0), f"{where}.rotation_deg"), outer, inner, structure, table,
                   bool(d.get("top_surface", True)))
+
+
+def _structure_reference(value: Any, where: str, base_dir: Path | None) -> str:
+    from rcwa.structure import BUILTIN_STRUCTURES
+
+    structure = str(value)
+    if structure in BUILTIN_STRUCTURES:
+        return structure
+    path = (base_dir / structure) if base_dir is not None else Path(structure)
+    if not path.exists():
+        raise UserInputError("the structure file does not exist", field=where,
+                             expected=f"a built-in structure ({', '.join(BUILTIN_STRUCTURES)}) or an existing TOML file", got=structure)
+    return str(path)
+
+
+def _normal(value: Any, where: str) -> tuple[float, float, float]:
+    normal = np.asarray(v.vector(value, where, 3))
+    if np.linalg.norm(normal) == 0:
+        raise UserInputError("the normal must not be zero", field=where, got=list(normal))
+    return tuple(normal / np.linalg.norm(normal))
+
+
+def _table_options(value: Any, where: str) -> dict:
+    if not isinstance(value, dict):
+        raise UserInputError("must be a table of `workbench rcwa table` options", field=where, got=value)
+    return value
+
+
+def _parse_grating(d: Any, where: str, base_dir: Path | None) -> GratingSpec:
+    if not isinstance(d, dict):
+        raise UserInputError("must be a table", field=where, got=d)
+    v.reject_unknown(d, {"center", "normal", "size", "rotation_deg", "structure", "table"}, f"{where}.")
+    return GratingSpec(v.vector(v.required(d, "center", f"{where}."), f"{where}.center", 3),
+                       _normal(d.get("normal", [0.0, 0.0, -1.0]), f"{where}.normal"),
+                       v.vector(v.required(d, "size", f"{where}."), f"{where}.size", 2, positive=True),
+                       v.number(d.get("rotation_deg", 0.0), f"{where}.rotation_deg"),
+                       _structure_reference(v.required(d, "structure", f"{where}."), f"{where}.structure", base_dir),
+                       _table_options(d.get("table", {"preset": "draft"}), f"{where}.table"))
 
 
 def _parse_glass(d: Any, where: str) -> GlassSpec:
