@@ -36,9 +36,25 @@ def with_resolution(spec: SceneSpec, resolution: tuple[int, int] | None) -> Scen
     return replace(spec, camera=replace(spec.camera, model=model))
 
 
+def render_pass(spec: SceneSpec, pass_spp: int, integrator: str, mode: str, pass_seed: int) -> np.ndarray:
+    """One pass on a dask worker: build the scene there (tables come from the cache) and render."""
+    from renderer.variant import set_variant
+
+    set_variant()
+    import mitsuba as mi
+
+    from renderer.build import scene_dict
+
+    scene_d, _ = scene_dict(mi, spec, spp=pass_spp, integrator=integrator, mode=mode)
+    return np.array(mi.render(mi.load_dict(scene_d), seed=pass_seed))
+
+
 def render(scene: str | Path, out: str | Path, *, preset: str = "draft", spp: int | None = None,
            resolution: tuple[int, int] | None = None, integrator: str = "path", mode: str = "improved",
-           seed: int = 0, progress: bool = True) -> dict:
+           seed: int = 0, progress: bool = True, executor=None) -> dict:
+    """Render ``scene``; with ``executor`` (rcwa.table.DaskExecutor) the passes run on a
+    dask.distributed cluster, each with its own seed, averaged here: the result is the
+    same as a local render with the same seed."""
     from tqdm import tqdm
 
     from renderer.variant import set_variant
@@ -71,15 +87,18 @@ def render(scene: str | Path, out: str | Path, *, preset: str = "draft", spp: in
                                      "tables": built["tables"]}, sort_keys=True).encode()).hexdigest()
     partial = out.with_name(out.name + ".partial.npz")
     total, done = _resume(partial, key)
-    loaded = mi.load_dict(scene_d)
     bar = tqdm(total=passes, initial=done, unit="pass", disable=not progress, desc=f"render {spec.name}")
     pass_seconds = []
-    for p in range(done, passes):
-        t = time.perf_counter()
-        image = np.array(mi.render(loaded, seed=seed * 100_003 + p))
+    if executor is None:
+        loaded = mi.load_dict(scene_d)
+        images = ((p, _timed(lambda p=p: np.array(mi.render(loaded, seed=seed * 100_003 + p)))) for p in range(done, passes))
+    else:
+        futures = {p: executor.submit(_timed_pass, spec, pass_spp, integrator, mode, seed * 100_003 + p) for p in range(done, passes)}
+        images = ((p, futures[p].result()) for p in range(done, passes))
+    for p, (image, seconds) in images:
         total = image if total is None else total + image
         _atomic_npz(partial, total=total, done=p + 1, key=key)
-        pass_seconds.append(time.perf_counter() - t)
+        pass_seconds.append(seconds)
         bar.update(1)
     bar.close()
     mean = total / passes
@@ -107,6 +126,16 @@ def render(scene: str | Path, out: str | Path, *, preset: str = "draft", spp: in
     _atomic(sidecar, lambda tmp: tmp.write_text(json.dumps(info, indent=2)))
     partial.unlink(missing_ok=True)
     return info
+
+
+def _timed(fn):
+    t = time.perf_counter()
+    result = fn()
+    return result, time.perf_counter() - t
+
+
+def _timed_pass(*args):
+    return _timed(lambda: render_pass(*args))
 
 
 def _write_preview(rgb: np.ndarray, path: Path) -> None:

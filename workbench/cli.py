@@ -93,6 +93,8 @@ def _build_parser() -> argparse.ArgumentParser:
     render.add_argument("--integrator", choices=["path", "direct"], default="path")
     render.add_argument("--mode", choices=["paper", "improved"], default="improved", help="BWDF sampling mode")
     render.add_argument("--seed", type=int, default=0)
+    render.add_argument("--scheduler", metavar="ADDRESS", help="render the passes on this dask.distributed scheduler")
+    render.add_argument("--workers", type=int, metavar="N", help="start a local dask cluster with N worker processes")
     render.add_argument("--quiet", action="store_true")
 
     study = commands.add_parser("study", help="accuracy-versus-time studies")
@@ -184,8 +186,17 @@ def main(argv: Sequence[str] | None = None) -> int:
         if args.command == "render":
             from renderer.render import render as run_render
 
-            info = run_render(args.scene, args.out, preset=args.preset, spp=args.spp, resolution=args.resolution,
-                              integrator=args.integrator, mode=args.mode, seed=args.seed, progress=not args.quiet)
+            kwargs = dict(preset=args.preset, spp=args.spp, resolution=args.resolution, integrator=args.integrator,
+                          mode=args.mode, seed=args.seed, progress=not args.quiet)
+            if args.workers is not None and args.workers < 1:
+                raise UserInputError("must be at least 1", field="--workers", got=args.workers)
+            if args.scheduler or args.workers:
+                from rcwa.table import DaskExecutor
+
+                with DaskExecutor(args.scheduler, args.workers) as executor:
+                    info = run_render(args.scene, args.out, executor=executor, **kwargs)
+            else:
+                info = run_render(args.scene, args.out, **kwargs)
             print(f"wrote {info['output']} (linear camera RGB), {info['preview']} and the sidecar "
                   f"{info['output'][:-4]}.json: {info['resolution'][0]}x{info['resolution'][1]}, {info['spp']} spp, "
                   f"{info['seconds_total']:.1f} s ({info['variant']})")
