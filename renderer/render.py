@@ -121,7 +121,8 @@ def render(scene: str | Path, out: str | Path, *, preset: str = "draft", spp: in
         "camera": {"width": spec.camera.model.width, "height": spec.camera.model.height, "fx": spec.camera.model.fx,
                    "fy": spec.camera.model.fy, "cx": spec.camera.model.cx, "cy": spec.camera.model.cy,
                    "dist": list(spec.camera.model.dist), "world_to_camera": spec.camera.model.world_to_camera.tolist(),
-                   "sensitivities": spec.camera.sensitivities, "exposure": spec.camera.exposure},
+                   "sensitivities": spec.camera.sensitivities, "exposure": spec.camera.exposure,
+                   "response": spec.camera.response.to_json()},
     }
     _atomic(sidecar, lambda tmp: tmp.write_text(json.dumps(info, indent=2)))
     partial.unlink(missing_ok=True)

@@ -24,7 +24,9 @@ angles in degrees, wavelengths in nm.
 [camera]  ``resolution`` [w, h], ``look_at`` {origin, target, up}, ``fov_deg`` (horizontal)
           or ``focal_mm`` with ``sensor_mm`` [w, h], ``principal_offset_px``, ``dist``
           [k1, k2, p1, p2, k3] (OpenCV), ``exposure`` (a scale on camera RGB),
-          ``sensitivities`` (a colour-science camera, default "Nikon 5100 (NPL)").
+          ``sensitivities`` (a colour-science camera, default "Nikon 5100 (NPL)"),
+          ``response`` ("linear", { gamma = G } or { points = [[x, y], ...] }; used only
+          to compare with non-raw photos; renderer.response).
 """
 
 from __future__ import annotations
@@ -40,6 +42,7 @@ from typing import Any
 import numpy as np
 
 from renderer.camera import CameraModel, look_at
+from renderer.response import ResponseCurve
 from workbench import validation as v
 from workbench.errors import UserInputError
 
@@ -94,6 +97,7 @@ class CameraSpec:
     model: CameraModel
     exposure: float
     sensitivities: str
+    response: "ResponseCurve" = field(default_factory=lambda: ResponseCurve())
 
 
 @dataclass(frozen=True)
@@ -261,7 +265,7 @@ def _parse_camera(d: Any) -> CameraSpec:
     if not isinstance(d, dict):
         raise UserInputError("must be a table", field="camera", got=d)
     v.reject_unknown(d, {"resolution", "look_at", "fov_deg", "focal_mm", "sensor_mm", "principal_offset_px", "dist",
-                         "exposure", "sensitivities"}, "camera.")
+                         "exposure", "sensitivities", "response"}, "camera.")
     w, h = (int(x) for x in v.vector(v.required(d, "resolution", "camera."), "camera.resolution", 2, positive=True))
     la = v.required(d, "look_at", "camera.")
     if not isinstance(la, dict):
@@ -292,7 +296,8 @@ def _parse_camera(d: Any) -> CameraSpec:
     except ValueError as exc:
         raise UserInputError(str(exc), field="camera.look_at") from None
     model = CameraModel.from_fov(w, h, fov, pose, dist, offset)
-    return CameraSpec(model, v.number(d.get("exposure", 1.0), "camera.exposure", positive=True), sens)
+    return CameraSpec(model, v.number(d.get("exposure", 1.0), "camera.exposure", positive=True), sens,
+                      ResponseCurve.from_spec(d.get("response", "linear")))
 
 
 def _box_bounds() -> tuple[np.ndarray, np.ndarray]:
