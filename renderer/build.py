@@ -16,7 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
-from renderer.scene import CD_TOP_THICKNESS_M, MM, SPECTRAL_RANGE_NM, SceneSpec, cornell_data
+from renderer.scene import CD_TOP_THICKNESS_M, MM, SPECTRAL_RANGE_NM, SceneSpec, box_scale, cornell_data
 
 CACHE = Path("build")
 CD_SEGMENTS = 256
@@ -69,8 +69,8 @@ def _write_ply(vertices: np.ndarray, faces: np.ndarray, uv: np.ndarray | None = 
     return path
 
 
-def quad_mesh(points_mm) -> Path:
-    p = np.asarray(points_mm, dtype=float) * MM
+def quad_mesh(points_mm, scale=(1.0, 1.0, 1.0)) -> Path:
+    p = np.asarray(points_mm, dtype=float) * MM * np.asarray(scale)
     return _write_ply(p, np.array([[0, 1, 2], [0, 2, 3]]))
 
 
@@ -150,7 +150,7 @@ def scene_dict(mi, spec: SceneSpec, *, spp: int, integrator: str = "path", mode:
         colour = name.rsplit("_", 1)[-1]
         quads = quad if "block" in name else [quad]
         for i, q in enumerate(quads):
-            scene[f"{name}_{i}"] = {"type": "ply", "filename": str(quad_mesh(q)), "face_normals": True,
+            scene[f"{name}_{i}"] = {"type": "ply", "filename": str(quad_mesh(q, box_scale(spec.box))), "face_normals": True,
                                     "bsdf": {"type": "twosided", "bsdf": {"type": "diffuse", "reflectance": spectra[colour]}}}
     wl, s = light_spectrum(spec.light.spectrum)
     area = spec.light.size[0] * spec.light.size[1]

@@ -7,7 +7,8 @@ angles in degrees, wavelengths in nm.
           geometry in mm is scaled to metres and its open front faces -z), white floor,
           ceiling and back wall, red left and green right walls with the measured
           reflectances (``white``/``red``/``green`` may override them with a number);
-          ``blocks = true`` adds the two white blocks.
+          ``size`` [w, h, d] in metres rescales the measured box (default 0.556, 0.549,
+          0.559); ``blocks = true`` adds the two white blocks.
 [light]   an area light in the ceiling: ``center``, ``size`` ([x, z]), ``power_w``
           (radiant power, Lambertian), ``spectrum``: ``"flat"``, ``"cornell"`` (the
           measured relative emission) or a CIE LED illuminant (``"LED-B1"``..``"LED-B5"``,
@@ -155,11 +156,13 @@ def _parse(data: dict, source: str, text: str, base_dir: Path | None) -> SceneSp
 def _parse_box(d: Any) -> dict:
     if not isinstance(d, dict):
         raise UserInputError("must be a table", field="box", got=d)
-    v.reject_unknown(d, {"model", "blocks", "white", "red", "green"}, "box.")
+    v.reject_unknown(d, {"model", "blocks", "white", "red", "green", "size"}, "box.")
     model = d.get("model", "cornell")
     if model != "cornell":
         raise UserInputError("unknown box model", field="box.model", expected='"cornell"', got=model)
     out = {"model": model, "blocks": bool(d.get("blocks", False))}
+    if "size" in d:
+        out["size"] = v.vector(d["size"], "box.size", 3, positive=True)
     for colour in ("white", "red", "green"):
         if colour in d:
             value = v.number(d[colour], f"box.{colour}")
@@ -178,7 +181,7 @@ def _parse_light(d: Any) -> LightSpec:
         raise UserInputError("unknown light spectrum", field="light.spectrum", expected=f"flat, cornell or one of {LED_SPECTRA}", got=spectrum)
     geometry = cornell_data()["geometry"]["light"]
     pts = np.asarray(geometry) * MM
-    default_center = tuple(pts.mean(axis=0) - [0, 1e-4, 0])
+    default_center = tuple(pts.mean(axis=0) - [0, 1e-4, 0])  # the measured light (in a measured-size box)
     default_size = (float(np.ptp(pts[:, 0])), float(np.ptp(pts[:, 2])))
     return LightSpec(
         center=v.vector(d["center"], "light.center", 3) if "center" in d else default_center,
@@ -300,17 +303,29 @@ def _parse_camera(d: Any) -> CameraSpec:
                       ResponseCurve.from_spec(d.get("response", "linear")))
 
 
-def _box_bounds() -> tuple[np.ndarray, np.ndarray]:
+def _measured_bounds() -> tuple[np.ndarray, np.ndarray]:
     pts = np.concatenate([np.asarray(q, dtype=float) for k, q in cornell_data()["geometry"].items()
                           if k.endswith(("_white", "_green", "_red")) and "block" not in k]) * MM
     return pts.min(axis=0), pts.max(axis=0)
+
+
+def box_scale(box: dict) -> np.ndarray:
+    """Per-axis factor from the measured box to the scene's (``box.size``)."""
+    lo, hi = _measured_bounds()
+    return np.asarray(box["size"]) / (hi - lo) if "size" in box else np.ones(3)
+
+
+def _box_bounds(box: dict | None = None) -> tuple[np.ndarray, np.ndarray]:
+    lo, hi = _measured_bounds()
+    scale = box_scale(box or {})
+    return lo * scale, hi * scale
 
 
 def _check_camera_placement(camera: CameraModel, box: dict) -> None:
     """The camera must be inside the box or in front of its open face (z < 0), not in or
     behind a wall (1 mm clearance)."""
     origin = -camera.world_to_camera[:3, :3].T @ camera.world_to_camera[:3, 3]
-    lo, hi = _box_bounds()
+    lo, hi = _box_bounds(box)
     clearance = 1e-3
     inside = np.all(origin > lo + clearance) and np.all(origin < hi - clearance)
     in_front = origin[2] < lo[2] - clearance and lo[0] - 1.0 < origin[0] < hi[0] + 1.0

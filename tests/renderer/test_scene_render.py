@@ -101,6 +101,7 @@ BASE = load_scene("cornell_cd").text
     (('origin = [0.278, 0.42, -0.55]', 'origin = [-0.2, 0.3, 0.3]'), "camera.look_at.origin"),
     (('structure = "cd"', 'structure = "no_such_grating.toml"'), "cd[0].structure"),
     (('power_w = 10.0', 'power_w = 0'), "light.power_w"),
+    (('model = "cornell"', 'model = "cornell"\nsize = [0.6, -0.5, 0.6]'), "box.size[1]"),
 ])
 def test_bad_scene_files(edit, field):
     old, new = edit
@@ -147,3 +148,16 @@ def test_dask_render_equals_local_render(mitsuba_variant, tmp_path):
     a = np.array(mi.Bitmap(str(tmp_path / "local.exr")))
     b = np.array(mi.Bitmap(str(tmp_path / "dask.exr")))
     assert np.allclose(a, b, rtol=1e-4, atol=1e-6)
+
+
+def test_box_size_rescales_the_measured_box(mitsuba_variant):
+    """A 2x larger box: its walls are twice as far, and the camera check follows it."""
+    import mitsuba as mi
+
+    from renderer.build import scene_dict
+
+    text = BASE.replace('model = "cornell"', 'model = "cornell"\nsize = [1.112, 1.0976, 1.1184]')
+    spec = parse_scene(text, source="big.toml", base_dir=None)
+    d, _ = scene_dict(mi, spec, spp=1)
+    bbox = mi.load_dict({"type": "scene", "floor": d["floor_white_0"]}).bbox()
+    assert np.allclose([bbox.max.x, bbox.max.z], [1.1056, 1.1184], atol=1e-4)
