@@ -178,12 +178,9 @@ def _write_csv(path: Path, rows: list[dict]) -> None:
 
 
 def _plot(truncation: list[dict], interpolation: list[dict], out: Path, name: str) -> None:
-    import matplotlib
+    from workbench.plots import new_figure, save_figure
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    fig, axes = plt.subplots(1, 2, figsize=(11, 4.2))
+    fig, axes = new_figure()
     for rule in ("li", "laurent"):
         rows = [r for r in truncation if r["rule"] == rule]
         axes[0].loglog([r["seconds_per_solve"] for r in rows], [r["max_error"] for r in rows], "o-",
@@ -197,10 +194,4 @@ def _plot(truncation: list[dict], interpolation: list[dict], out: Path, name: st
         axes[1].loglog([r["table_seconds"] for r in rows], [r["rms_error"] for r in rows], "s--", color=line.get_color(),
                        alpha=0.6, label=f"{grid} (RMS)")
     axes[1].set(xlabel="full-table seconds (estimated)", ylabel="interpolation error (max, RMS)", title="bilinear interpolation")
-    for ax in axes:
-        ax.grid(True, which="both", alpha=0.3)
-        ax.legend()
-    fig.tight_layout()
-    for ext in ("png", "svg"):
-        fig.savefig(out / f"study_rcwa.{ext}", dpi=120)
-    plt.close(fig)
+    save_figure(fig, axes, out, "study_rcwa")

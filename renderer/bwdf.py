@@ -264,13 +264,6 @@ class GratingBWDF(mi.BSDF):
             out = dr.select(index == k, values[k], out)
         return out
 
-    @staticmethod
-    def _pick_bool(values, index):
-        out = values[0]
-        for k in range(1, len(values)):
-            out = dr.select(index == k, values[k], out)
-        return out
-
     def eval(self, ctx, si, wo, active=True):
         return mi.Spectrum(0.0)  # delta lobes only: zero for any given pair of directions
 

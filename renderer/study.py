@@ -113,12 +113,9 @@ def _furnace_energies(mi, out: Path, samples: int) -> list[dict]:
 
 
 def _plot(curve, bias, out: Path) -> None:
-    import matplotlib
+    from workbench.plots import new_figure, save_figure
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    fig, axes = plt.subplots(1, 2, figsize=(11, 4.2))
+    fig, axes = new_figure()
     for mode in ("paper", "improved"):
         rows = [r for r in curve if r["mode"] == mode]
         axes[0].loglog([r["seconds"] for r in rows], [r["relative_rms_error"] for r in rows], "o-", label=mode)
@@ -126,10 +123,4 @@ def _plot(curve, bias, out: Path) -> None:
     axes[1].plot([b["delta"] for b in bias], [b["mean_relative_error"] for b in bias], "o-", label="mean radiance error")
     axes[1].plot([b["delta"] for b in bias], [b["chromaticity_shift"] for b in bias], "s-", label="chromaticity shift")
     axes[1].set(xlabel="Delta (paper mode)", title="paper mode: bias against Delta")
-    for ax in axes:
-        ax.grid(True, which="both", alpha=0.3)
-        ax.legend()
-    fig.tight_layout()
-    for ext in ("png", "svg"):
-        fig.savefig(out / f"study_render.{ext}", dpi=120)
-    plt.close(fig)
+    save_figure(fig, axes, out, "study_render")

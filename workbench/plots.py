@@ -1,0 +1,28 @@
+"""Figures for studies and reports: one place for the look and for writing PNG + SVG."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+
+def new_figure(panels: int = 2, size=(11, 4.2)):
+    """A headless matplotlib figure with ``panels`` side-by-side axes."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    return plt.subplots(1, panels, figsize=size)
+
+
+def save_figure(fig, axes, out: Path, stem: str) -> None:
+    """Grid and legend on every panel, then ``stem``.png and ``stem``.svg in ``out``."""
+    import matplotlib.pyplot as plt
+
+    for ax in axes:
+        ax.grid(True, which="both", alpha=0.3)
+        ax.legend()
+    fig.tight_layout()
+    for ext in ("png", "svg"):
+        fig.savefig(Path(out) / f"{stem}.{ext}", dpi=120)
+    plt.close(fig)
