@@ -71,6 +71,10 @@ class FitRenderer:
 
     def _apply_camera(self) -> None:
         self.focal = max(self.camera.fx, self.camera.fy)
+        need = self.camera.pinhole_plan()  # the pinhole image this camera needs, at its own focal length
+        if need.width > self.wide_size[0] or need.height > self.wide_size[1]:
+            raise ValueError(f"the camera needs a {need.width} x {need.height} pinhole render, more than the "
+                             f"{self.wide_size[0]} x {self.wide_size[1]} this fit renderer was built with; build it for this camera")
         self.params["sensor.x_fov"] = 2 * math.degrees(math.atan(0.5 * self.wide_size[0] / self.focal))
         self.params["sensor.to_world"] = self.mi.ScalarTransform4f(self.camera.mitsuba_to_world().tolist())
         self.params.update()

@@ -97,6 +97,13 @@ def _build_parser() -> argparse.ArgumentParser:
     render.add_argument("--workers", type=int, metavar="N", help="start a local dask cluster with N worker processes")
     render.add_argument("--quiet", action="store_true")
 
+    synth = commands.add_parser("synth", help="synthetic raw photographs (DNG) with known truth")
+    synth.add_argument("scene", help="a built-in scene (cornell_cd) or a TOML file")
+    synth.add_argument("--out", required=True, metavar="DIR")
+    synth.add_argument("--seed", type=int, default=0)
+    synth.add_argument("--preset", default="draft", help="draft or full")
+    synth.add_argument("--force", action="store_true", help="replace an existing dataset in DIR")
+
     study = commands.add_parser("study", help="accuracy-versus-time studies")
     study_commands = study.add_subparsers(dest="study_command", required=True)
     study_rcwa = study_commands.add_parser("rcwa", help="truncation and interpolation error versus time for tables")
@@ -200,6 +207,12 @@ def main(argv: Sequence[str] | None = None) -> int:
             print(f"wrote {info['output']} (linear camera RGB), {info['preview']} and the sidecar "
                   f"{info['output'][:-4]}.json: {info['resolution'][0]}x{info['resolution'][1]}, {info['spp']} spp, "
                   f"{info['seconds_total']:.1f} s ({info['variant']})")
+            return 0
+        if args.command == "synth":
+            from datasets_synthetic.synth import synth
+
+            truth = synth(args.scene, args.out, seed=args.seed, preset=args.preset, force=args.force)
+            print(f"wrote {args.out}/photos/*.dng and {args.out}/truth.json (seed {truth['seed']}, {truth['preset']})")
             return 0
         if args.command == "study" and args.study_command == "rcwa":
             return _run_study_rcwa(args)
