@@ -12,12 +12,13 @@ images, so both sides must be at least MIN_SIDE pixels.
 
 from __future__ import annotations
 
-import os
 from dataclasses import dataclass
 from fractions import Fraction
 from pathlib import Path
 
 import numpy as np
+
+from workbench.files import atomic_write
 
 CFA_CODES = {"R": 0, "G": 1, "B": 2}
 MIN_SIDE = 32
@@ -78,9 +79,5 @@ def write_dng(path: str | Path, raw: np.ndarray, meta: DngMetadata) -> Path:
         (33434, 5, 1, _rational(meta.exposure_time_s, signed=False), True),  # ExposureTime
         (34855, 3, 1, (int(meta.iso),), True),                              # ISOSpeedRatings
     ]
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
-    tifffile.imwrite(tmp, raw, photometric=32803, extratags=tags, subfiletype=0, metadata=None, compression=None)
-    os.replace(tmp, path)
-    return path
+    return atomic_write(path, lambda tmp: tifffile.imwrite(tmp, raw, photometric=32803, extratags=tags, subfiletype=0,
+                                                          metadata=None, compression=None))

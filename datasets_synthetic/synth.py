@@ -15,7 +15,6 @@ from __future__ import annotations
 import dataclasses
 import json
 import math
-import os
 from pathlib import Path
 
 import numpy as np
@@ -23,6 +22,7 @@ import numpy as np
 from datasets_synthetic.dng import DngMetadata, write_dng
 from datasets_synthetic.sensor import SensorModel
 from workbench.errors import UserInputError
+from workbench.files import atomic_write_text
 
 PRESETS = {"draft": {"resolution": (320, 240), "spp": 64}, "full": {"resolution": (978, 734), "spp": 512}}
 MARKER = "workbench-synthetic-dataset"
@@ -99,9 +99,7 @@ def synth(scene: str, out: str | Path, *, seed: int = 0, preset: str = "draft", 
         "light_power_scale": light_scale,
         "sensor": dataclasses.asdict(sensor) | {"white_level": sensor.white_level},
     }
-    tmp = out / f".truth.{os.getpid()}.tmp"
-    tmp.write_text(json.dumps(truth, indent=2))
-    os.replace(tmp, out / "truth.json")
+    atomic_write_text(out / "truth.json", json.dumps(truth, indent=2))
     return truth
 
 

@@ -22,7 +22,6 @@ from __future__ import annotations
 import hashlib
 import json
 import math
-import os
 import time
 from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
@@ -34,6 +33,7 @@ from rcwa import symmetry
 from rcwa.structure import Layer, Structure
 from rcwa.sweep import default_threads, sweep_directions
 from workbench.errors import UserInputError
+from workbench.files import atomic_write_text
 
 FORMAT_VERSION = 1
 GRAZING_THETA_DEG = 89.999  # theta = 90 (no incident power) is solved at this limit
@@ -357,12 +357,7 @@ def _chunk_hash(arrays: dict[str, np.ndarray]) -> str:
 
 
 def _atomic_write_json(path: Path, data) -> None:
-    tmp = path.with_suffix(path.suffix + ".tmp")
-    with open(tmp, "w") as f:
-        json.dump(data, f)
-        f.flush()
-        os.fsync(f.fileno())
-    os.replace(tmp, path)
+    atomic_write_text(path, json.dumps(data), sync=True)
 
 
 def _read_progress(out: Path) -> dict:

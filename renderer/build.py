@@ -11,11 +11,11 @@ from __future__ import annotations
 
 import hashlib
 import math
-import os
 from pathlib import Path
 
 import numpy as np
 
+from workbench.files import atomic_write_text
 from renderer.scene import CD_TOP_THICKNESS_M, MM, SPECTRAL_RANGE_NM, SceneSpec, box_scale, cornell_data
 
 CACHE = Path("build")
@@ -62,10 +62,7 @@ def _write_ply(vertices: np.ndarray, faces: np.ndarray, uv: np.ndarray | None = 
     text = "\n".join(lines + rows) + "\n"
     path = CACHE / "meshes" / (hashlib.sha256(text.encode()).hexdigest()[:20] + ".ply")
     if not path.exists():
-        path.parent.mkdir(parents=True, exist_ok=True)
-        tmp = path.with_suffix(f".{os.getpid()}.tmp")
-        tmp.write_text(text)
-        os.replace(tmp, path)
+        atomic_write_text(path, text)
     return path
 
 

@@ -114,9 +114,6 @@ class GratingBWDF(mi.BSDF):
 
     # ---------------------------------------------------------------- helpers
 
-    def _superstrate_index(self, wavelength: mi.Float) -> mi.Float:
-        return self._index(self._n1, wavelength)
-
     def _index(self, values: mi.Float, wavelength: mi.Float) -> mi.Float:
         start, step, count = self._n1_axis
         t = dr.clip((wavelength - start) / step, 0.0, count - 1)

@@ -21,6 +21,7 @@ import numpy as np
 
 from renderer.scene import SceneSpec, load_scene
 from workbench.errors import UserInputError
+from workbench.files import atomic_write as _atomic
 
 PRESETS = {"draft": {"spp": 256, "pass_spp": 64}, "paper": {"spp": 2045, "pass_spp": 128, "resolution": (978, 734)}}
 
@@ -167,8 +168,3 @@ def _atomic_npz(path: Path, **arrays) -> None:
     _atomic(path, write)
 
 
-def _atomic(path: Path, write) -> None:
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp{path.suffix}")
-    write(tmp)
-    os.replace(tmp, path)

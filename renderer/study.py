@@ -17,7 +17,6 @@ from __future__ import annotations
 
 import csv
 import json
-import time
 from dataclasses import asdict, dataclass
 from pathlib import Path
 

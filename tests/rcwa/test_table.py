@@ -6,7 +6,6 @@ A resumed build must equal an uninterrupted one exactly (same code, same inputs)
 """
 
 import json
-import os
 import signal
 import subprocess
 import sys

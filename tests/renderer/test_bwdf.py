@@ -151,7 +151,6 @@ def test_flat_aluminium_reduces_to_fresnel(mitsuba_variant, tmp_path):
 
 
 def test_hard_cases_are_finite(bwdf_factory, mitsuba_variant):
-    import drjit as dr
     import mitsuba as mi
 
     for props in ({}, {"mode": "paper"}, {"mapping": "radial"}):

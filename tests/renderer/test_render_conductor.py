@@ -9,7 +9,6 @@ than the conductor's; the means must still agree (it is unbiased).
 """
 
 import numpy as np
-import pytest
 
 import rcwa
 from rcwa.table import build_table, settings_for

@@ -1,6 +1,5 @@
 """Finding libLLVM and setting Mitsuba's variant (renderer/variant.py)."""
 
-import logging
 import subprocess
 import sys
 

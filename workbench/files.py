@@ -1,0 +1,35 @@
+"""Writing files atomically: to a temporary name beside the target, then renamed.
+
+A crash or kill never leaves half a file under the real name (tables, renders, meshes,
+DNG photos, truth files all go through here).
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Callable
+from pathlib import Path
+
+
+def atomic_write(path: str | Path, write: Callable[[Path], None]) -> Path:
+    """Call ``write(tmp)`` on a temporary path with the same suffix, then rename it to ``path``."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp{path.suffix}")
+    try:
+        write(tmp)
+        os.replace(tmp, path)
+    finally:
+        tmp.unlink(missing_ok=True)
+    return path
+
+
+def atomic_write_text(path: str | Path, text: str, *, sync: bool = False) -> Path:
+    """Write ``text`` atomically; ``sync`` flushes it to disk before the rename."""
+    def write(tmp: Path) -> None:
+        with open(tmp, "w") as f:
+            f.write(text)
+            if sync:
+                f.flush()
+                os.fsync(f.fileno())
+    return atomic_write(path, write)
