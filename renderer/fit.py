@@ -27,8 +27,11 @@ FOV_MARGIN = 1.15  # the wide render covers intrinsics up to 15 % shorter than t
 
 
 class FitRenderer:
-    def __init__(self, scene, resolution: tuple[int, int] = FIT_RESOLUTION, spp: int = FIT_SPP, mode: str = "improved") -> None:
-        """``scene``: a built-in name, a TOML path, or a parsed renderer.scene.SceneSpec."""
+    def __init__(self, scene, resolution: tuple[int, int] = FIT_RESOLUTION, spp: int = FIT_SPP, mode: str = "improved",
+                 extra_objects: dict | None = None) -> None:
+        """``scene``: a built-in name, a TOML path, or a parsed renderer.scene.SceneSpec.
+        ``extra_objects``: Mitsuba dicts by key, added to the scene (e.g. a calibration
+        board); ``move(key, to_world)`` repositions one in place."""
         from renderer.variant import set_variant
 
         set_variant()
@@ -46,6 +49,10 @@ class FitRenderer:
         # A wider pinhole render, so that shorter focal lengths stay covered while fitting.
         self.wide_size = (int(plan.width * FOV_MARGIN) // 2 * 2, int(plan.height * FOV_MARGIN) // 2 * 2)
         d["sensor"]["film"]["width"], d["sensor"]["film"]["height"] = self.wide_size
+        for key, obj in (extra_objects or {}).items():
+            if key in d:
+                raise ValueError(f"extra object {key!r} would replace the scene's own {key!r}")
+            d[key] = obj
         self.scene = mi.load_dict(d)
         self.params = mi.traverse(self.scene)
         self.base_radiance = np.array(self.params["light.emitter.radiance.values"])
@@ -68,6 +75,11 @@ class FitRenderer:
             self.light_power_scale = float(light_power_scale)
             self.params["light.emitter.radiance.values"] = self.mi.Float(self.base_radiance * self.light_power_scale)
             self.params.update()
+
+    def move(self, key: str, to_world: np.ndarray) -> None:
+        """Place shape ``key`` (an extra object or a scene shape) at ``to_world`` (4 x 4), in place."""
+        self.params[f"{key}.to_world"] = self.mi.ScalarTransform4f(np.asarray(to_world, dtype=float).tolist())
+        self.params.update()
 
     def _apply_camera(self) -> None:
         self.focal = max(self.camera.fx, self.camera.fy)
