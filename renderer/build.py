@@ -129,18 +129,43 @@ def element_table(element, camera_sens) -> Path:
     return path
 
 
+def register_plugins() -> None:
+    """Register the renderer's Mitsuba plugins: bwdf, cospower_area, dispersive_dielectric."""
+    from renderer import bwdf, dielectric, emitter
+
+    for module in (bwdf, emitter, dielectric):
+        module.register()
+
+
+def light_dict(mi, light) -> dict:
+    """The ceiling light (renderer.scene.LightSpec): a rectangle facing down whose emitter
+    has total radiant power ``power_w``. Lambertian: Mitsuba's ``area``, radiance
+    P / (pi A) times the normalised spectrum; ``cos_power`` n: renderer.emitter's
+    ``cospower_area`` with radiance along the normal P / (A 2 pi / (n + 2))."""
+    wl, s = light_spectrum(light.spectrum)
+    area = light.size[0] * light.size[1]
+    projected_solid_angle = math.pi if light.cos_power is None else 2 * math.pi / (light.cos_power + 2)
+    radiance = irregular(wl, s * light.power_w / (projected_solid_angle * area * np.trapezoid(s, wl)))
+    emitter = ({"type": "area", "radiance": radiance} if light.cos_power is None
+               else {"type": "cospower_area", "cos_power": float(light.cos_power), "radiance": radiance})
+    down = frame_to([0.0, -1.0, 0.0], 0.0)
+    return {"type": "rectangle", "emitter": emitter,
+            "to_world": mi.ScalarTransform4f(transform(light.center, down, (light.size[0] / 2, light.size[1] / 2, 1)).tolist())}
+
+
 def scene_dict(mi, spec: SceneSpec, *, spp: int, integrator: str = "path", mode: str = "improved", max_depth: int = 8) -> tuple[dict, dict]:
     """The Mitsuba scene dict and what was built for it (tables, the pinhole plan)."""
-    from renderer.bwdf import register
+    register_plugins()
+    from renderer.dielectric import bsdf_dict
 
-    register()
     data = cornell_data()
     refl = data["reflectance"]
     spectra = {c: irregular(refl["wavelength_nm"], refl[c]) for c in ("white", "red", "green")}
     for colour in ("white", "red", "green"):
         if colour in spec.box:
             spectra[colour] = {"type": "uniform", "value": spec.box[colour]}
-    scene: dict = {"type": "scene", "integrator": {"type": integrator, "max_depth": max_depth}}
+    # Mitsuba's direct integrator has no max_depth (it refuses unknown properties).
+    scene: dict = {"type": "scene", "integrator": {"type": integrator, **({"max_depth": max_depth} if integrator == "path" else {})}}
     for name, quad in data["geometry"].items():
         if name in ("units", "notes", "light") or ("block" in name and not spec.box["blocks"]):
             continue
@@ -149,17 +174,12 @@ def scene_dict(mi, spec: SceneSpec, *, spp: int, integrator: str = "path", mode:
         for i, q in enumerate(quads):
             scene[f"{name}_{i}"] = {"type": "ply", "filename": str(quad_mesh(q, box_scale(spec.box))), "face_normals": True,
                                     "bsdf": {"type": "twosided", "bsdf": {"type": "diffuse", "reflectance": spectra[colour]}}}
-    wl, s = light_spectrum(spec.light.spectrum)
-    area = spec.light.size[0] * spec.light.size[1]
-    radiance = s * spec.light.power_w / (math.pi * area * np.trapezoid(s, wl))
-    down = frame_to([0.0, -1.0, 0.0], 0.0)
-    scene["light"] = {"type": "rectangle", "emitter": {"type": "area", "radiance": irregular(wl, radiance)},
-                      "to_world": mi.ScalarTransform4f(transform(spec.light.center, down, (spec.light.size[0] / 2, spec.light.size[1] / 2, 1)).tolist())}
+    scene["light"] = light_dict(mi, spec.light)
     sens = camera_sensitivities(spec.camera.sensitivities)
     built: dict = {"tables": []}
     from rcwa.materials import material_from_spec
 
-    pc = float(np.real(material_from_spec("polycarbonate").refractive_index(550.0)))
+    polycarbonate = material_from_spec("polycarbonate")
     for i, cd in enumerate(spec.cds):
         table = element_table(cd, sens)
         built["tables"].append(str(table))
@@ -170,7 +190,7 @@ def scene_dict(mi, spec: SceneSpec, *, spp: int, integrator: str = "path", mode:
         if cd.top_surface:
             top = np.asarray(cd.center) + CD_TOP_THICKNESS_M * np.asarray(cd.normal)
             scene[f"cd{i}_top"] = {"type": "ply", "filename": mesh, "to_world": mi.ScalarTransform4f(transform(top, R).tolist()),
-                                   "bsdf": {"type": "dielectric", "int_ior": pc, "ext_ior": 1.0}}
+                                   "bsdf": bsdf_dict(polycarbonate, dispersion=cd.dispersion)}
     for i, g in enumerate(spec.gratings):
         table = element_table(g, sens)
         built["tables"].append(str(table))
@@ -178,8 +198,7 @@ def scene_dict(mi, spec: SceneSpec, *, spp: int, integrator: str = "path", mode:
         scene[f"grating{i}"] = {"type": "rectangle", "to_world": mi.ScalarTransform4f(transform(g.center, R, (g.size[0] / 2, g.size[1] / 2, 1.0)).tolist()),
                                 "bsdf": {"type": "bwdf", "filename": str(table), "mapping": "constant", "mode": mode}}
     for i, g in enumerate(spec.glass):
-        n = float(np.real(material_from_spec(g.material).refractive_index(550.0)))
-        bsdf = {"type": "dielectric", "int_ior": n, "ext_ior": 1.0}
+        bsdf = bsdf_dict(material_from_spec(g.material), dispersion=g.dispersion)
         if g.shape == "sphere":
             scene[f"glass{i}"] = {"type": "sphere", "center": list(g.center), "radius": g.size, "bsdf": bsdf}
         else:

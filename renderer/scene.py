@@ -9,19 +9,27 @@ angles in degrees, wavelengths in nm.
           reflectances (``white``/``red``/``green`` may override them with a number);
           ``size`` [w, h, d] in metres rescales the measured box (default 0.556, 0.549,
           0.559); ``blocks = true`` adds the two white blocks.
-[light]   an area light in the ceiling: ``center``, ``size`` ([x, z]), ``power_w``
-          (radiant power, Lambertian), ``spectrum``: ``"flat"``, ``"cornell"`` (the
-          measured relative emission) or a CIE LED illuminant (``"LED-B1"``..``"LED-B5"``,
-          ``"LED-BH1"``, ``"LED-RGB1"``, ``"LED-V1"``, ``"LED-V2"``; colour-science's data).
+[light]   an area light in the ceiling, facing down: ``center``, ``size`` ([x, z]),
+          ``power_w`` (the total radiant power, whatever the profile), ``spectrum``:
+          ``"flat"``, ``"cornell"`` (the measured relative emission) or a CIE LED
+          illuminant (``"LED-B1"``..``"LED-B5"``, ``"LED-BH1"``, ``"LED-RGB1"``, ``"LED-V1"``,
+          ``"LED-V2"``; colour-science's data), ``emission_profile``: ``"lambertian"``
+          (default; Mitsuba's area light) or ``{ cos_power = n }`` (n >= 0): radiance
+          L0 cos^n(theta) about the normal, an LED array with lenses / a narrower beam,
+          L0 = power_w / (A 2 pi / (n + 2)) (renderer.emitter; n = 0 is Lambertian).
 [[cd]]    ``center``, ``normal``, ``rotation_deg``, ``outer_radius`` (0.060),
           ``inner_radius`` (0.0075), ``structure`` (built-in name or file; relative to the
           scene file), ``table`` (options of ``workbench rcwa table``: preset, orders, ...),
-          ``top_surface`` (true: a 1.2 mm polycarbonate face above the grating).
+          ``top_surface`` (true: a 1.2 mm polycarbonate face above the grating),
+          ``dispersion`` (true, default: the top's index is polycarbonate's n(lambda),
+          renderer.dielectric; false: Mitsuba's dielectric at the mean index).
 [[grating]] a flat grating plate (a rectangle): ``center``, ``normal``, ``size`` [w, h],
           ``rotation_deg`` (of the grating vector about the normal), ``structure``,
           ``table``; see-through structures get their table with both sides.
 [[glass]] ``shape = "cube" | "sphere"``, ``center``, ``size`` (cube edge) or ``radius``,
-          ``rotation_deg`` (about y), ``material`` (built-in name or index).
+          ``rotation_deg`` (about y), ``material`` (built-in name or index), ``dispersion``
+          (true, default: n(lambda) from the material, renderer.dielectric; false:
+          Mitsuba's dielectric at the mean of n over 360-830 nm).
 [camera]  ``resolution`` [w, h], ``look_at`` {origin, target, up}, ``fov_deg`` (horizontal)
           or ``focal_mm`` with ``sensor_mm`` [w, h], ``principal_offset_px``, ``dist``
           [k1, k2, p1, p2, k3] (OpenCV), ``exposure`` (a scale on camera RGB),
@@ -60,6 +68,7 @@ class LightSpec:
     size: tuple[float, float]
     power_w: float
     spectrum: str
+    cos_power: float | None = None  # emission profile: None is Lambertian (Mitsuba's area light)
 
 
 @dataclass(frozen=True)
@@ -72,6 +81,7 @@ class CDSpec:
     structure: str
     table: dict
     top_surface: bool
+    dispersion: bool = True
 
 
 @dataclass(frozen=True)
@@ -91,6 +101,7 @@ class GlassSpec:
     size: float
     rotation_deg: float
     material: Any
+    dispersion: bool = True
 
 
 @dataclass(frozen=True)
@@ -175,7 +186,7 @@ def _parse_box(d: Any) -> dict:
 def _parse_light(d: Any) -> LightSpec:
     if not isinstance(d, dict):
         raise UserInputError("must be a table", field="light", got=d)
-    v.reject_unknown(d, {"center", "size", "power_w", "spectrum"}, "light.")
+    v.reject_unknown(d, {"center", "size", "power_w", "spectrum", "emission_profile"}, "light.")
     spectrum = d.get("spectrum", "flat")
     if spectrum not in ("flat", "cornell", *LED_SPECTRA):
         raise UserInputError("unknown light spectrum", field="light.spectrum", expected=f"flat, cornell or one of {LED_SPECTRA}", got=spectrum)
@@ -188,13 +199,37 @@ def _parse_light(d: Any) -> LightSpec:
         size=v.vector(d["size"], "light.size", 2, positive=True) if "size" in d else default_size,
         power_w=v.number(d.get("power_w", 10.0), "light.power_w", positive=True),
         spectrum=spectrum,
+        cos_power=_emission_profile(d.get("emission_profile", "lambertian")),
     )
+
+
+def _emission_profile(value: Any) -> float | None:
+    """``"lambertian"`` -> None; ``{ cos_power = n }`` -> n (finite, >= 0)."""
+    where = "light.emission_profile"
+    expected = '"lambertian" or { cos_power = n } with n >= 0'
+    if value == "lambertian":
+        return None
+    if not isinstance(value, dict):
+        raise UserInputError("unknown emission profile", field=where, expected=expected, got=value)
+    v.reject_unknown(value, {"cos_power"}, f"{where}.")
+    n = v.number(v.required(value, "cos_power", f"{where}."), f"{where}.cos_power", nonnegative=True)
+    if not math.isfinite(n):
+        raise UserInputError("must be finite", field=f"{where}.cos_power", expected="a number >= 0", got=n)
+    return n
+
+
+def _flag(d: dict, key: str, where: str, default: bool) -> bool:
+    value = d.get(key, default)
+    if not isinstance(value, bool):
+        raise UserInputError("must be true or false", field=f"{where}.{key}", got=value)
+    return value
 
 
 def _parse_cd(d: Any, where: str, base_dir: Path | None) -> CDSpec:
     if not isinstance(d, dict):
         raise UserInputError("must be a table", field=where, got=d)
-    v.reject_unknown(d, {"center", "normal", "rotation_deg", "outer_radius", "inner_radius", "structure", "table", "top_surface"}, f"{where}.")
+    v.reject_unknown(d, {"center", "normal", "rotation_deg", "outer_radius", "inner_radius", "structure", "table", "top_surface",
+                         "dispersion"}, f"{where}.")
     outer = v.number(d.get("outer_radius", 0.060), f"{where}.outer_radius", positive=True)
     inner = v.number(d.get("inner_radius", 0.0075), f"{where}.inner_radius", nonnegative=True)
     if inner >= outer:
@@ -204,7 +239,7 @@ def _parse_cd(d: Any, where: str, base_dir: Path | None) -> CDSpec:
     table = _table_options(d.get("table", {"preset": "draft"}), f"{where}.table")
     return CDSpec(v.vector(v.required(d, "center", f"{where}."), f"{where}.center", 3), normal,
                   v.number(d.get("rotation_deg", 0.0), f"{where}.rotation_deg"), outer, inner, structure, table,
-                  bool(d.get("top_surface", True)))
+                  bool(d.get("top_surface", True)), _flag(d, "dispersion", where, True))
 
 
 def _structure_reference(value: Any, where: str, base_dir: Path | None) -> str:
@@ -248,7 +283,7 @@ def _parse_grating(d: Any, where: str, base_dir: Path | None) -> GratingSpec:
 def _parse_glass(d: Any, where: str) -> GlassSpec:
     if not isinstance(d, dict):
         raise UserInputError("must be a table", field=where, got=d)
-    v.reject_unknown(d, {"shape", "center", "size", "radius", "rotation_deg", "material"}, f"{where}.")
+    v.reject_unknown(d, {"shape", "center", "size", "radius", "rotation_deg", "material", "dispersion"}, f"{where}.")
     shape = d.get("shape", "cube")
     if shape not in ("cube", "sphere"):
         raise UserInputError("unknown glass shape", field=f"{where}.shape", expected='"cube" or "sphere"', got=shape)
@@ -261,7 +296,8 @@ def _parse_glass(d: Any, where: str) -> GlassSpec:
     except UserInputError as exc:
         raise exc.located(field_prefix=f"{where}.material") from None
     return GlassSpec(shape, v.vector(v.required(d, "center", f"{where}."), f"{where}.center", 3), size,
-                     v.number(d.get("rotation_deg", 0.0), f"{where}.rotation_deg"), material)
+                     v.number(d.get("rotation_deg", 0.0), f"{where}.rotation_deg"), material,
+                     _flag(d, "dispersion", where, True))
 
 
 def _parse_camera(d: Any) -> CameraSpec:

@@ -102,6 +102,14 @@ BASE = load_scene("cornell_cd").text
     (('structure = "cd"', 'structure = "no_such_grating.toml"'), "cd[0].structure"),
     (('power_w = 10.0', 'power_w = 0'), "light.power_w"),
     (('model = "cornell"', 'model = "cornell"\nsize = [0.6, -0.5, 0.6]'), "box.size[1]"),
+    (('emission_profile = "lambertian"', 'emission_profile = { cos_power = -1 }'), "light.emission_profile.cos_power"),
+    (('emission_profile = "lambertian"', 'emission_profile = { cos_power = inf }'), "light.emission_profile.cos_power"),
+    (('emission_profile = "lambertian"', 'emission_profile = { cos_power = "2" }'), "light.emission_profile.cos_power"),
+    (('emission_profile = "lambertian"', 'emission_profile = "spot"'), "light.emission_profile"),
+    (('emission_profile = "lambertian"', 'emission_profile = { power = 2 }'), "light.emission_profile.power"),
+    (('emission_profile = "lambertian"', 'emission_profile = {}'), "light.emission_profile.cos_power"),
+    (('dispersion = true', 'dispersion = "yes"'), "glass[0].dispersion"),
+    (('dispersion = false', 'dispersion = 0'), "cd[0].dispersion"),
 ])
 def test_bad_scene_files(edit, field):
     old, new = edit
