@@ -212,7 +212,10 @@ def main(argv: Sequence[str] | None = None) -> int:
             from datasets_synthetic.synth import synth
 
             truth = synth(args.scene, args.out, seed=args.seed, preset=args.preset, force=args.force)
-            print(f"wrote {args.out}/photos/*.dng and {args.out}/truth.json (seed {truth['seed']}, {truth['preset']})")
+            n = {k: sum(1 for name in truth["exposure_time_s"] if name.startswith(k)) for k in ("view", "ev", "board")}
+            print(f"wrote {args.out}: {n['view']} photos (photos/*.dng), {n['ev']} bracket files (brackets/*.dng, *.jpg), "
+                  f"{n['board']} calibration views (calibration/*.dng), truth.json and run.json "
+                  f"(seed {truth['seed']}, {truth['preset']})")
             return 0
         if args.command == "study" and args.study_command == "rcwa":
             return _run_study_rcwa(args)
