@@ -57,14 +57,19 @@ import numpy as np
 
 from rcwa.structure import Structure
 from rcwa.table import open_table
+from renderer.delta_lobes import (
+    WAVELENGTHS_PER_RAY,
+    DeltaLobesBSDF,
+    choose_hero,
+    select,
+)
 from renderer.efficiency import EfficiencyLookup
 
 MODES = ("paper", "improved")
 MAPPINGS = ("constant", "radial")
-WAVELENGTHS_PER_RAY = 4
 
 
-class GratingBWDF(mi.BSDF):
+class GratingBWDF(DeltaLobesBSDF):
     def __init__(self, props: mi.Properties) -> None:
         # Read and validate everything before the base class registers this instance with
         # Dr.Jit: symbolic calls trace every registered BSDF, so a half-built one left
@@ -180,9 +185,8 @@ class GratingBWDF(mi.BSDF):
         v_o = -wi.x * sa + wi.y * ca
         cos_o = dr.abs(mi.Frame3f.cos_theta(wi))
         wl = si.wavelengths
-        hero = dr.minimum(dr.floor(sample1 * WAVELENGTHS_PER_RAY), WAVELENGTHS_PER_RAY - 1)
-        rest = sample1 * WAVELENGTHS_PER_RAY - hero
-        lam = dr.select(hero == 0, wl[0], dr.select(hero == 1, wl[1], dr.select(hero == 2, wl[2], wl[3])))
+        hero, rest = choose_hero(sample1)
+        lam = select([wl[i] for i in range(WAVELENGTHS_PER_RAY)], hero)
 
         cands = self._candidates(u_o, v_o, lam, below, active)
         count = len(self.orders)
@@ -194,17 +198,17 @@ class GratingBWDF(mi.BSDF):
             for i in range(len(cands) - 1):
                 running = running + cands[i]["value"]
                 chosen = dr.select((target < running) & (chosen == len(cands) - 1), i, chosen)
-            pdf = dr.select(total > 0, self._pick([c["value"] for c in cands], chosen) / total, 0.0)
+            pdf = dr.select(total > 0, select([c["value"] for c in cands], chosen) / total, 0.0)
         else:
             channels = 2 if self.see_through else 1
             channel = mi.UInt32(dr.minimum(dr.floor(rest * channels), channels - 1))
             rest2 = rest * channels - mi.Float(channel)
             chosen = channel * count + mi.UInt32(dr.minimum(dr.floor(rest2 * count), count - 1))
             pdf = mi.Float(1.0 / (count * channels))
-        pick = lambda key: self._pick([c[key] for c in cands], chosen)  # noqa: E731
+        pick = lambda key: select([c[key] for c in cands], chosen)  # noqa: E731
         ux, uy, z, theta, phi = pick("ux"), pick("uy"), pick("z"), pick("theta"), pick("phi")
-        transmitted = self._pick([mi.Bool(c["transmitted"]) for c in cands], chosen)
-        valid = active & self._pick([c["prop"] for c in cands], chosen) & (pdf > 0)
+        transmitted = select([mi.Bool(c["transmitted"]) for c in cands], chosen)
+        valid = active & select([c["prop"] for c in cands], chosen) & (pdf > 0)
 
         if self.mode == "improved":
             weight = mi.Spectrum([dr.select(valid & (hero == i), WAVELENGTHS_PER_RAY * total, 0.0)
@@ -254,24 +258,7 @@ class GratingBWDF(mi.BSDF):
             weights.append(de * factor * count * channels * cos_ratio)
         return mi.Spectrum(weights)
 
-    @staticmethod
-    def _pick(values, index):
-        out = values[0]
-        for k in range(1, len(values)):
-            out = dr.select(index == k, values[k], out)
-        return out
 
-    def eval(self, ctx, si, wo, active=True):
-        return mi.Spectrum(0.0)  # delta lobes only: zero for any given pair of directions
-
-    def pdf(self, ctx, si, wo, active=True):
-        return mi.Float(0.0)
-
-    def eval_pdf(self, ctx, si, wo, active=True):
-        return mi.Spectrum(0.0), mi.Float(0.0)
-
-    def traverse(self, callback):
-        pass
 
     def to_string(self):
         return f"GratingBWDF[mode={self.mode}, mapping={self.mapping}, orders={len(self.orders)}]"

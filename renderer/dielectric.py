@@ -55,11 +55,17 @@ import drjit as dr
 import mitsuba as mi
 import numpy as np
 
-WAVELENGTHS_PER_RAY = 4
+from renderer.delta_lobes import (
+    WAVELENGTHS_PER_RAY,
+    DeltaLobesBSDF,
+    choose_hero,
+    select,
+)
+
 INDEX_STEP_NM = 1.0
 
 
-class DispersiveDielectric(mi.BSDF):
+class DispersiveDielectric(DeltaLobesBSDF):
     def __init__(self, props: mi.Properties) -> None:
         # Validate before the base class registers the instance with Dr.Jit (as bwdf.py).
         config = self._configure(props)
@@ -103,12 +109,6 @@ class DispersiveDielectric(mi.BSDF):
         f = t - mi.Float(i0)
         return (1.0 - f) * dr.gather(mi.Float, self._eta_jit, i0) + f * dr.gather(mi.Float, self._eta_jit, i0 + 1)
 
-    @staticmethod
-    def _pick(values, index):
-        out = values[0]
-        for k in range(1, len(values)):
-            out = dr.select(index == k, values[k], out)
-        return out
 
     # ---------------------------------------------------------------- BSDF interface
 
@@ -122,14 +122,13 @@ class DispersiveDielectric(mi.BSDF):
             return bs, mi.Spectrum(0.0)
 
         n = WAVELENGTHS_PER_RAY
-        hero = dr.minimum(dr.floor(sample1 * n), n - 1)
-        rest = sample1 * n - hero
+        hero, rest = choose_hero(sample1)
         fresnel = [mi.fresnel(cos_i, self.eta(si.wavelengths[j])) for j in range(n)]
         r = [f[0] for f in fresnel]
-        r_h = self._pick(r, hero)
-        cos_t_h = self._pick([f[1] for f in fresnel], hero)
-        eta_it_h = self._pick([f[2] for f in fresnel], hero)
-        eta_ti_h = self._pick([f[3] for f in fresnel], hero)
+        r_h = select(r, hero)
+        cos_t_h = select([f[1] for f in fresnel], hero)
+        eta_it_h = select([f[2] for f in fresnel], hero)
+        eta_ti_h = select([f[3] for f in fresnel], hero)
         radiance = ctx.mode == mi.TransportMode.Radiance
         factor = eta_ti_h * eta_ti_h if radiance else 1.0
 
@@ -157,17 +156,6 @@ class DispersiveDielectric(mi.BSDF):
         bs.pdf = dr.select(valid, bs.pdf, 0.0)
         return bs, dr.select(valid, weight, 0.0)
 
-    def eval(self, ctx, si, wo, active=True):
-        return mi.Spectrum(0.0)  # delta lobes only
-
-    def pdf(self, ctx, si, wo, active=True):
-        return mi.Float(0.0)
-
-    def eval_pdf(self, ctx, si, wo, active=True):
-        return mi.Spectrum(0.0), mi.Float(0.0)
-
-    def traverse(self, callback):
-        pass
 
     def to_string(self):
         return f"DispersiveDielectric[mean index {self.mean_index:.5f}, ext_ior {self.ext}]"

@@ -36,7 +36,7 @@ def _raw(path):
 
 
 def _response(truth) -> ResponseCurve:
-    return ResponseCurve("points", 1.0, tuple(map(tuple, truth["response"]["points"])))
+    return ResponseCurve.from_spec({"points": truth["response"]["points"]})
 
 
 def test_layout_and_truth(dataset):
