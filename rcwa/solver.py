@@ -67,7 +67,17 @@ def prepare(structure: Structure, wavelength_nm: float, orders: int | Sequence[i
             file=structure.source, field="superstrate", expected="k = 0 and n > 0", got=complex(np.sqrt(eps_sup)),
         )
     h, dkx, dky, zero = _harmonics(structure.period, counts, wl_um)
-    layers = [_layer_input(layer, structure, eps_of, h, rule, 2 * math.pi / wl_um) for layer in structure.layers]
+    # A zero-thickness layer is the identity in either stack; it is left out rather than
+    # passed on, since at a Rayleigh point (k_z = 0) its mode matrices are singular.
+    layers = [_layer_input(layer, structure, eps_of, h, rule, 2 * math.pi / wl_um)
+              for layer in structure.layers if layer.thickness > 0]
+    if not layers:
+        # A bare interface: where an order grazes both half-spaces (k_z = 0 in each, e.g. the
+        # same medium on both sides at a Rayleigh point) its reflected and transmitted
+        # waves are one field and the matching system is singular. A uniform layer of the
+        # superstrate's medium (one radian of phase thick) changes nothing physically and
+        # gives those orders a finite layer's well-defined modes.
+        layers = [("uniform", 1.0, complex(eps_sup.real, 0.0), [])]
     return PreparedStructure(structure, float(wavelength_nm), counts, rule, h, dkx, dky, zero,
                              complex(eps_sup.real, 0.0), eps_sub, layers)
 

@@ -144,6 +144,20 @@ def test_zero_thickness_layer_is_no_layer():
         assert b.T_total == pytest.approx(a.T_total, abs=TOLERANCE_EXACT)
 
 
+@pytest.mark.parametrize("layers", [[], [{"thickness": 0.0, "material": nk(1.0)}]], ids=["no layer", "zero-thickness layer"])
+@pytest.mark.parametrize("stack", ["etm", "smatrix"])
+def test_bare_interface_at_a_rayleigh_point(layers, stack):
+    """Air on air with nothing (or nothing thick) between, at 400 nm and normal incidence on
+    a 0.8 um period: orders +-2 graze both half-spaces (k_z = 0). Found by the hypothesis
+    energy test: the matching system was singular. Nothing scatters, so T_0 = 1 and the
+    rest 0, to round-off."""
+    s = structure([0.8], nk(1.0), nk(1.0), layers)
+    for pol in ("s", "p"):
+        r = rcwa.solve(s, 400.0, 0.0, 0.0, 11, pol, stack=stack)
+        assert _finite(r) and r.order(0).T == pytest.approx(1.0, abs=TOLERANCE_EXACT)
+        assert r.R_total == pytest.approx(0.0, abs=TOLERANCE_EXACT)
+
+
 def test_layer_without_contrast_is_uniform():
     same = structure([1.0], nk(1.0), nk(1.5), [{"thickness": 0.3, "material": "gold", "shapes": [{"material": "gold", "x": [0.2, 0.7]}]}])
     uniform = structure([1.0], nk(1.0), nk(1.5), [{"thickness": 0.3, "material": "gold"}])
