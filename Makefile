@@ -41,6 +41,7 @@ bench: install
 	$(BIN)/python -m rcwa.convergence
 	$(BIN)/python -m rcwa.bench_table
 	$(BIN)/python -m renderer.bench_bwdf
+	$(BIN)/python -m renderer.bench_noise
 	$(BIN)/python -m renderer.fit
 	$(BIN)/python -m renderer.bench_render
 

@@ -9,10 +9,13 @@ mode : string, default "improved"
     chosen uniformly, one of the ray's wavelengths at random (the hero), the incident
     direction from Eqs. 2-3, the Delta test (Eq. 4-5) for the other wavelengths, each read
     at its own implied order, and the weight DE * N_tot / cos(theta_o) times pbrt's
-    |cos(theta_i)| (pbrt-v3's f * |cos| / pdf). ``"improved"`` chooses the order in
-    proportion to its efficiency at the hero wavelength and terminates the other
-    wavelengths, reweighting the hero by their number (pbrt-v4's TerminateSecondary; the
-    limit of hero-wavelength MIS, Wilkie et al. 2014, for delta lobes).
+    |cos(theta_i)| (pbrt-v3's f * |cos| / pdf). ``"improved"`` is hero-wavelength MIS
+    (Wilkie et al. 2014) for delta lobes: the specular order, whose direction is the same
+    at every wavelength, is chosen with the mean of its efficiency over the ray's
+    wavelengths and keeps all of them (weight DE_i(0) / q0 each); otherwise a diffracted
+    order is chosen in proportion to its efficiency at the hero wavelength and the other
+    wavelengths are terminated, the hero reweighted by their number (pbrt-v4's
+    TerminateSecondary, the limit of that MIS when the directions differ).
 mapping : string, default "constant"
     How the grating vector (the table's +x) lies in the surface: ``"constant"``, at
     ``grating_angle`` degrees from the shading frame's s axis; ``"radial"``, along the
@@ -26,7 +29,7 @@ Weights, and where paper mode differs. Mitsuba's ``sample`` returns f |cos| / pd
 grating order maps direction cosines (times the superstrate index) by a translation,
 which preserves projected solid angle, so a radiance L_i arriving along the order's
 incident direction leaves as DE * L_i: improved mode's weight per chosen order is
-DE / p(order), i.e. the sum of the efficiencies of all propagating orders. The paper's
+DE / p(order). The paper's
 pbrt-v3 weight carries an extra cos(theta_i)/cos(theta_o); paper mode keeps it, as
 written, so the two can be compared (the accuracy-vs-time study reports the difference).
 
@@ -112,6 +115,8 @@ class GratingBWDF(DeltaLobesBSDF):
                         if name in arrays},
             "period": tuple(structure.period) + ((1.0,) if structure.dimension == 1 else ()),
             "orders": list(zip(table.meta["orders_m"], table.meta["orders_n"])),
+            "_specular_index": next((k for k, mn in enumerate(zip(table.meta["orders_m"], table.meta["orders_n"]))
+                                     if tuple(mn) == (0, 0)), None),
             "_n1_axis": (float(grid[0]), float(grid[1] - grid[0]), grid.size),
             "_n1": mi.Float(np.real(structure.superstrate.refractive_index(grid)).astype(np.float32)),
             "_n3": mi.Float(np.real(structure.substrate.refractive_index(grid)).astype(np.float32)),
@@ -189,17 +194,10 @@ class GratingBWDF(DeltaLobesBSDF):
         lam = select([wl[i] for i in range(WAVELENGTHS_PER_RAY)], hero)
 
         cands = self._candidates(u_o, v_o, lam, below, active)
-        count = len(self.orders)
         if self.mode == "improved":
-            total = sum((c["value"] for c in cands[1:]), cands[0]["value"])
-            target = rest * total
-            chosen = mi.UInt32(len(cands) - 1)
-            running = mi.Float(0.0)
-            for i in range(len(cands) - 1):
-                running = running + cands[i]["value"]
-                chosen = dr.select((target < running) & (chosen == len(cands) - 1), i, chosen)
-            pdf = dr.select(total > 0, select([c["value"] for c in cands], chosen) / total, 0.0)
+            chosen, pdf, weight_of = self._choose_improved(cands, u_o, v_o, cos_o, wl, hero, rest, below, active)
         else:
+            count = len(self.orders)
             channels = 2 if self.see_through else 1
             channel = mi.UInt32(dr.minimum(dr.floor(rest * channels), channels - 1))
             rest2 = rest * channels - mi.Float(channel)
@@ -211,8 +209,7 @@ class GratingBWDF(DeltaLobesBSDF):
         valid = active & select([c["prop"] for c in cands], chosen) & (pdf > 0)
 
         if self.mode == "improved":
-            weight = mi.Spectrum([dr.select(valid & (hero == i), WAVELENGTHS_PER_RAY * total, 0.0)
-                                  for i in range(WAVELENGTHS_PER_RAY)])
+            weight = weight_of(valid)
         else:
             weight = self._paper_weights(u_o, v_o, ux, uy, z, theta, phi, wl, cos_o, below, transmitted, chosen, valid)
 
@@ -225,6 +222,65 @@ class GratingBWDF(DeltaLobesBSDF):
                                     mi.UInt32(+mi.BSDFFlags.DeltaReflection))
         bs.sampled_component = mi.UInt32(0)
         return bs, dr.select(valid, weight, 0.0)
+
+    def _choose_improved(self, cands, u_o, v_o, cos_o, wl, hero, rest, below, active):
+        """Improved mode's choice: the specular order, shared by all wavelengths, or one
+        diffracted (channel, order) of the hero wavelength.
+
+        The specular reflection (order (0, 0) on the camera's side) leaves in the same
+        direction at every wavelength, so it is chosen with a probability q0 that does not
+        depend on the hero: the mean of its efficiency over the ray's wavelengths. Every
+        wavelength then keeps its own weight DE_i(0) / q0 (hero-wavelength MIS, Wilkie et
+        al. 2014, Eq. 7, where all four strategies give this direction with the same
+        probability). Otherwise (1 - q0) a diffracted lobe is chosen in proportion to its
+        efficiency at the hero wavelength; its direction depends on the wavelength, so the
+        others are terminated and the hero is reweighted by their number (the delta-lobe
+        limit of the same MIS; pbrt-v4's TerminateSecondary).
+        Returns (chosen candidate, its probability, a function valid -> weight).
+        """
+        k0 = self._specular_index
+        lanes = self._specular_efficiencies(u_o, v_o, cos_o, wl, below, active) if k0 is not None else None
+        q0 = dr.clip(sum(lanes[1:], lanes[0]) / WAVELENGTHS_PER_RAY, 0.0, 1.0) if lanes else mi.Float(0.0)
+        specular = rest < q0
+        rest_d = dr.clip((rest - q0) / dr.maximum(1.0 - q0, 1e-12), 0.0, 0.99999994)
+        others = [i for i in range(len(cands)) if i != k0]
+        total = sum((cands[i]["value"] for i in others), mi.Float(0.0))
+        target = rest_d * total
+        last = others[-1] if others else k0  # a table of the specular order alone has no others
+        chosen = mi.UInt32(last)
+        running = mi.Float(0.0)
+        for i in others[:-1]:
+            running = running + cands[i]["value"]
+            chosen = dr.select((target < running) & (chosen == last), i, chosen)
+        diffracted_pdf = dr.select(total > 0, (1.0 - q0) * select([c["value"] for c in cands], chosen) / total, 0.0)
+        if k0 is not None:
+            chosen = dr.select(specular, mi.UInt32(k0), chosen)
+        pdf = dr.select(specular, q0, diffracted_pdf)
+
+        def weight_of(valid):
+            hero_weight = WAVELENGTHS_PER_RAY * total / dr.maximum(1.0 - q0, 1e-12)
+            out = []
+            for i in range(WAVELENGTHS_PER_RAY):
+                shared = lanes[i] / dr.maximum(q0, 1e-12) if lanes else mi.Float(0.0)
+                out.append(dr.select(valid, dr.select(specular, shared, dr.select(hero == i, hero_weight, 0.0)), 0.0))
+            return mi.Spectrum(out)
+
+        return chosen, pdf, weight_of
+
+    def _specular_efficiencies(self, u_o, v_o, cos_o, wl, below, active):
+        """Efficiency of the specular order (0, 0) on the camera's side at each of the ray's
+        wavelengths, read at the mirror direction (the same for all of them)."""
+        theta = dr.acos(dr.clip(cos_o, 0.0, 1.0)) * (180.0 / math.pi)
+        phi = dr.atan2(v_o, u_o) * (180.0 / math.pi)
+        k = mi.UInt32(self._specular_index)
+        above, under = self.lookups["R"], self.lookups.get("R_below")
+        lanes = []
+        for i in range(WAVELENGTHS_PER_RAY):
+            de = above.eval(k, wl[i], theta, phi, active & ~below)
+            if under is not None:
+                de = dr.select(below, under.eval(k, wl[i], theta, phi, active & below), de)
+            lanes.append(de)
+        return lanes
 
     def _paper_weights(self, u_o, v_o, ux, uy, z, theta, phi, wl, cos_o, below, transmitted, chosen, valid):
         """Eqs. 4-5: each wavelength at its own implied order, kept if within Delta; the

@@ -1,7 +1,9 @@
 """The BWDF plugin at the level of single samples (renderer/bwdf.py).
 
 * Orders are sampled with the probabilities claimed (chi-square test, p > 1e-3, fixed
-  seed): in proportion to efficiency (improved) or uniformly (paper).
+  seed): uniformly (paper); in improved mode the specular order with the mean of its
+  efficiency over the ray's wavelengths, the others in proportion to the hero's efficiency,
+  and the specular order's weight per wavelength is DE_i(0) / q0 (1e-4, float32).
 * Every sampled direction satisfies the grating equation for an integer kept order,
   computed here independently from the structure's superstrate index (tolerance 1e-4 on
   the implied order: float32 directions).
@@ -92,8 +94,20 @@ def test_sampled_order_frequencies(bwdf_factory, cd_table, mode):
     de = np.array(de)
     propagating = de > 0
     if mode == "improved":
-        expected = de / de.sum()
+        # The specular order is shared by all four wavelengths: chosen with the mean of
+        # their order-0 efficiencies, each lane weighted DE_i(0) / q0; the rest in
+        # proportion to the hero's efficiency.
+        k0 = kept.index(0)
+        spec = np.array([float(np.array(look.eval(mi.UInt32([k0]), mi.Float([lam]), mi.Float([25.0]),
+                                                  mi.Float([0.0])))[0]) for lam in WAVELENGTHS])
+        q0 = spec.mean()
+        expected = (1 - q0) * np.where(np.arange(len(kept)) == k0, 0.0, de) / (de.sum() - de[k0])
+        expected[k0] = q0
         assert np.all(valid)
+        specular = orders == 0
+        np.testing.assert_allclose(w[:, specular].T, np.broadcast_to(spec / q0, (specular.sum(), 4)), rtol=1e-4)
+        hero_only = w[:, ~specular]
+        assert np.all(np.delete(hero_only, hero, axis=0) == 0)
     else:
         expected = np.full(len(kept), 1.0 / len(kept))
     counts = np.array([np.sum((orders == m) & valid) for m in kept])
@@ -141,8 +155,11 @@ def test_flat_aluminium_reduces_to_fresnel(mitsuba_variant, tmp_path):
     for theta_deg in (5.0, 33.3, 61.7, 80.2):
         t = math.radians(theta_deg)
         wi = (math.sin(t), 0.0, math.cos(t))
-        wo, w, _ = _sample(bsdf, _interaction(4, wi, wavelengths), (np.arange(4) + 0.5) / 4)
-        mean_weight = w.mean(axis=1)  # averaging over the hero choice
+        # Stratified over the first random number (hero and order choice; 1/n = 2.5e-5 of
+        # the specular choice's probability) so the mean weight is the expected weight.
+        n = 40_000
+        wo, w, _ = _sample(bsdf, _interaction(n, wi, wavelengths), (np.arange(n) + 0.5) / n)
+        mean_weight = w.mean(axis=1)
         for i, wl in enumerate(wavelengths):
             n = complex(al.refractive_index(wl))
             fresnel = 0.5 * sum(airy_rt([1.0, n], [], wl, theta_deg, pol)[0] for pol in "sp")

@@ -61,7 +61,8 @@ def _scene(mi, bsdf, extra):
 
 def _centroids(image: np.ndarray) -> list[tuple[float, float]]:
     lum = image.sum(axis=-1)
-    labels, count = ndimage.label(lum > 0.2 * lum.max())
+    # 8-connected: a noisy spot's pixels may touch only at corners.
+    labels, count = ndimage.label(lum > 0.2 * lum.max(), structure=np.ones((3, 3)))
     found = ndimage.center_of_mass(lum, labels, range(1, count + 1))
     sizes = ndimage.sum(np.ones_like(lum), labels, range(1, count + 1))
     return [c for c, s in zip(found, sizes) if s >= 1]
