@@ -28,8 +28,8 @@ import numpy as np
 RELMSE_EPS = 1e-2
 
 
-def cd_crop(mi, scene_d: dict, margin: int = 2) -> tuple[list[int], list[int], np.ndarray]:
-    """(offset, size, mask) of the film region the CD covers, mask over that region."""
+def cd_mask(mi, scene_d: dict) -> np.ndarray:
+    """Pixels of the (uncropped) film whose primary ray hits the CD or its polycarbonate top."""
     sc = mi.load_dict(scene_d)
     sensor = sc.sensors()[0]
     W, H = sensor.film().crop_size()
@@ -37,13 +37,19 @@ def cd_crop(mi, scene_d: dict, margin: int = 2) -> tuple[list[int], list[int], n
     ray, _ = sensor.sample_ray(0.0, 0.5, mi.Point2f(((x + 0.5) / W).ravel().astype(np.float32),
                                                     ((y + 0.5) / H).ravel().astype(np.float32)), mi.Point2f(0.5, 0.5))
     si = sc.ray_intersect(ray)
-    shapes = [s for s in sc.shapes() if s.id() in ("cd0_top", "cd0")]
     hit = np.zeros(W * H, bool)
-    for s in shapes:
-        hit |= np.array(si.shape == mi.ShapePtr(s))
-    hit = hit.reshape(H, W)
+    for s in sc.shapes():
+        if s.id() in ("cd0_top", "cd0"):
+            hit |= np.array(si.shape == mi.ShapePtr(s))
+    return hit.reshape(H, W)
+
+
+def cd_crop(mi, scene_d: dict, margin: int = 2) -> tuple[list[int], list[int], np.ndarray]:
+    """(offset, size, mask) of the film region the CD covers, mask over that region."""
+    hit = cd_mask(mi, scene_d)
     if not hit.any():
         raise RuntimeError("the CD is not in view of cornell_cd's camera")
+    H, W = hit.shape
     ys, xs = np.nonzero(hit)
     x0, y0 = max(xs.min() - margin, 0), max(ys.min() - margin, 0)
     x1, y1 = min(xs.max() + margin + 1, W), min(ys.max() + margin + 1, H)

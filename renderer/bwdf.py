@@ -13,9 +13,10 @@ mode : string, default "improved"
     (Wilkie et al. 2014) for delta lobes: the specular order, whose direction is the same
     at every wavelength, is chosen with the mean of its efficiency over the ray's
     wavelengths and keeps all of them (weight DE_i(0) / q0 each); otherwise a diffracted
-    order is chosen in proportion to its efficiency at the hero wavelength and the other
-    wavelengths are terminated, the hero reweighted by their number (pbrt-v4's
-    TerminateSecondary, the limit of that MIS when the directions differ).
+    order is chosen at the hero wavelength (by efficiency, mixed with a uniform share: see
+    ``uniform_share``) and the other wavelengths are terminated, the hero reweighted by
+    their number (pbrt-v4's TerminateSecondary, the limit of that MIS when the directions
+    differ).
 mapping : string, default "constant"
     How the grating vector (the table's +x) lies in the surface: ``"constant"``, at
     ``grating_angle`` degrees from the shading frame's s axis; ``"radial"``, along the
@@ -24,6 +25,11 @@ mapping : string, default "constant"
 grating_angle : float, default 0
 delta : float, default 0.05
     The paper's Delta_x (and Delta_y): tolerance of the implied order in paper mode.
+uniform_share : float in [0, 1], default 0.5
+    Improved mode: the share of the diffracted-order choice made uniformly over the
+    orders that carry light, the rest in proportion to efficiency. 0.5 gave the lowest
+    noise on cornell_cd's CD (relative pixel noise at 128 spp: 0.75 at 0, 0.51 at 0.5,
+    0.54 at 0.8, 0.58 at 1; renderer.bench_render).
 
 Weights, and where paper mode differs. Mitsuba's ``sample`` returns f |cos| / pdf. A
 grating order maps direction cosines (times the superstrate index) by a translation,
@@ -94,6 +100,9 @@ class GratingBWDF(DeltaLobesBSDF):
         mapping = props.get("mapping", "constant")
         if mode not in MODES:
             raise ValueError(f"bwdf: 'mode' must be one of {MODES}, got {mode!r}")
+        uniform_share = float(props.get("uniform_share", 0.5))
+        if not 0.0 <= uniform_share <= 1.0:
+            raise ValueError(f"bwdf: 'uniform_share' must be within [0, 1], got {uniform_share}")
         if mapping not in MAPPINGS:
             raise ValueError(f"bwdf: 'mapping' must be one of {MAPPINGS}, got {mapping!r}")
         table = open_table(path)  # clear errors for missing, unfinished or damaged tables
@@ -111,6 +120,7 @@ class GratingBWDF(DeltaLobesBSDF):
         return {
             "mode": mode, "mapping": mapping, "see_through": see_through,
             "angle": math.radians(props.get("grating_angle", 0.0)), "delta": float(props.get("delta", 0.05)),
+            "uniform_share": uniform_share,
             "lookups": {name: EfficiencyLookup.from_table(table, name) for name in ("R", "T", "R_below", "T_below")
                         if name in arrays},
             "period": tuple(structure.period) + ((1.0,) if structure.dimension == 1 else ()),
@@ -232,12 +242,16 @@ class GratingBWDF(DeltaLobesBSDF):
         depend on the hero: the mean of its efficiency over the ray's wavelengths. Every
         wavelength then keeps its own weight DE_i(0) / q0 (hero-wavelength MIS, Wilkie et
         al. 2014, Eq. 7, where all four strategies give this direction with the same
-        probability). Otherwise (1 - q0) a diffracted lobe is chosen in proportion to its
-        efficiency at the hero wavelength; its direction depends on the wavelength, so the
+        probability). Otherwise (1 - q0) a diffracted lobe is chosen with probability
+        (1 - a) DE / sum(DE) + a / (number of lobes with DE > 0) at the hero wavelength, a =
+        ``uniform_share``: a defensive mixture (Hesterberg 1995, Technometrics 37, 185) that
+        keeps weak orders sampled when they carry a bright source, as the CD's rainbow of
+        the ceiling light does; its direction depends on the wavelength, so the
         others are terminated and the hero is reweighted by their number (the delta-lobe
         limit of the same MIS; pbrt-v4's TerminateSecondary).
         Returns (chosen candidate, its probability, a function valid -> weight).
         """
+        alpha = self.uniform_share
         k0 = self._specular_index
         lanes = self._specular_efficiencies(u_o, v_o, cos_o, wl, below, active) if k0 is not None else None
         q0 = dr.clip(sum(lanes[1:], lanes[0]) / WAVELENGTHS_PER_RAY, 0.0, 1.0) if lanes else mi.Float(0.0)
@@ -245,20 +259,26 @@ class GratingBWDF(DeltaLobesBSDF):
         rest_d = dr.clip((rest - q0) / dr.maximum(1.0 - q0, 1e-12), 0.0, 0.99999994)
         others = [i for i in range(len(cands)) if i != k0]
         total = sum((cands[i]["value"] for i in others), mi.Float(0.0))
-        target = rest_d * total
+        live = sum((dr.select(cands[i]["value"] > 0, 1.0, 0.0) for i in others), mi.Float(0.0))
+        # Each diffracted lobe's probability: its efficiency's share, mixed with a uniform
+        # share over the lobes that carry light (defensive importance sampling).
+        probs = {i: dr.select(cands[i]["value"] > 0, (1 - alpha) * cands[i]["value"] / dr.maximum(total, 1e-30)
+                              + alpha / dr.maximum(live, 1.0), 0.0) for i in others}
         last = others[-1] if others else k0  # a table of the specular order alone has no others
         chosen = mi.UInt32(last)
         running = mi.Float(0.0)
         for i in others[:-1]:
-            running = running + cands[i]["value"]
-            chosen = dr.select((target < running) & (chosen == last), i, chosen)
-        diffracted_pdf = dr.select(total > 0, (1.0 - q0) * select([c["value"] for c in cands], chosen) / total, 0.0)
+            running = running + probs[i]
+            chosen = dr.select((rest_d < running) & (chosen == last), i, chosen)
+        p_chosen = select([probs.get(i, mi.Float(0.0)) for i in range(len(cands))], chosen)
+        de_chosen = select([c["value"] for c in cands], chosen)
+        diffracted_pdf = dr.select(total > 0, (1.0 - q0) * p_chosen, 0.0)
         if k0 is not None:
             chosen = dr.select(specular, mi.UInt32(k0), chosen)
         pdf = dr.select(specular, q0, diffracted_pdf)
 
         def weight_of(valid):
-            hero_weight = WAVELENGTHS_PER_RAY * total / dr.maximum(1.0 - q0, 1e-12)
+            hero_weight = WAVELENGTHS_PER_RAY * de_chosen / dr.maximum(diffracted_pdf, 1e-30)
             out = []
             for i in range(WAVELENGTHS_PER_RAY):
                 shared = lanes[i] / dr.maximum(q0, 1e-12) if lanes else mi.Float(0.0)

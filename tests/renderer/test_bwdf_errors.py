@@ -67,6 +67,8 @@ def test_bad_mode_and_mapping(mitsuba_variant, cd_table):
         _load(mi, filename=str(cd_table.path), mode="fast")
     with pytest.raises(Exception, match="'mapping' must be one of"):
         _load(mi, filename=str(cd_table.path), mapping="spiral")
+    with pytest.raises(Exception, match="'uniform_share' must be within"):
+        _load(mi, filename=str(cd_table.path), uniform_share=1.5)
 
 
 def test_table_must_cover_where_the_camera_sees():
