@@ -28,8 +28,12 @@ import numpy as np
 RELMSE_EPS = 1e-2
 
 
-def cd_mask(mi, scene_d: dict) -> np.ndarray:
-    """Pixels of the (uncropped) film whose primary ray hits the CD or its polycarbonate top."""
+ELEMENT_PREFIXES = ("cd", "grating")  # scene keys of diffractive elements (renderer.build), CD tops included
+
+
+def element_mask(mi, scene_d: dict) -> np.ndarray:
+    """Pixels of the (uncropped) film whose primary ray hits a diffractive element (a CD,
+    its polycarbonate top, a grating)."""
     sc = mi.load_dict(scene_d)
     sensor = sc.sensors()[0]
     W, H = sensor.film().crop_size()
@@ -39,37 +43,59 @@ def cd_mask(mi, scene_d: dict) -> np.ndarray:
     si = sc.ray_intersect(ray)
     hit = np.zeros(W * H, bool)
     for s in sc.shapes():
-        if s.id() in ("cd0_top", "cd0"):
+        if s.id().startswith(ELEMENT_PREFIXES):
             hit |= np.array(si.shape == mi.ShapePtr(s))
     return hit.reshape(H, W)
 
 
-def cd_crop(mi, scene_d: dict, margin: int = 2) -> tuple[list[int], list[int], np.ndarray]:
-    """(offset, size, mask) of the film region the CD covers, mask over that region."""
-    hit = cd_mask(mi, scene_d)
+def element_crop(mi, spec, margin: int = 2) -> tuple[tuple[list[int], list[int]], np.ndarray]:
+    """((offset, size) of the film region the scene's diffractive elements cover, their
+    mask over that region). Raises UserInputError when the camera sees none."""
+    from renderer.build import scene_dict
+    from workbench.errors import UserInputError
+
+    d, _ = scene_dict(mi, spec, spp=1)
+    hit = element_mask(mi, d)
     if not hit.any():
-        raise RuntimeError("the CD is not in view of cornell_cd's camera")
+        raise UserInputError("the camera sees no diffractive element (CD or grating) to measure", field="scene",
+                             expected="a scene whose camera sees a [[cd]] or [[grating]]", got=spec.name)
     H, W = hit.shape
     ys, xs = np.nonzero(hit)
     x0, y0 = max(xs.min() - margin, 0), max(ys.min() - margin, 0)
     x1, y1 = min(xs.max() + margin + 1, W), min(ys.max() + margin + 1, H)
-    return [int(x0), int(y0)], [int(x1 - x0), int(y1 - y0)], hit[y0:y1, x0:x1]
+    return ([int(x0), int(y0)], [int(x1 - x0), int(y1 - y0)]), hit[y0:y1, x0:x1]
 
 
-def _scene(mi, spec, mode: str, spp: int, crop):
+def load_cropped(mi, spec, mode: str, crop, *, delta: float | None = None, spp: int = 64):
+    """The scene in ``mode``, its film cropped; ``delta`` sets paper mode's Delta."""
     from renderer.build import scene_dict
 
     d, _ = scene_dict(mi, spec, spp=spp, mode=mode)
-    if crop is not None:
-        (x, y), (w, h) = crop
-        d["sensor"]["film"].update(crop_offset_x=x, crop_offset_y=y, crop_width=w, crop_height=h)
+    if delta is not None:
+        for key, obj in d.items():
+            if key.startswith(ELEMENT_PREFIXES) and isinstance(obj, dict) and obj.get("bsdf", {}).get("type") == "bwdf":
+                obj["bsdf"]["delta"] = delta
+    (x, y), (w, h) = crop
+    d["sensor"]["film"].update(crop_offset_x=x, crop_offset_y=y, crop_width=w, crop_height=h)
     return mi.load_dict(d)
 
 
-def _render(mi, sc, seed: int, spp: int = 0) -> tuple[np.ndarray, float]:
+def timed_render(mi, sc, seed: int, spp: int = 0) -> tuple[np.ndarray, float]:
     start = time.perf_counter()
     image = np.array(mi.render(sc, seed=seed, spp=spp))
     return image, time.perf_counter() - start
+
+
+def _spp_for(mi, scene, budget_s: float) -> int:
+    """Samples per pixel that fill ``budget_s``: timed at 64 spp, then again at the spp
+    estimated for a quarter of the budget (a render's fixed cost distorts the first
+    estimate)."""
+    spp = 64
+    timed_render(mi, scene, seed=0, spp=spp)  # compile
+    for share in (0.25, 1.0):
+        _, seconds = timed_render(mi, scene, seed=1, spp=spp)
+        spp = max(1, int(budget_s * share / seconds * spp))
+    return spp
 
 
 def errors(image: np.ndarray, ref_a: np.ndarray, ref_b: np.ndarray, mask: np.ndarray) -> dict:
@@ -85,46 +111,31 @@ def errors(image: np.ndarray, ref_a: np.ndarray, ref_b: np.ndarray, mask: np.nda
             "reference_relative_rms_noise": float(np.sqrt(np.mean(ref_noise) / 3) / scale)}
 
 
-def _spp_for(mi, scene, budget_s: float) -> int:
-    """Samples per pixel that fill ``budget_s``: timed at 64 spp, then again at the spp
-    estimated for a quarter of the budget (a render's fixed cost distorts the first
-    estimate)."""
-    spp = 64
-    _render(mi, scene, seed=0, spp=spp)  # compile
-    for share in (0.25, 1.0):
-        _, seconds = _render(mi, scene, seed=1, spp=spp)
-        spp = max(1, int(budget_s * share / seconds * spp))
-    return spp
-
-
-def noise_at_equal_time(resolution=(640, 480), budget_s: float = 20.0, reference_spp: int = 4096,
-                        modes=("paper", "improved")) -> dict:
+def noise_at_equal_time(scene: str = "cornell_cd", resolution=(640, 480), budget_s: float = 20.0,
+                        reference_spp: int = 4096, modes=("paper", "improved")) -> dict:
     from renderer.variant import set_variant
 
     variant = set_variant()
     import mitsuba as mi
 
-    from renderer.build import scene_dict
     from renderer.render import with_resolution
     from renderer.scene import load_scene
 
-    spec = with_resolution(load_scene("cornell_cd"), resolution)
-    d, _ = scene_dict(mi, spec, spp=1)
-    offset, size, mask = cd_crop(mi, d)
-    crop = (offset, size)
-    ref_scene = _scene(mi, spec, "improved", reference_spp, crop)
-    ref_a, ref_seconds = _render(mi, ref_scene, seed=1001)
-    ref_b, _ = _render(mi, ref_scene, seed=1002)
-    out = {"variant": variant, "resolution": list(resolution), "crop_offset": offset, "crop_size": size,
-           "cd_pixels": int(mask.sum()), "budget_s": budget_s, "reference_spp": reference_spp,
+    spec = with_resolution(load_scene(scene), resolution)
+    crop, mask = element_crop(mi, spec)
+    ref_scene = load_cropped(mi, spec, "improved", crop)
+    ref_a, ref_seconds = timed_render(mi, ref_scene, seed=1001, spp=reference_spp)
+    ref_b, _ = timed_render(mi, ref_scene, seed=1002, spp=reference_spp)
+    out = {"variant": variant, "scene": spec.name, "resolution": list(resolution), "crop_offset": crop[0],
+           "crop_size": crop[1], "cd_pixels": int(mask.sum()), "budget_s": budget_s, "reference_spp": reference_spp,
            "reference_seconds": ref_seconds, "modes": {}}
     for mode in modes:
-        scene = _scene(mi, spec, mode, 64, crop)
-        spp = _spp_for(mi, scene, budget_s)
-        image, seconds = _render(mi, scene, seed=2, spp=spp)
+        sc = load_cropped(mi, spec, mode, crop)
+        spp = _spp_for(mi, sc, budget_s)
+        image, seconds = timed_render(mi, sc, seed=2, spp=spp)
         e = errors(image, ref_a, ref_b, mask)
-        at_budget = {k: (v * np.sqrt(seconds / budget_s) if k == "relative_rms_error" else v * seconds / budget_s)
-                     for k, v in e.items() if k != "reference_relative_rms_noise"}
+        at_budget = {"relative_rms_error": e["relative_rms_error"] * np.sqrt(seconds / budget_s),
+                     "relative_mse": e["relative_mse"] * seconds / budget_s}
         out["modes"][mode] = {"spp": spp, "seconds": seconds, **e, "at_budget": at_budget}
     return out
 
@@ -136,7 +147,7 @@ def main() -> None:
     parser.add_argument("--reference-spp", type=int, default=4096)
     args = parser.parse_args()
     w, h = (int(v) for v in args.resolution.split("x"))
-    r = noise_at_equal_time((w, h), args.budget, args.reference_spp)
+    r = noise_at_equal_time("cornell_cd", (w, h), args.budget, args.reference_spp)
     print(f"[{r['variant']}] cornell_cd at {w}x{h}, CD crop {r['crop_size'][0]}x{r['crop_size'][1]} "
           f"({r['cd_pixels']} CD pixels); reference: 2 x {r['reference_spp']} spp improved "
           f"({r['reference_seconds']:.0f} s each, its own noise removed)")

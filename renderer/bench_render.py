@@ -39,7 +39,7 @@ def noise_per_mode(spp: int = NOISE_SPP, resolution=NOISE_RESOLUTION) -> dict:
     set_variant()
     import mitsuba as mi
 
-    from renderer.bench_noise import cd_mask
+    from renderer.bench_noise import element_mask
     from renderer.build import scene_dict
     from renderer.render import with_resolution
     from renderer.scene import load_scene
@@ -48,7 +48,7 @@ def noise_per_mode(spp: int = NOISE_SPP, resolution=NOISE_RESOLUTION) -> dict:
     out = {}
     for mode in ("paper", "improved"):
         d, _ = scene_dict(mi, spec, spp=spp, mode=mode)
-        mask = cd_mask(mi, d)
+        mask = element_mask(mi, d)
         sc = mi.load_dict(d)
         a, b = (np.array(mi.render(sc, seed=s)) for s in (1, 2))
         out[mode] = {"frame": relative_noise(a, b), "cd": relative_noise(a, b, mask)}

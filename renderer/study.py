@@ -1,16 +1,17 @@
-"""``workbench study render``: what rendering accuracy costs in time, for the BWDF.
+"""``workbench study render SCENE``: what rendering accuracy costs in time, for the BWDF.
 
-Writes JSON, CSV and plots (PNG, SVG) for the HTML report:
-1. error versus wall time: relative RMS error on the diffractive element against a
-   converged reference (improved mode, many spp), for paper and improved modes at
+Writes JSON, CSV and plots (PNG, SVG) for the HTML report, measured on the scene's
+diffractive elements (CDs and gratings; the film is cropped to them, as in
+renderer.bench_noise, so every sample is spent where the comparison is made):
+1. error versus wall time: relative RMS error and relative MSE against a converged
+   reference (two improved-mode renders at ``reference_spp``, whose own noise is
+   subtracted; renderer.bench_noise.errors), for paper and improved modes at
    increasing spp;
 2. paper mode's bias and colour shift against Delta (its Eq. 4-5 tolerance), measured as
-   the relative error of the element's mean radiance and the change of its chromaticity
-   (r/(r+g+b), g/(r+g+b)) against the reference, at high spp;
+   the relative error of the elements' mean radiance and the change of their
+   chromaticity (r/(r+g+b), g/(r+g+b)) against the reference, at ``delta_spp``;
 3. each mode's energy error in a furnace (a lossless see-through grating; see
    tests/renderer/test_bwdf_energy.py).
-The scene is the provisional CD-in-Cornell-box of renderer.bench_bwdf until scene files
-exist (issue 5).
 """
 
 from __future__ import annotations
@@ -22,60 +23,66 @@ from pathlib import Path
 
 import numpy as np
 
+from workbench.files import atomic_write_text
+
 
 @dataclass(frozen=True)
 class RenderStudyConfig:
-    resolution: int = 96
-    spp_steps: tuple[int, ...] = (16, 64, 256)
-    reference_spp: int = 2048
+    resolution: tuple[int, int] = (640, 480)
+    spp_steps: tuple[int, ...] = (64, 256, 1024)
+    reference_spp: int = 4096
     deltas: tuple[float, ...] = (0.02, 0.05, 0.1, 0.2)
-    delta_spp: int = 512
+    delta_spp: int = 1024
     furnace_samples: int = 200_000
 
 
-def run_render_study(out: str | Path, cfg: RenderStudyConfig = RenderStudyConfig()) -> dict:
+def _chromaticity(values: np.ndarray) -> np.ndarray:
+    total = values.sum(axis=-1, keepdims=True)
+    return (values / np.maximum(total, 1e-12))[..., :2].mean(axis=0)
+
+
+def run_render_study(scene: str | Path, out: str | Path, cfg: RenderStudyConfig = RenderStudyConfig()) -> dict:
     from renderer.variant import set_variant
 
     variant = set_variant()
     import mitsuba as mi
 
-    from renderer import bench_bwdf as bench
+    from renderer import bench_noise as bn
     from renderer.bwdf import register
+    from renderer.render import with_resolution
+    from renderer.scene import load_scene
 
     register()
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
-    table = bench.cd_table()
-    mask = bench.disk_mask(mi, cfg.resolution)
-    cd = lambda **kw: {"type": "bwdf", "filename": str(table), "mapping": "radial", **kw}  # noqa: E731
-    reference, _ = bench.timed_render(mi, bench.scene(mi, cd(mode="improved"), cfg.resolution, cfg.reference_spp), seed=99)
-    ref = reference[mask]
-
-    def rel_rms(image):
-        return float(np.sqrt(np.mean((image[mask] - ref) ** 2)) / np.mean(np.abs(ref)))
+    spec = with_resolution(load_scene(scene), cfg.resolution)
+    crop, mask = bn.element_crop(mi, spec)
+    ref_scene = bn.load_cropped(mi, spec, "improved", crop)
+    ref_a, _ = bn.timed_render(mi, ref_scene, seed=1001, spp=cfg.reference_spp)
+    ref_b, _ = bn.timed_render(mi, ref_scene, seed=1002, spp=cfg.reference_spp)
+    ref = ((ref_a + ref_b) / 2)[mask]
 
     curve = []
     for mode in ("paper", "improved"):
+        sc = bn.load_cropped(mi, spec, mode, crop)
+        bn.timed_render(mi, sc, seed=0, spp=cfg.spp_steps[0])  # compile
         for spp in cfg.spp_steps:
-            sc = bench.scene(mi, cd(mode=mode), cfg.resolution, spp)
-            bench.timed_render(mi, sc)
-            image, seconds = bench.timed_render(mi, sc, seed=7)
-            curve.append({"mode": mode, "spp": spp, "seconds": seconds, "relative_rms_error": rel_rms(image)})
-
-    def chroma(values):
-        total = values.sum(axis=-1, keepdims=True)
-        return (values / np.maximum(total, 1e-12))[..., :2].mean(axis=0)
+            image, seconds = bn.timed_render(mi, sc, seed=7, spp=spp)
+            e = bn.errors(image, ref_a, ref_b, mask)
+            curve.append({"mode": mode, "spp": spp, "seconds": seconds, "relative_rms_error": e["relative_rms_error"],
+                          "relative_mse": e["relative_mse"]})
 
     bias = []
     for delta in cfg.deltas:
-        image, _ = bench.timed_render(mi, bench.scene(mi, cd(mode="paper", delta=delta), cfg.resolution, cfg.delta_spp), seed=5)
+        sc = bn.load_cropped(mi, spec, "paper", crop, delta=delta)
+        image, _ = bn.timed_render(mi, sc, seed=5, spp=cfg.delta_spp)
         bias.append({"delta": delta, "mean_relative_error": float(image[mask].mean() / ref.mean() - 1),
-                     "chromaticity_shift": float(np.linalg.norm(chroma(image[mask]) - chroma(ref)))})
+                     "chromaticity_shift": float(np.linalg.norm(_chromaticity(image[mask]) - _chromaticity(ref)))})
 
     energy = _furnace_energies(mi, out, cfg.furnace_samples)
-    data = {"variant": variant, "config": asdict(cfg), "error_vs_time": curve, "delta_bias": bias, "energy": energy,
-            "reference_spp": cfg.reference_spp}
-    (out / "study_render.json").write_text(json.dumps(data, indent=2))
+    data = {"variant": variant, "scene": spec.name, "config": asdict(cfg), "crop": crop, "element_pixels": int(mask.sum()),
+            "error_vs_time": curve, "delta_bias": bias, "energy": energy, "reference_spp": cfg.reference_spp}
+    atomic_write_text(out / "study_render.json", json.dumps(data, indent=2))
     for name, rows in (("render_error_vs_time", curve), ("render_delta_bias", bias), ("render_energy", energy)):
         with open(out / f"{name}.csv", "w", newline="") as f:
             writer = csv.DictWriter(f, fieldnames=sorted(rows[0]))
@@ -118,7 +125,7 @@ def _plot(curve, bias, out: Path) -> None:
     for mode in ("paper", "improved"):
         rows = [r for r in curve if r["mode"] == mode]
         axes[0].loglog([r["seconds"] for r in rows], [r["relative_rms_error"] for r in rows], "o-", label=mode)
-    axes[0].set(xlabel="wall time (s)", ylabel="relative RMS error on the CD", title="render error versus time")
+    axes[0].set(xlabel="wall time (s)", ylabel="relative RMS error on the diffractive elements", title="render error versus time")
     axes[1].plot([b["delta"] for b in bias], [b["mean_relative_error"] for b in bias], "o-", label="mean radiance error")
     axes[1].plot([b["delta"] for b in bias], [b["chromaticity_shift"] for b in bias], "s-", label="chromaticity shift")
     axes[1].set(xlabel="Delta (paper mode)", title="paper mode: bias against Delta")

@@ -111,7 +111,7 @@ def _build_parser() -> argparse.ArgumentParser:
     study_rcwa.add_argument("--out", required=True, metavar="DIR")
 
     study_render = study_commands.add_parser("render", help="render error versus time, paper against improved BWDF")
-    study_render.add_argument("scene", nargs="?", default="cornell_cd", help="for now only the provisional cornell_cd")
+    study_render.add_argument("scene", nargs="?", default="cornell_cd", help="a built-in scene name or a TOML file; its camera must see a CD or grating")
     study_render.add_argument("--out", required=True, metavar="DIR")
 
     commands.add_parser("demo", help="the main job on the built-in scene (for now: the CD's orders)")
@@ -220,12 +220,9 @@ def main(argv: Sequence[str] | None = None) -> int:
         if args.command == "study" and args.study_command == "rcwa":
             return _run_study_rcwa(args)
         if args.command == "study" and args.study_command == "render":
-            if args.scene != "cornell_cd":
-                raise UserInputError("scene files are not available yet (issue 5); the study renders the provisional scene",
-                                     field="scene", expected="cornell_cd", got=args.scene)
             from renderer.study import run_render_study
 
-            data = run_render_study(args.out)
+            data = run_render_study(args.scene, args.out)
             print(f"wrote {args.out}/study_render.json, the CSV files and study_render.png/.svg")
             for e in data["energy"]:
                 print(f"furnace energy, {e['mode']} mode: {e['energy']:.4f}")

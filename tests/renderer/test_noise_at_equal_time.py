@@ -16,7 +16,7 @@ import pytest
 def test_improved_is_not_noisier_at_equal_time(mitsuba_variant):
     from renderer.bench_noise import noise_at_equal_time
 
-    r = noise_at_equal_time(resolution=(320, 240), budget_s=1.5, reference_spp=512)
+    r = noise_at_equal_time(resolution=(320, 240), budget_s=2.0, reference_spp=2048)
     paper, improved = r["modes"]["paper"]["at_budget"], r["modes"]["improved"]["at_budget"]
     print(r)
     assert r["cd_pixels"] > 500
