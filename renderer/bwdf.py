@@ -166,9 +166,10 @@ class GratingBWDF(DeltaLobesBSDF):
 
     # ---------------------------------------------------------------- BSDF interface
 
-    def _candidates(self, u_o, v_o, lam, below, valid):
+    def _candidates(self, u_o, v_o, lam, below, valid, specular=None):
         """Every (channel, order) the camera direction can come from: directions, masks,
-        table angles, and efficiency times the radiance factor (n_c / n_l)^2."""
+        table angles, and efficiency times the radiance factor (n_c / n_l)^2.
+        ``specular``: the specular order's efficiency at ``lam`` when already known."""
         n1, n3 = self._index(self._n1, lam), self._index(self._n3, lam)
         n_cam = dr.select(below, n3, n1)
         out = []
@@ -180,9 +181,12 @@ class GratingBWDF(DeltaLobesBSDF):
                 ux, uy, z, prop, theta, phi = self._incident(u_o, v_o, float(m), float(n), lam, n_cam, n_light,
                                                              -1.0 if transmitted else 1.0)
                 look_above, look_below = self.lookups[above_name], self.lookups.get(below_name)
-                de = look_above.eval(mi.UInt32(k), lam, theta, phi, valid & prop & ~below)
-                if look_below is not None:
-                    de = dr.select(below, look_below.eval(mi.UInt32(k), lam, theta, phi, valid & prop & below), de)
+                if specular is not None and not transmitted and k == self._specular_index:
+                    de = specular
+                else:
+                    de = look_above.eval(mi.UInt32(k), lam, theta, phi, valid & prop & ~below)
+                    if look_below is not None:
+                        de = dr.select(below, look_below.eval(mi.UInt32(k), lam, theta, phi, valid & prop & below), de)
                 value = dr.select(prop, de * factor, 0.0)
                 out.append({"ux": ux, "uy": uy, "z": z, "prop": prop, "theta": theta, "phi": phi, "value": value,
                             "transmitted": transmitted, "k": k, "n_cam": n_cam, "n_light": n_light, "factor": factor})
@@ -203,9 +207,12 @@ class GratingBWDF(DeltaLobesBSDF):
         hero, rest = choose_hero(sample1)
         lam = select([wl[i] for i in range(WAVELENGTHS_PER_RAY)], hero)
 
-        cands = self._candidates(u_o, v_o, lam, below, active)
+        lanes = None
+        if self.mode == "improved" and self._specular_index is not None:
+            lanes = self._specular_efficiencies(u_o, v_o, cos_o, wl, below, active)
+        cands = self._candidates(u_o, v_o, lam, below, active, select(lanes, hero) if lanes else None)
         if self.mode == "improved":
-            chosen, pdf, weight_of = self._choose_improved(cands, u_o, v_o, cos_o, wl, hero, rest, below, active)
+            chosen, pdf, weight_of = self._choose_improved(cands, lanes, hero, rest)
         else:
             count = len(self.orders)
             channels = 2 if self.see_through else 1
@@ -233,7 +240,7 @@ class GratingBWDF(DeltaLobesBSDF):
         bs.sampled_component = mi.UInt32(0)
         return bs, dr.select(valid, weight, 0.0)
 
-    def _choose_improved(self, cands, u_o, v_o, cos_o, wl, hero, rest, below, active):
+    def _choose_improved(self, cands, lanes, hero, rest):
         """Improved mode's choice: the specular order, shared by all wavelengths, or one
         diffracted (channel, order) of the hero wavelength.
 
@@ -249,11 +256,12 @@ class GratingBWDF(DeltaLobesBSDF):
         the ceiling light does; its direction depends on the wavelength, so the
         others are terminated and the hero is reweighted by their number (the delta-lobe
         limit of the same MIS; pbrt-v4's TerminateSecondary).
-        Returns (chosen candidate, its probability, a function valid -> weight).
+        ``lanes``: the specular order's efficiency at each wavelength (None when the table
+        has no specular order). Returns (chosen candidate, its probability, a function
+        valid -> weight).
         """
         alpha = self.uniform_share
         k0 = self._specular_index
-        lanes = self._specular_efficiencies(u_o, v_o, cos_o, wl, below, active) if k0 is not None else None
         q0 = dr.clip(sum(lanes[1:], lanes[0]) / WAVELENGTHS_PER_RAY, 0.0, 1.0) if lanes else mi.Float(0.0)
         specular = rest < q0
         rest_d = dr.clip((rest - q0) / dr.maximum(1.0 - q0, 1e-12), 0.0, 0.99999994)
