@@ -6,14 +6,12 @@ smaller ones (fewer frames, same code path) to keep the suite short.
 
 import json
 
-import cv2
 import numpy as np
 import pytest
 import rawpy
 import tifffile
 from PIL import Image
 
-from datasets_synthetic.board import Checkerboard
 from datasets_synthetic.jpeg import demosaic, develop, read_exposure_time
 from datasets_synthetic.sensor import SensorModel
 from datasets_synthetic.synth import BRACKET_EV, PRESETS, synth
@@ -165,118 +163,34 @@ def test_clipped_pixels_are_those_over_the_white_level(dataset):
     assert np.percentile(curve[jpeg == 255], 1) > 250  # the rest: JPEG ringing at clipped edges
 
 
-def _grey(path) -> np.ndarray:
-    """A DNG as linear grey (mean of the bilinearly demosaiced channels), 1 at its 99.5th percentile."""
-    raw, black, white = _raw(path)
-    grey = np.clip((demosaic(raw, "RGGB").astype(float).mean(-1) - black) / (white - black), 0, 1)
-    return grey / max(np.percentile(grey, 99.5), 1e-6)
-
-
-def _refine_by_symmetry(grey: np.ndarray, corners: np.ndarray, pattern: tuple[int, int]) -> np.ndarray:
-    """Each corner moved to the centre of point symmetry of the image around it.
-
-    A checkerboard corner is point-symmetric (q + v and q - v fall on the same colour)
-    however the board is tilted, and so is its image after pixel averaging and blur, so
-    the q that best matches I(q + v) with I(q - v) over a disc of radius 0.7 times the
-    distance to the nearest neighbouring corner is unbiased by perspective (locally, the
-    pattern is an affine image of the board, which keeps the symmetry); a linear
-    shading term g (I(q + v) - I(q - v) = (g . v)(I(q + v) + I(q - v))) takes up the
-    flash's fall-off across the board. Measured against the truth (RMS per view): 0.02-0.05
-    px on analytically rasterized boards, 0.04 px on boards rendered at 512 spp, 0.09 px
-    at the dataset's 16 spp; OpenCV's cornerSubPix gives 0.06-0.08 px on the rasterized
-    boards (biased by perspective) and 0.25 px on the dataset's (it weighs noisy
-    gradients), findChessboardCornersSB with CALIB_CB_ACCURACY alone 0.08-0.16 and
-    0.21 px."""
-    from scipy.optimize import least_squares
-
-    image = np.ascontiguousarray(grey, dtype=np.float32)
-    cols, rows = pattern
-    grid = corners.reshape(rows, cols, 2).astype(float)
-    spacing = np.full((rows, cols), np.inf)
-    along = np.linalg.norm(np.diff(grid, axis=1), axis=2)
-    across = np.linalg.norm(np.diff(grid, axis=0), axis=2)
-    spacing[:, :-1] = np.minimum(spacing[:, :-1], along)
-    spacing[:, 1:] = np.minimum(spacing[:, 1:], along)
-    spacing[:-1] = np.minimum(spacing[:-1], across)
-    spacing[1:] = np.minimum(spacing[1:], across)
-    refined = []
-    for q0, d in zip(grid.reshape(-1, 2), spacing.ravel()):
-        radius = max(2.0, 0.7 * d)
-        n = int(np.ceil(radius))
-        vy, vx = np.mgrid[-n:n + 1, -n:n + 1].astype(float)
-        half = (vx**2 + vy**2 <= radius**2) & ((vy > 0) | ((vy == 0) & (vx > 0)))  # each pair (v, -v) once
-        v = np.stack([vx[half], vy[half]], 1)
-
-        def residual(p, v=v):
-            at = np.concatenate([p[:2] + v, p[:2] - v]).astype(np.float32)
-            s = cv2.remap(image, at[None, :, 0].copy(), at[None, :, 1].copy(), cv2.INTER_CUBIC).ravel()
-            plus, minus = s[:len(v)], s[len(v):]
-            return plus - minus - (v @ p[2:]) * (plus + minus)
-
-        fit = least_squares(residual, np.r_[q0, 0.0, 0.0], diff_step=1e-3, x_scale=np.array([1.0, 1.0, 0.01, 0.01]))
-        refined.append(fit.x[:2])
-    return np.array(refined, dtype=np.float32).reshape(-1, 1, 2)
-
-
-def _board_corners(path, board: Checkerboard):
-    """OpenCV's detector finds the board; each corner is then refined by point symmetry."""
-    grey = _grey(path)
-    grey8 = np.rint(255 * grey).clip(0, 255).astype(np.uint8)
-    found, corners = cv2.findChessboardCornersSB(grey8, board.inner_corners,
-                                                 flags=cv2.CALIB_CB_EXHAUSTIVE | cv2.CALIB_CB_ACCURACY)
-    if found:
-        corners = _refine_by_symmetry(grey, corners, board.inner_corners)
-    return found, corners
-
-
-def distortion_displacement_px(camera: dict, dist, covered: np.ndarray | None = None, step: float = 4.0) -> float:
-    """How far apart the fitted (``dist``) and the true lens distortion put a point, at most
-    over the image, or over the polygon ``covered`` (pixels): every pixel of a grid is
-    undistorted with the truth and distorted again with ``dist``, both with the true K, so
-    that only the distortion is compared."""
-    K = np.array([[camera["fx"], 0, camera["cx"]], [0, camera["fy"], camera["cy"]], [0, 0, 1]])
-    u, v = np.meshgrid(np.arange(0, camera["width"], step), np.arange(0, camera["height"], step))
-    pixels = np.stack([u.ravel(), v.ravel()], 1).astype(float)
-    if covered is not None:
-        hull = cv2.convexHull(np.asarray(covered, np.float32).reshape(-1, 1, 2))
-        pixels = pixels[[cv2.pointPolygonTest(hull, (float(x), float(y)), False) >= 0 for x, y in pixels]]
-    rays = cv2.undistortPoints(pixels.reshape(-1, 1, 2), K, np.array(camera["dist"], float),
-                               criteria=(cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 100, 1e-12)).reshape(-1, 2)
-    again, _ = cv2.projectPoints(np.c_[rays, np.ones(len(rays))], np.zeros(3), np.zeros(3), K, np.asarray(dist, float))
-    return float(np.max(np.linalg.norm(again.reshape(-1, 2) - pixels, axis=1)))
-
-
 def calibrate(out) -> dict:
-    """Detect the board in every calibration view of dataset ``out`` and calibrate as the
-    issue says (cv2.calibrateCamera, k3 fixed at 0 as in the truth). Returns the views
-    found, the RMS reprojection error, the relative errors of fx, fy, cx, cy and the
-    distortion displacement against truth.json (distortion_displacement_px), over the
-    area the board's corners covered in some view and over the whole image. Also a
-    measuring tool:
+    """Calibrate from dataset ``out``'s board views (calibration.intrinsics: OpenCV's
+    detector, point-symmetry refinement, cv2.calibrateCamera with k3 held at 0 as in the
+    truth) and compare with truth.json: views found, RMS reprojection error, relative
+    errors of fx, fy, cx, cy, and the distortion difference (both models with the true K)
+    over the area the board's corners covered in some view and over the whole image.
+    Also a measuring tool:
     ``python -c "from pathlib import Path; from tests.datasets_synthetic.test_synth import calibrate; print(calibrate(Path('DIR')))"``."""
     from pathlib import Path
 
+    from calibration.intrinsics import calibrate_board_views, distortion_difference_px
+
     out = Path(out)
     truth = json.loads((out / "truth.json").read_text())
-    spec = truth["board"]
-    board = Checkerboard(inner_corners=tuple(spec["inner_corners"]), square_size_m=spec["square_size_m"])
+    cam, spec = truth["camera"], truth["board"]
     views = sorted((out / "calibration").glob("*.dng"))
-    object_points, image_points = [], []
-    for path in views:
-        found, corners = _board_corners(path, board)
-        if found:
-            object_points.append(board.object_points().astype(np.float32))
-            image_points.append(corners.astype(np.float32))
-    cam = truth["camera"]
-    rms, K, dist, _, _ = cv2.calibrateCamera(object_points, image_points, (cam["width"], cam["height"]), None, None,
-                                             flags=cv2.CALIB_FIX_K3)
+    size = (cam["width"], cam["height"])
+    result = calibrate_board_views(views, tuple(spec["inner_corners"]), spec["square_size_m"], size)
+    K = result.K
+    K_true = np.array([[cam["fx"], 0, cam["cx"]], [0, cam["fy"], cam["cy"]], [0, 0, 1]])
     estimated = np.array([K[0, 0], K[1, 1], K[0, 2], K[1, 2]])
     true = np.array([cam["fx"], cam["fy"], cam["cx"], cam["cy"]])
-    return {"found": len(image_points), "views": len(views), "rms_px": float(rms),
+    covered = np.vstack(result.image_points).reshape(-1, 2)
+    return {"found": len(result.found), "views": len(views), "rms_px": result.rms_px,
             "relative_error": dict(zip(("fx", "fy", "cx", "cy"), (estimated / true - 1).tolist())),
-            "dist": dist.ravel().tolist(), "true_dist": cam["dist"],
-            "distortion_px_covered": distortion_displacement_px(cam, dist.ravel(), covered=np.vstack(image_points).reshape(-1, 2)),
-            "distortion_px_image": distortion_displacement_px(cam, dist.ravel())}
+            "dist": result.dist.tolist(), "true_dist": cam["dist"],
+            "distortion_px_covered": distortion_difference_px(K_true, cam["dist"], result.dist, size, covered=covered),
+            "distortion_px_image": distortion_difference_px(K_true, cam["dist"], result.dist, size)}
 
 
 def test_calibration_set_recovers_the_intrinsics(dataset):
@@ -294,9 +208,9 @@ def test_calibration_set_recovers_the_intrinsics(dataset):
     standard deviation is about 0.25 %, five times the focal lengths', so 0.5 % is two
     standard deviations and no tighter bound would hold across seeds); distortion within
     0.06-0.16 px where covered, 0.18-0.48 px over the whole image. The corners come from
-    findChessboardCornersSB refined by point symmetry (_refine_by_symmetry): with
+    findChessboardCornersSB refined by point symmetry (calibration.corners): with
     cornerSubPix instead (windows 5-11 px) the same views give 0.25 px corner errors and
-    principal points up to 0.5-1.8 % off."""
+    principal points up to 0.5-1.8 % off (calibration/corners.py)."""
     out, _ = dataset
     result = calibrate(out)
     assert result["found"] == result["views"], result
