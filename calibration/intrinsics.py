@@ -28,6 +28,15 @@ class Calibration:
     image_points: list[np.ndarray]
 
 
+def board_points(inner_corners: tuple[int, int], square_size_m: float) -> np.ndarray:
+    """A checkerboard's inner corners in its own frame (N, 3), metres: origin at the board's
+    centre, z = 0, row by row as OpenCV's detectors list them."""
+    cols, rows = inner_corners
+    j, i = np.mgrid[0:rows, 0:cols]
+    s = square_size_m
+    return np.stack([(i - (cols - 1) / 2) * s, (j - (rows - 1) / 2) * s, np.zeros_like(i, float)], -1).reshape(-1, 3)
+
+
 def raw_grey(path: str | Path) -> np.ndarray:
     """A raw file as linear grey (rawpy's black level and white balance off, no gamma),
     scaled so that its 99.5th percentile is 1."""
@@ -42,8 +51,7 @@ def calibrate_board_views(paths, inner_corners: tuple[int, int], square_size_m: 
                           flags: int = cv2.CALIB_FIX_K3) -> Calibration:
     """Find the board in each raw file and calibrate (needs the board in at least 3 views)."""
     cols, rows = inner_corners
-    board = np.zeros((rows * cols, 3), np.float32)
-    board[:, :2] = (np.mgrid[0:cols, 0:rows].T.reshape(-1, 2) - [(cols - 1) / 2, (rows - 1) / 2]) * square_size_m
+    board = board_points(inner_corners, square_size_m).astype(np.float32)
     found, missed, points = [], [], []
     for path in paths:
         ok, corners = find_board_corners(raw_grey(path), inner_corners)

@@ -68,10 +68,9 @@ class Checkerboard:
 
     def object_points(self) -> np.ndarray:
         """Inner corners in the board frame (N, 3), row by row as OpenCV's detectors list them."""
-        cols, rows = self.inner_corners
-        s = self.square_size_m
-        j, i = np.mgrid[0:rows, 0:cols]
-        return np.stack([(i - (cols - 1) / 2) * s, (j - (rows - 1) / 2) * s, np.zeros_like(i, float)], -1).reshape(-1, 3)
+        from calibration.intrinsics import board_points
+
+        return board_points(self.inner_corners, self.square_size_m)
 
     def outline(self) -> np.ndarray:
         """The board's four outer corners in its frame (4, 3)."""
