@@ -22,20 +22,30 @@
 
 namespace rcwa {
 
-LamellarEigen lamellar_eigen(const std::vector<double>& kx, const Mat& E, const Mat& Exx) {
+namespace {
+
+Eigen eig_near(Mat A, const Mat* guess) {
+    if (guess)
+        if (auto refined = eig_from_guess(A, *guess)) return std::move(*refined);
+    return eig(std::move(A));
+}
+
+}  // namespace
+
+LamellarEigen lamellar_eigen(const std::vector<double>& kx, const Mat& E, const Mat& Exx, const Mat& Z,
+                             const LamellarEigen* near) {
     const int n = static_cast<int>(kx.size());
     LamellarEigen out;
     Mat MA = E;
     for (int i = 0; i < n; ++i) MA(i, i) -= kx[i] * kx[i];
-    Eigen ea = eig(std::move(MA));
+    Eigen ea = eig_near(std::move(MA), near ? &near->WA : nullptr);
     out.WA = std::move(ea.vectors);
     out.muA = std::move(ea.values);
 
-    out.Z = LU(E).inverse();
     Mat Bm(n, n);  // I - Kx Z Kx
     for (int j = 0; j < n; ++j)
-        for (int i = 0; i < n; ++i) Bm(i, j) = (i == j ? 1.0 : 0.0) - kx[i] * out.Z(i, j) * kx[j];
-    Eigen eb = eig(matmul(Exx, Bm));
+        for (int i = 0; i < n; ++i) Bm(i, j) = (i == j ? 1.0 : 0.0) - kx[i] * Z(i, j) * kx[j];
+    Eigen eb = eig_near(matmul(Exx, Bm), near ? &near->VB : nullptr);
     out.VB = std::move(eb.vectors);
     out.muB = std::move(eb.values);
 
@@ -43,7 +53,7 @@ LamellarEigen lamellar_eigen(const std::vector<double>& kx, const Mat& E, const 
     Mat KxVB = out.VB;
     for (int j = 0; j < n; ++j)
         for (int i = 0; i < n; ++i) KxVB(i, j) *= kx[i];
-    out.ZKx_VB = matmul(out.Z, KxVB);
+    out.ZKx_VB = matmul(Z, KxVB);
 
     out.kx = kx;
     out.WA_inv = LU(out.WA).inverse();

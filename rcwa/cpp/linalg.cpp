@@ -1,5 +1,6 @@
 #include "linalg.hpp"
 
+#include <cmath>
 #include <string>
 
 // LAPACKE's complex type is std::complex<double> here, so no casts are needed.
@@ -93,6 +94,59 @@ Eigen eig(Mat A) {
     if (info != 0)
         throw std::runtime_error("eig: zgeev did not converge (info=" + std::to_string(info) + ")");
     return out;
+}
+
+namespace {
+
+void normalize_columns(Mat& W) {
+    for (int j = 0; j < W.cols; ++j) {
+        double norm2 = 0.0;
+        for (int i = 0; i < W.rows; ++i) norm2 += std::norm(W(i, j));
+        const double scale = 1.0 / std::sqrt(norm2);
+        for (int i = 0; i < W.rows; ++i) W(i, j) *= scale;
+    }
+}
+
+}  // namespace
+
+std::optional<Eigen> eig_from_guess(const Mat& A, const Mat& guess, int max_steps) {
+    // A correction below kConverged leaves an error of its square; a step that no longer
+    // shrinks a correction below kFloor has reached round-off (a close pair of eigenvalues).
+    constexpr double kConverged = 1e-9, kFloor = 1e-7, kTooFar = 0.25;
+    const int n = A.rows;
+    if (guess.rows != n || guess.cols != n) throw std::invalid_argument("eig_from_guess: shape mismatch");
+    Eigen out;
+    out.vectors = guess;
+    normalize_columns(out.vectors);
+    out.values.resize(static_cast<std::size_t>(n));
+    double previous = kTooFar;
+    for (int step = 0; step < max_steps; ++step) {
+        Mat M;
+        try {
+            M = LU(out.vectors).solve(matmul(A, out.vectors));
+        } catch (const std::runtime_error&) {
+            return std::nullopt;  // the guess lost rank
+        }
+        for (int i = 0; i < n; ++i) out.values[i] = M(i, i);
+        Mat P(n, n);
+        double largest = 0.0;
+        for (int j = 0; j < n; ++j)
+            for (int i = 0; i < n; ++i) {
+                if (i == j) continue;
+                const cplx gap = out.values[j] - out.values[i];
+                if (gap == 0.0) return std::nullopt;
+                P(i, j) = M(i, j) / gap;
+                largest = std::max(largest, std::abs(P(i, j)));
+            }
+        if (largest > kTooFar) return std::nullopt;
+        Mat W = out.vectors;
+        gemm(out.vectors, P, W, 1.0, 1.0);  // W (I + P)
+        out.vectors = std::move(W);
+        normalize_columns(out.vectors);
+        if (largest <= kConverged || (largest <= kFloor && largest > 0.1 * previous)) return out;
+        previous = largest;
+    }
+    return std::nullopt;
 }
 
 void set_blas_threads(int n) { scipy_openblas_set_num_threads(n); }

@@ -4,6 +4,7 @@
 
 #include <complex>
 #include <cstddef>
+#include <optional>
 #include <stdexcept>
 #include <vector>
 
@@ -54,6 +55,17 @@ struct Eigen {
     Mat vectors;
 };
 Eigen eig(Mat A);
+
+// The eigen-decomposition of A refined from approximate eigenvectors `guess` (columns),
+// such as those of a neighbouring matrix in a sweep, by Newton's iteration on the
+// decomposition: with M = W^-1 A W (nearly diagonal), each step replaces W by W (I + P),
+// P_ij = M_ij / (M_jj - M_ii) for i != j, the first-order correction of perturbation
+// theory (Stewart & Sun 1990, Matrix Perturbation Theory, Sec. V.2; the simultaneous
+// form of the refinement of Dongarra, Moler & Wilkinson 1983, SIAM J. Numer. Anal. 20,
+// 23). Convergence is quadratic while the corrections are small. Returns nothing when
+// the guess does not separate the eigenvalues (a correction above 1/4: near-degenerate
+// or crossing eigenvalues) or it does not converge in `max_steps`: use eig() then.
+std::optional<Eigen> eig_from_guess(const Mat& A, const Mat& guess, int max_steps = 6);
 
 void set_blas_threads(int n);
 

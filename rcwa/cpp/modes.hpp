@@ -62,7 +62,6 @@ struct LamellarEigen {
     CVec muA;      // its eigenvalues
     Mat VB;        // eigenvectors of MB = Exx (I - Kx Z Kx) (TM-like family, pure hy)
     CVec muB;
-    Mat Z;         // [[eps]]^{-1}
     Mat B_VB;      // (I - Kx Z Kx) VB
     Mat ZKx_VB;    // Z Kx VB
     // For the block inverses of W and V (lamellar.cpp), all independent of ky:
@@ -70,7 +69,11 @@ struct LamellarEigen {
     Mat M1;        // WA^-1 Z Kx VB (B VB)^-1
     Mat M3;        // VB^-1 Kx WA muA^-1 WA^-1
 };
-LamellarEigen lamellar_eigen(const std::vector<double>& kx, const Mat& E, const Mat& Exx);
+// Z = E^-1 is passed in (it depends on the wavelength only). `near`: the solution at a
+// nearby kx, whose eigenvectors seed eig_from_guess (linalg.hpp) instead of a full
+// eigen-solve; nullptr, or a guess that does not converge, means a full solve.
+LamellarEigen lamellar_eigen(const std::vector<double>& kx, const Mat& E, const Mat& Exx, const Mat& Z,
+                             const LamellarEigen* near = nullptr);
 std::unique_ptr<LayerModes> lamellar_modes(const std::vector<double>& kx, const LamellarEigen& eig,
                                            double ky);
 

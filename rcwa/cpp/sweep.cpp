@@ -6,6 +6,10 @@
 #include <mutex>
 #include <thread>
 
+#if defined(__GLIBC__)
+#include <malloc.h>
+#endif
+
 namespace rcwa {
 
 namespace {
@@ -21,16 +25,42 @@ Harmonics harmonics_at(const SweepProblem& pr, double kx0, double ky0) {
     return h;
 }
 
-// Per-kx0 work shared by the points of a group: the lamellar eigen-solves.
-std::vector<std::unique_ptr<LamellarEigen>> shared_eigen(const SweepProblem& pr, const Harmonics& h) {
-    std::vector<std::unique_ptr<LamellarEigen>> out(pr.layers.size());
+// A solve allocates and frees many 2N x 2N matrices (238 kB at N = 61). glibc at first
+// serves blocks above 128 kB by mmap and hands freed heap tops back to the system, so each
+// such matrix cost fresh zeroed pages: page faults took 15-20 % of a sweep's time. Keep
+// blocks below 1 MB on the heap and up to 16 MB of free heap top (process-wide, once).
+void keep_freed_memory() {
+#if defined(__GLIBC__)
+    static std::once_flag once;
+    std::call_once(once, [] {
+        mallopt(M_MMAP_THRESHOLD, 1 << 20);
+        mallopt(M_TRIM_THRESHOLD, 16 << 20);
+    });
+#endif
+}
+
+using SharedEigen = std::vector<std::unique_ptr<LamellarEigen>>;
+
+// Z = E^-1 of every lamellar layer: it depends on the wavelength only.
+std::vector<Mat> inverse_laurent(const SweepProblem& pr) {
+    std::vector<Mat> out(pr.layers.size());
     for (std::size_t k = 0; k < pr.layers.size(); ++k)
-        if (pr.layers[k].kind == "lamellar")
-            out[k] = std::make_unique<LamellarEigen>(lamellar_eigen(h.kx, pr.layers[k].matrices[0], pr.layers[k].matrices[1]));
+        if (pr.layers[k].kind == "lamellar") out[k] = LU(pr.layers[k].matrices[0]).inverse();
     return out;
 }
 
-StackSolution solve_with(const SweepProblem& pr, std::size_t p, const std::vector<std::unique_ptr<LamellarEigen>>& eig) {
+// Per-kx0 work shared by the points of a group: the lamellar eigen-solves, seeded by the
+// previous group's (`near`, at a neighbouring kx0) where there is one.
+SharedEigen shared_eigen(const SweepProblem& pr, const std::vector<Mat>& Z, const Harmonics& h, const SharedEigen* near) {
+    SharedEigen out(pr.layers.size());
+    for (std::size_t k = 0; k < pr.layers.size(); ++k)
+        if (pr.layers[k].kind == "lamellar")
+            out[k] = std::make_unique<LamellarEigen>(lamellar_eigen(
+                h.kx, pr.layers[k].matrices[0], pr.layers[k].matrices[1], Z[k], near ? (*near)[k].get() : nullptr));
+    return out;
+}
+
+StackSolution solve_with(const SweepProblem& pr, std::size_t p, const SharedEigen& eig) {
     StackProblem sp;
     sp.harmonics = harmonics_at(pr, pr.kx0[p], pr.ky0[p]);
     sp.zero_order = pr.zero_order;
@@ -80,10 +110,12 @@ void keep_rows(const SweepProblem& pr, const StackSolution& s, SweepResult& out,
 }  // namespace
 
 StackSolution solve_point(const SweepProblem& pr, std::size_t p) {
-    return solve_with(pr, p, shared_eigen(pr, harmonics_at(pr, pr.kx0[p], pr.ky0[p])));
+    keep_freed_memory();
+    return solve_with(pr, p, shared_eigen(pr, inverse_laurent(pr), harmonics_at(pr, pr.kx0[p], pr.ky0[p]), nullptr));
 }
 
 SweepResult sweep(const SweepProblem& pr) {
+    keep_freed_memory();
     const std::size_t np = pr.kx0.size();
     SweepResult out;
     out.r.resize(np);
@@ -94,24 +126,37 @@ SweepResult sweep(const SweepProblem& pr) {
     for (std::size_t p = 0; p < np; ++p) by_kx[pr.kx0[p]].push_back(p);
     std::vector<const std::vector<std::size_t>*> groups;
     for (const auto& [kx, points] : by_kx) groups.push_back(&points);
+    const std::vector<Mat> Z = inverse_laurent(pr);
 
+    // Blocks of kBlock consecutive kx0: within a block each group's eigen-solve is seeded
+    // by the one before, the next block starts afresh. The blocks do not depend on the
+    // thread count, so neither do the results (bit for bit).
+    constexpr std::size_t kBlock = 32;
+    const std::size_t threads = static_cast<std::size_t>(std::max(1, pr.threads));
+    const std::size_t blocks = (groups.size() + kBlock - 1) / kBlock;
     std::atomic<std::size_t> next{0};
     std::exception_ptr failure;
     std::mutex failure_lock;
     auto worker = [&]() {
         try {
-            for (std::size_t g = next++; g < groups.size(); g = next++) {
-                const auto& points = *groups[g];
-                const auto eig = shared_eigen(pr, harmonics_at(pr, pr.kx0[points[0]], pr.ky0[points[0]]));
-                for (std::size_t p : points) keep_rows(pr, solve_with(pr, p, eig), out, p);
+            for (std::size_t b = next++; b < blocks; b = next++) {
+                SharedEigen previous;
+                const std::size_t first = b * kBlock;
+                for (std::size_t g = first; g < std::min(first + kBlock, groups.size()); ++g) {
+                    const auto& points = *groups[g];
+                    SharedEigen eig = shared_eigen(pr, Z, harmonics_at(pr, pr.kx0[points[0]], pr.ky0[points[0]]),
+                                                   g > first ? &previous : nullptr);
+                    for (std::size_t p : points) keep_rows(pr, solve_with(pr, p, eig), out, p);
+                    previous = std::move(eig);
+                }
             }
         } catch (...) {
             std::lock_guard<std::mutex> lock(failure_lock);
             if (!failure) failure = std::current_exception();
-            next = groups.size();
+            next = blocks;
         }
     };
-    const int nthreads = std::max(1, std::min<int>(pr.threads, static_cast<int>(groups.size())));
+    const int nthreads = static_cast<int>(std::min(threads, std::max<std::size_t>(1, blocks)));
     std::vector<std::thread> pool;
     for (int i = 1; i < nthreads; ++i) pool.emplace_back(worker);
     worker();

@@ -35,11 +35,14 @@ struct SweepResult {
 };
 
 // Points that share kx0 exactly share every 1D lamellar layer's eigen-solve (its
-// eigenvectors do not depend on ky: lamellar.cpp), so points are grouped by kx0 and the
-// groups are spread over `threads` std::threads.
+// eigenvectors do not depend on ky: lamellar.cpp), so points are grouped by kx0. The
+// groups, sorted by kx0, are cut into blocks of neighbours spread over `threads`
+// std::threads; inside a block each eigen-solve is refined from the previous group's
+// eigenvectors (linalg.hpp, eig_from_guess), a few matrix products instead of a full
+// solve, with the full solve as fallback.
 SweepResult sweep(const SweepProblem& problem);
 
-// One point, the same code path as the sweep (used by single solves).
+// One point, the sweep's code path with full eigen-solves (used by single solves).
 StackSolution solve_point(const SweepProblem& problem, std::size_t point);
 
 }  // namespace rcwa
