@@ -132,6 +132,51 @@ class LamellarModes : public LayerModes {
         return stacked(top, bottom);
     }
 
+    Mat W() const override {
+        Mat out(2 * n_, 2 * n_);
+        for (int j = 0; j < n_; ++j) {
+            const cplx kzB = kz_[n_ + j];
+            for (int i = 0; i < n_; ++i) {
+                out(i, n_ + j) = e_.B_VB(i, j) / kzB;
+                out(n_ + i, j) = e_.WA(i, j);
+                out(n_ + i, n_ + j) = -ky_ * e_.ZKx_VB(i, j) / kzB;
+            }
+        }
+        return out;
+    }
+    Mat V() const override {
+        Mat out(2 * n_, 2 * n_);
+        for (int j = 0; j < n_; ++j) {
+            const cplx scale = 1.0 / kz_[j];
+            for (int i = 0; i < n_; ++i) {
+                out(i, j) = -e_.WA(i, j) * e_.muA[j] * scale;
+                out(n_ + i, j) = ky_ * e_.kx[i] * e_.WA(i, j) * scale;
+                out(n_ + i, n_ + j) = e_.VB(i, j);
+            }
+        }
+        return out;
+    }
+    Mat W_inverse() const override {
+        Mat out(2 * n_, 2 * n_);
+        for (int j = 0; j < n_; ++j)
+            for (int i = 0; i < n_; ++i) {
+                out(i, j) = ky_ * e_.M1(i, j);
+                out(i, n_ + j) = e_.WA_inv(i, j);
+                out(n_ + i, j) = kz_[n_ + i] * e_.B_VB_inv(i, j);
+            }
+        return out;
+    }
+    Mat V_inverse() const override {
+        Mat out(2 * n_, 2 * n_);
+        for (int j = 0; j < n_; ++j)
+            for (int i = 0; i < n_; ++i) {
+                out(i, j) = -kz_[i] / e_.muA[i] * e_.WA_inv(i, j);
+                out(n_ + i, j) = ky_ * e_.M3(i, j);
+                out(n_ + i, n_ + j) = e_.VB_inv(i, j);
+            }
+        return out;
+    }
+
   private:
     const LamellarEigen& e_;
     double ky_;

@@ -44,9 +44,16 @@ class LayerModes {
     virtual Mat apply_V(const Mat& B) const = 0;
     virtual Mat apply_W_inverse(const Mat& B) const = 0;
     virtual Mat apply_V_inverse(const Mat& B) const = 0;
+    // The 2N x 2N matrices themselves. The defaults apply the operators to the identity;
+    // layers whose blocks are at hand assemble them in O(N^2) instead.
+    virtual Mat W() const { return apply_W(identity()); }
+    virtual Mat V() const { return apply_V(identity()); }
+    virtual Mat W_inverse() const { return apply_W_inverse(identity()); }
+    virtual Mat V_inverse() const { return apply_V_inverse(identity()); }
     const CVec& kz() const { return kz_; }
 
   protected:
+    Mat identity() const { return Mat::identity(static_cast<int>(kz_.size())); }
     CVec kz_;
 };
 
