@@ -3,8 +3,9 @@
 The Fourier matrices of every layer depend on the wavelength only, so they are built
 once per wavelength (rcwa.solver.prepare); the C++ core then solves all directions on
 ``threads`` threads, sharing each 1D layer's eigen-solve among the directions with the
-same k_x (its eigenvectors do not depend on k_y; rcwa/cpp/lamellar.cpp). A sweep runs
-the same code as a single solve, so their results are identical (tests/rcwa/test_sweep.py).
+same k_x (its eigenvectors do not depend on k_y; rcwa/cpp/lamellar.cpp), and refining
+each k_x's eigen-solve from its neighbour's (rcwa/cpp/sweep.hpp). A sweep otherwise runs
+the same code as a single solve; they agree to 1e-13 (tests/rcwa/test_sweep.py).
 """
 
 from __future__ import annotations
@@ -28,7 +29,9 @@ class DirectionSweep:
 
     R, T: (P, K, 2) for s and p incidence (last axis); the unpolarized efficiency is their
     mean. ``m``, ``n``: the kept orders (K). ``kx0``, ``ky0``: incident tangential wave
-    vectors divided by k0 (P). T is zero over an absorbing substrate.
+    vectors divided by k0 (P). T is zero over an absorbing substrate. ``eigen_solves``:
+    the 1D layers' eigen-solves, ``eigen_refined`` of them refined from a neighbouring
+    k_x's eigenvectors instead of solved afresh (rcwa/cpp/sweep.hpp).
     """
 
     wavelength_nm: float
@@ -38,6 +41,8 @@ class DirectionSweep:
     ky0: np.ndarray
     R: np.ndarray
     T: np.ndarray
+    eigen_solves: int = 0
+    eigen_refined: int = 0
 
 
 def default_threads() -> int:
@@ -82,13 +87,14 @@ def sweep_directions(
     n_sup = math.sqrt(prep.eps_sup.real)
     kx0 = n_sup * np.sin(theta) * np.cos(phi)
     ky0 = n_sup * np.sin(theta) * np.sin(phi)
-    r, t, kz_sup, kz_sub = _core.sweep(
+    r, t, kz_sup, kz_sub, (solves, refined) = _core.sweep(
         prep.dkx, prep.dky, prep.zero, prep.eps_sup, prep.eps_sub, prep.layers,
         kx0, ky0, -np.sin(phi), np.cos(phi), [int(i) for i in idx], stack, threads or default_threads(),
     )
     kz0 = np.sqrt(prep.eps_sup.real - kx0**2 - ky0**2)
     R, T, _ = efficiencies(r, t, kz_sup[..., 0], kz_sub[..., 0], kz0, prep.eps_sup, prep.eps_sub)
-    return DirectionSweep(float(wavelength_nm), prep.harmonics.m[idx], prep.harmonics.n[idx], kx0, ky0, R, T)
+    return DirectionSweep(float(wavelength_nm), prep.harmonics.m[idx], prep.harmonics.n[idx], kx0, ky0, R, T,
+                          solves, refined)
 
 
 def _keep_counts(keep: int | Sequence[int], counts: tuple[int, ...]) -> tuple[int, ...]:

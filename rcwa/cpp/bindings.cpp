@@ -141,7 +141,15 @@ nb::tuple sweep_py(const RArray1& dkx, const RArray1& dky, int zero_order, cplx 
     auto t = stack_points(np, 2 * k, 2, [&](auto p, auto i, auto j) { return res.t[p](static_cast<int>(i), static_cast<int>(j)); });
     auto kz1 = stack_points(np, k, 1, [&](auto p, auto i, auto) { return res.kz_superstrate[p][i]; });
     auto kz2 = stack_points(np, k, 1, [&](auto p, auto i, auto) { return res.kz_substrate[p][i]; });
-    return nb::make_tuple(r, t, kz1, kz2);
+    return nb::make_tuple(r, t, kz1, kz2, nb::make_tuple(res.eigen_solves, res.eigen_refined));
+}
+
+// eig_from_guess (linalg.hpp), for tests: (values, vectors), or None where it declines.
+nb::object eig_from_guess_py(const CArray2& A, const CArray2& guess) {
+    const int n = static_cast<int>(A.shape(0));
+    const auto result = rcwa::eig_from_guess(to_mat(A, n, "A"), to_mat(guess, n, "guess"));
+    if (!result) return nb::none();
+    return nb::make_tuple(to_numpy(result->values), to_numpy(result->vectors));
 }
 
 }  // namespace
@@ -154,7 +162,10 @@ NB_MODULE(_core, m) {
     m.def("sweep", &sweep_py, "dkx"_a, "dky"_a, "zero_order"_a, "eps_superstrate"_a, "eps_substrate"_a,
           "layers"_a, "kx0"_a, "ky0"_a, "s_x"_a, "s_y"_a, "keep"_a, "method"_a = "etm", "threads"_a = 1,
           "Amplitudes of the kept harmonics for many incident directions (P points): r, t of shape "
-          "(P, 2K, 2) and kz of shape (P, K, 1); points sharing kx0 share 1D eigen-solves.");
+          "(P, 2K, 2) and kz of shape (P, K, 1); points sharing kx0 share 1D eigen-solves; and "
+          "(lamellar eigen-solves, of which refined from a neighbouring kx0).");
+    m.def("eig_from_guess", &eig_from_guess_py, "A"_a, "guess"_a,
+          "Eigenvalues and eigenvectors of A refined from approximate eigenvectors, or None.");
     m.def("set_blas_threads", &rcwa::set_blas_threads, "n"_a,
           "Number of OpenBLAS threads (1 when the core runs its own threads).");
 }

@@ -24,9 +24,12 @@ namespace rcwa {
 
 namespace {
 
-Eigen eig_near(Mat A, const Mat* guess) {
+Eigen eig_near(Mat A, const Mat* guess, int& refined) {
     if (guess)
-        if (auto refined = eig_from_guess(A, *guess)) return std::move(*refined);
+        if (auto result = eig_from_guess(A, *guess)) {
+            ++refined;
+            return std::move(*result);
+        }
     return eig(std::move(A));
 }
 
@@ -38,14 +41,14 @@ LamellarEigen lamellar_eigen(const std::vector<double>& kx, const Mat& E, const 
     LamellarEigen out;
     Mat MA = E;
     for (int i = 0; i < n; ++i) MA(i, i) -= kx[i] * kx[i];
-    Eigen ea = eig_near(std::move(MA), near ? &near->WA : nullptr);
+    Eigen ea = eig_near(std::move(MA), near ? &near->WA : nullptr, out.refined);
     out.WA = std::move(ea.vectors);
     out.muA = std::move(ea.values);
 
     Mat Bm(n, n);  // I - Kx Z Kx
     for (int j = 0; j < n; ++j)
         for (int i = 0; i < n; ++i) Bm(i, j) = (i == j ? 1.0 : 0.0) - kx[i] * Z(i, j) * kx[j];
-    Eigen eb = eig_near(matmul(Exx, Bm), near ? &near->VB : nullptr);
+    Eigen eb = eig_near(matmul(Exx, Bm), near ? &near->VB : nullptr, out.refined);
     out.VB = std::move(eb.vectors);
     out.muB = std::move(eb.values);
 

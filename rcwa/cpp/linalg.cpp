@@ -129,15 +129,17 @@ std::optional<Eigen> eig_from_guess(const Mat& A, const Mat& guess, int max_step
         }
         for (int i = 0; i < n; ++i) out.values[i] = M(i, i);
         Mat P(n, n);
-        double largest = 0.0;
+        double largest2 = 0.0;  // squared magnitudes: no hypot, and no __divdc3, in the loop
         for (int j = 0; j < n; ++j)
             for (int i = 0; i < n; ++i) {
                 if (i == j) continue;
                 const cplx gap = out.values[j] - out.values[i];
-                if (gap == 0.0) return std::nullopt;
-                P(i, j) = M(i, j) / gap;
-                largest = std::max(largest, std::abs(P(i, j)));
+                const double gap2 = std::norm(gap);
+                if (gap2 == 0.0) return std::nullopt;
+                P(i, j) = M(i, j) * std::conj(gap) / gap2;
+                largest2 = std::max(largest2, std::norm(P(i, j)));
             }
+        const double largest = std::sqrt(largest2);
         if (largest > kTooFar) return std::nullopt;
         Mat W = out.vectors;
         gemm(out.vectors, P, W, 1.0, 1.0);  // W (I + P)

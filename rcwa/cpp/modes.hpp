@@ -75,6 +75,7 @@ struct LamellarEigen {
     Mat WA_inv, VB_inv, B_VB_inv;
     Mat M1;        // WA^-1 Z Kx VB (B VB)^-1
     Mat M3;        // VB^-1 Kx WA muA^-1 WA^-1
+    int refined = 0;  // how many of the two eigen-solves were refined from `near` (0-2)
 };
 // Z = E^-1 is passed in (it depends on the wavelength only). `near`: the solution at a
 // nearby kx, whose eigenvectors seed eig_from_guess (linalg.hpp) instead of a full
@@ -96,6 +97,8 @@ class DenseModes : public LayerModes {
     Mat apply_V(const Mat& B) const override { return matmul(V_, B); }
     Mat apply_W_inverse(const Mat& B) const override { return luW_.solve(B); }
     Mat apply_V_inverse(const Mat& B) const override { return luV_.solve(B); }
+    Mat W() const override { return W_; }
+    Mat V() const override { return V_; }
 
   private:
     Mat W_, V_;

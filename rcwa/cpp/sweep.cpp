@@ -1,8 +1,8 @@
 #include "sweep.hpp"
 
+#include <algorithm>
 #include <atomic>
 #include <exception>
-#include <map>
 #include <mutex>
 #include <thread>
 
@@ -107,6 +107,23 @@ void keep_rows(const SweepProblem& pr, const StackSolution& s, SweepResult& out,
     out.kz_substrate[p] = std::move(kz2);
 }
 
+// Points grouped by kx0, in increasing kx0. Values within kSameKx of the group's first
+// count as equal: sin(theta) cos(phi) of different grid directions often lands on the
+// same value give or take an ulp (about 40 % of the paper grid's distinct kx0), and a
+// 1e-13 shift of kx changes the eigenvectors far below the solver's round-off.
+std::vector<std::vector<std::size_t>> groups_by_kx(const std::vector<double>& kx0) {
+    constexpr double kSameKx = 1e-13;
+    std::vector<std::size_t> order(kx0.size());
+    for (std::size_t p = 0; p < order.size(); ++p) order[p] = p;
+    std::stable_sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) { return kx0[a] < kx0[b]; });
+    std::vector<std::vector<std::size_t>> groups;
+    for (std::size_t p : order) {
+        if (groups.empty() || kx0[p] - kx0[groups.back().front()] > kSameKx) groups.emplace_back();
+        groups.back().push_back(p);
+    }
+    return groups;
+}
+
 }  // namespace
 
 StackSolution solve_point(const SweepProblem& pr, std::size_t p) {
@@ -122,10 +139,7 @@ SweepResult sweep(const SweepProblem& pr) {
     out.t.resize(np);
     out.kz_superstrate.resize(np);
     out.kz_substrate.resize(np);
-    std::map<double, std::vector<std::size_t>> by_kx;
-    for (std::size_t p = 0; p < np; ++p) by_kx[pr.kx0[p]].push_back(p);
-    std::vector<const std::vector<std::size_t>*> groups;
-    for (const auto& [kx, points] : by_kx) groups.push_back(&points);
+    const std::vector<std::vector<std::size_t>> groups = groups_by_kx(pr.kx0);
     const std::vector<Mat> Z = inverse_laurent(pr);
 
     // Blocks of kBlock consecutive kx0: within a block each group's eigen-solve is seeded
@@ -134,7 +148,7 @@ SweepResult sweep(const SweepProblem& pr) {
     constexpr std::size_t kBlock = 32;
     const std::size_t threads = static_cast<std::size_t>(std::max(1, pr.threads));
     const std::size_t blocks = (groups.size() + kBlock - 1) / kBlock;
-    std::atomic<std::size_t> next{0};
+    std::atomic<std::size_t> next{0}, solves{0}, refined{0};
     std::exception_ptr failure;
     std::mutex failure_lock;
     auto worker = [&]() {
@@ -143,10 +157,15 @@ SweepResult sweep(const SweepProblem& pr) {
                 SharedEigen previous;
                 const std::size_t first = b * kBlock;
                 for (std::size_t g = first; g < std::min(first + kBlock, groups.size()); ++g) {
-                    const auto& points = *groups[g];
+                    const auto& points = groups[g];
                     SharedEigen eig = shared_eigen(pr, Z, harmonics_at(pr, pr.kx0[points[0]], pr.ky0[points[0]]),
                                                    g > first ? &previous : nullptr);
                     for (std::size_t p : points) keep_rows(pr, solve_with(pr, p, eig), out, p);
+                    for (const auto& layer : eig)
+                        if (layer) {
+                            solves += 2;
+                            refined += static_cast<std::size_t>(layer->refined);
+                        }
                     previous = std::move(eig);
                 }
             }
@@ -162,6 +181,8 @@ SweepResult sweep(const SweepProblem& pr) {
     worker();
     for (auto& th : pool) th.join();
     if (failure) std::rethrow_exception(failure);
+    out.eigen_solves = solves;
+    out.eigen_refined = refined;
     return out;
 }
 

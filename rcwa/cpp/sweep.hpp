@@ -32,9 +32,11 @@ struct SweepProblem {
 struct SweepResult {
     std::vector<Mat> r, t;
     std::vector<CVec> kz_superstrate, kz_substrate;
+    std::size_t eigen_solves = 0;    // lamellar eigen-solves (two per layer and kx0 group)
+    std::size_t eigen_refined = 0;   // of which refined from a neighbour's eigenvectors
 };
 
-// Points that share kx0 exactly share every 1D lamellar layer's eigen-solve (its
+// Points that share kx0 (to 1e-13) share every 1D lamellar layer's eigen-solve (its
 // eigenvectors do not depend on ky: lamellar.cpp), so points are grouped by kx0. The
 // groups, sorted by kx0, are cut into blocks of neighbours spread over `threads`
 // std::threads; inside a block each eigen-solve is refined from the previous group's
