@@ -171,23 +171,28 @@ class BuildReport:
     symmetry: str = ""
     bytes_on_disk: int = 0
     notes: list[str] = field(default_factory=list)
+    eigen_solves: int = 0    # 1D layers' eigen-solves in the chunks computed now
+    eigen_refined: int = 0   # of which refined from a neighbouring k_x (rcwa/cpp/sweep.hpp)
 
 
-def compute_chunk(structure: Structure, settings: TableSettings, wavelength_nm: float, threads: int) -> dict[str, np.ndarray]:
-    """All arrays of one wavelength: R (and T; and from below), (theta, phi, order, pol)."""
+def compute_chunk(structure: Structure, settings: TableSettings, wavelength_nm: float,
+                  threads: int) -> tuple[dict[str, np.ndarray], tuple[int, int]]:
+    """All arrays of one wavelength: R (and T; and from below), (theta, phi, order, pol);
+    and the sweeps' (eigen-solves, refined eigen-solves)."""
     theta = np.array([min(t, GRAZING_THETA_DEG) for t in settings.theta_deg])
     th, ph = np.meshgrid(theta, np.array(settings.phi_deg), indexing="ij")
-    out = {}
+    out, solves, refined = {}, 0, 0
     sides = [("", structure)] + ([("_below", flipped(structure))] if settings.both_sides else [])
     for suffix, s in sides:
         sw = sweep_directions(s, wavelength_nm, th.ravel(), ph.ravel(), settings.orders, keep=settings.keep,
                               factorization=settings.factorization, threads=threads)
         shape = th.shape + (sw.m.size,)
+        solves, refined = solves + sw.eigen_solves, refined + sw.eigen_refined
         for name, values in (("R", sw.R), ("T", sw.T)):
             if name == "T" and (settings.reflection_only or not _transmits(s, settings)):
                 continue
             out[name + suffix] = _select_pol(values, settings.pol).reshape(shape + (-1,)).astype(np.float32)
-    return out
+    return out, (solves, refined)
 
 
 def _select_pol(values: np.ndarray, pol: str) -> np.ndarray:
@@ -230,9 +235,11 @@ def build_table(structure: Structure, settings: TableSettings, out: str | Path, 
     else:
         futures = {i: executor.submit(_timed, compute_chunk, structure, settings, settings.wavelengths_nm[i], 1) for i in todo}
         results = ((i, futures[i].result()) for i in todo)
-    for i, (arrays, seconds) in results:
+    for i, ((arrays, (solves, refined)), seconds) in results:
         _write_chunk(out, store, i, arrays, seconds, done)
         report.chunks_computed += 1
+        report.eigen_solves += solves
+        report.eigen_refined += refined
         bar.update(1)
     bar.close()
     store.attrs.update({"complete": True, "chunk_seconds": {k: v["seconds"] for k, v in done.items()}})

@@ -160,6 +160,9 @@ def _run_rcwa_table(args: argparse.Namespace) -> int:
           f"{'x'.join(map(str, settings.keep))} kept; symmetry: {report.symmetry}")
     print(f"computed {report.chunks_computed} of {report.chunks_total} wavelength chunks ({report.chunks_reused} resumed) "
           f"in {report.seconds:.1f} s; {report.bytes_on_disk / 1e6:.2f} MB on disk")
+    if report.eigen_solves:
+        print(f"1D eigen-solves: {report.eigen_solves}, {report.eigen_refined / report.eigen_solves:.0%} refined from a "
+              f"neighbouring k_x (the rest solved afresh)")
     return 0
 
 

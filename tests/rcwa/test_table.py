@@ -159,10 +159,13 @@ def test_dask_local_cluster_equals_local_run(tmp_path):
 
     s = rcwa.load_structure("cd")
     st = _small(s)
-    build_table(s, st, tmp_path / "local.zarr", progress=False, threads=1)
+    local = build_table(s, st, tmp_path / "local.zarr", progress=False, threads=1)
     with DaskExecutor(workers=2) as executor:
         report = build_table(s, st, tmp_path / "dask.zarr", progress=False, executor=executor)
     assert report.chunks_computed == len(st.wavelengths_nm)
+    # The workers' sweep statistics come back too (same blocks, so the same counts).
+    assert (report.eigen_solves, report.eigen_refined) == (local.eigen_solves, local.eigen_refined)
+    assert report.eigen_solves > 0
     assert np.array_equal(open_table(tmp_path / "dask.zarr").arrays["R"], open_table(tmp_path / "local.zarr").arrays["R"])
 
 
