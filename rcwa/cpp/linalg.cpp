@@ -137,10 +137,11 @@ std::optional<Eigen> eig_from_guess(const Mat& A, const Mat& guess, int max_step
                 const double gap2 = std::norm(gap);
                 if (gap2 == 0.0) return std::nullopt;
                 P(i, j) = M(i, j) * std::conj(gap) / gap2;
-                largest2 = std::max(largest2, std::norm(P(i, j)));
+                const double size2 = std::norm(P(i, j));
+                if (!(size2 <= largest2)) largest2 = size2;  // NaN sticks
             }
         const double largest = std::sqrt(largest2);
-        if (largest > kTooFar) return std::nullopt;
+        if (!(largest <= kTooFar)) return std::nullopt;  // too far, or NaN
         Mat W = out.vectors;
         gemm(out.vectors, P, W, 1.0, 1.0);  // W (I + P)
         out.vectors = std::move(W);

@@ -59,3 +59,8 @@ def test_declines_a_singular_guess():
     A = np.diag([1.0, 2.0, 3.0]).astype(complex)
     guess = np.ones((3, 3), dtype=complex)
     assert _core.eig_from_guess(A, guess) is None
+
+
+def test_declines_a_matrix_with_nan():
+    A = np.diag([1.0, 2.0, np.nan]).astype(complex)
+    assert _core.eig_from_guess(A, np.eye(3, dtype=complex)) is None
