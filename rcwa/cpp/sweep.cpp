@@ -5,6 +5,7 @@
 #include <exception>
 #include <mutex>
 #include <thread>
+#include <utility>
 
 #if defined(__GLIBC__)
 #include <malloc.h>
@@ -124,6 +125,28 @@ std::vector<std::vector<std::size_t>> groups_by_kx(const std::vector<double>& kx
     return groups;
 }
 
+// Groups [first, last) of neighbouring kx0, each group's eigen-solves seeded by the
+// previous group's. Returns (lamellar eigen-solves, of which refined).
+std::pair<std::size_t, std::size_t> solve_block(const SweepProblem& pr, const std::vector<Mat>& Z,
+                                                const std::vector<std::vector<std::size_t>>& groups,
+                                                std::size_t first, std::size_t last, SweepResult& out) {
+    std::size_t solves = 0, refined = 0;
+    SharedEigen previous;
+    for (std::size_t g = first; g < last; ++g) {
+        const auto& points = groups[g];
+        SharedEigen eig = shared_eigen(pr, Z, harmonics_at(pr, pr.kx0[points[0]], pr.ky0[points[0]]),
+                                       g > first ? &previous : nullptr);
+        for (std::size_t p : points) keep_rows(pr, solve_with(pr, p, eig), out, p);
+        for (const auto& layer : eig)
+            if (layer) {
+                solves += 2;
+                refined += static_cast<std::size_t>(layer->refined);
+            }
+        previous = std::move(eig);
+    }
+    return {solves, refined};
+}
+
 }  // namespace
 
 StackSolution solve_point(const SweepProblem& pr, std::size_t p) {
@@ -154,20 +177,10 @@ SweepResult sweep(const SweepProblem& pr) {
     auto worker = [&]() {
         try {
             for (std::size_t b = next++; b < blocks; b = next++) {
-                SharedEigen previous;
-                const std::size_t first = b * kBlock;
-                for (std::size_t g = first; g < std::min(first + kBlock, groups.size()); ++g) {
-                    const auto& points = groups[g];
-                    SharedEigen eig = shared_eigen(pr, Z, harmonics_at(pr, pr.kx0[points[0]], pr.ky0[points[0]]),
-                                                   g > first ? &previous : nullptr);
-                    for (std::size_t p : points) keep_rows(pr, solve_with(pr, p, eig), out, p);
-                    for (const auto& layer : eig)
-                        if (layer) {
-                            solves += 2;
-                            refined += static_cast<std::size_t>(layer->refined);
-                        }
-                    previous = std::move(eig);
-                }
+                const auto [n_solves, n_refined] = solve_block(
+                    pr, Z, groups, b * kBlock, std::min((b + 1) * kBlock, groups.size()), out);
+                solves += n_solves;
+                refined += n_refined;
             }
         } catch (...) {
             std::lock_guard<std::mutex> lock(failure_lock);
