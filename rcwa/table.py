@@ -34,6 +34,7 @@ from rcwa.structure import Layer, Structure
 from rcwa.sweep import default_threads, sweep_directions
 from workbench.errors import UserInputError
 from workbench.files import atomic_write_text
+from workbench.timing import timed
 
 FORMAT_VERSION = 1
 GRAZING_THETA_DEG = 89.999  # theta = 90 (no incident power) is solved at this limit
@@ -231,9 +232,9 @@ def build_table(structure: Structure, settings: TableSettings, out: str | Path, 
     bar = tqdm(total=len(settings.wavelengths_nm), initial=len(done), unit="wavelength", disable=not progress,
                desc=f"table {structure.name}")
     if executor is None:
-        results = ((i, _timed(compute_chunk, structure, settings, settings.wavelengths_nm[i], threads)) for i in todo)
+        results = ((i, timed(compute_chunk, structure, settings, settings.wavelengths_nm[i], threads)) for i in todo)
     else:
-        futures = {i: executor.submit(_timed, compute_chunk, structure, settings, settings.wavelengths_nm[i], 1) for i in todo}
+        futures = {i: executor.submit(timed, compute_chunk, structure, settings, settings.wavelengths_nm[i], 1) for i in todo}
         results = ((i, futures[i].result()) for i in todo)
     for i, ((arrays, (solves, refined)), seconds) in results:
         _write_chunk(out, store, i, arrays, seconds, done)
@@ -283,12 +284,6 @@ class DaskExecutor:
 
     def __exit__(self, *exc) -> None:
         self.close()
-
-
-def _timed(fn, *args):
-    t = time.perf_counter()
-    result = fn(*args)
-    return result, time.perf_counter() - t
 
 
 def _open_store(out: Path, structure: Structure, settings: TableSettings, key: str, force: bool):

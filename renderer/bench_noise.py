@@ -21,9 +21,10 @@ weighs every pixel alike.
 from __future__ import annotations
 
 import argparse
-import time
 
 import numpy as np
+
+from workbench.timing import timed
 
 RELMSE_EPS = 1e-2
 
@@ -81,9 +82,7 @@ def load_cropped(mi, spec, mode: str, crop, *, delta: float | None = None, spp: 
 
 
 def timed_render(mi, sc, seed: int, spp: int = 0) -> tuple[np.ndarray, float]:
-    start = time.perf_counter()
-    image = np.array(mi.render(sc, seed=seed, spp=spp))
-    return image, time.perf_counter() - start
+    return timed(lambda: np.array(mi.render(sc, seed=seed, spp=spp)))
 
 
 def _spp_for(mi, scene, budget_s: float) -> int:

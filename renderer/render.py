@@ -22,6 +22,7 @@ import numpy as np
 from renderer.scene import SceneSpec, load_scene
 from workbench.errors import UserInputError
 from workbench.files import atomic_write as _atomic
+from workbench.timing import timed
 
 PRESETS = {"draft": {"spp": 256, "pass_spp": 64}, "paper": {"spp": 2045, "pass_spp": 128, "resolution": (978, 734)}}
 
@@ -92,9 +93,9 @@ def render(scene: str | Path, out: str | Path, *, preset: str = "draft", spp: in
     pass_seconds = []
     if executor is None:
         loaded = mi.load_dict(scene_d)
-        images = ((p, _timed(lambda p=p: np.array(mi.render(loaded, seed=seed * 100_003 + p)))) for p in range(done, passes))
+        images = ((p, timed(lambda p=p: np.array(mi.render(loaded, seed=seed * 100_003 + p)))) for p in range(done, passes))
     else:
-        futures = {p: executor.submit(_timed_pass, spec, pass_spp, integrator, mode, seed * 100_003 + p) for p in range(done, passes)}
+        futures = {p: executor.submit(timed, render_pass, spec, pass_spp, integrator, mode, seed * 100_003 + p) for p in range(done, passes)}
         images = ((p, futures[p].result()) for p in range(done, passes))
     for p, (image, seconds) in images:
         total = image if total is None else total + image
@@ -128,16 +129,6 @@ def render(scene: str | Path, out: str | Path, *, preset: str = "draft", spp: in
     _atomic(sidecar, lambda tmp: tmp.write_text(json.dumps(info, indent=2)))
     partial.unlink(missing_ok=True)
     return info
-
-
-def _timed(fn):
-    t = time.perf_counter()
-    result = fn()
-    return result, time.perf_counter() - t
-
-
-def _timed_pass(*args):
-    return _timed(lambda: render_pass(*args))
 
 
 def _write_preview(rgb: np.ndarray, path: Path) -> None:
