@@ -36,14 +36,14 @@ test-fast: install
 	$(BIN)/python -m pytest -q -m "not slow"
 
 bench: install
-	bash rcwa/benchmarks/setup_peers.sh
-	$(BIN)/python rcwa/benchmarks/bench_solve.py
-	$(BIN)/python -m rcwa.convergence
-	$(BIN)/python -m rcwa.bench_table
-	$(BIN)/python -m renderer.bench_bwdf
-	$(BIN)/python -m renderer.bench_noise
-	$(BIN)/python -m renderer.fit
-	$(BIN)/python -m renderer.bench_render
+	bash benchmarks/setup_peers.sh
+	$(BIN)/python benchmarks/bench_solve.py
+	$(BIN)/python -m benchmarks.bench_convergence
+	$(BIN)/python -m benchmarks.bench_table
+	$(BIN)/python -m benchmarks.bench_bwdf
+	$(BIN)/python -m benchmarks.bench_noise
+	$(BIN)/python -m benchmarks.bench_fit
+	$(BIN)/python -m benchmarks.bench_render
 
 clean:
 	rm -rf build $(VENV)

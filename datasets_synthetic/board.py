@@ -67,10 +67,20 @@ class Checkerboard:
         return np.repeat(image[:, :, None], 3, axis=2).astype(np.float32)
 
     def object_points(self) -> np.ndarray:
-        """Inner corners in the board frame (N, 3), row by row as OpenCV's detectors list them."""
-        from calibration.intrinsics import board_points
+        """Inner corners in the board frame (N, 3), metres, row by row (x fastest).
 
-        return board_points(self.inner_corners, self.square_size_m)
+        Worked out here from the printed squares (the truth must not come from the
+        calibration code it checks): the squares span ``cols * s`` by ``rows * s`` about
+        the board's centre, and inner corner (k, l) is where squares k-1, k and l-1, l
+        meet, at x = -cols s / 2 + k s, y = -rows s / 2 + l s, for k = 1 .. cols - 1 and
+        l = 1 .. rows - 1. tests/datasets_synthetic/test_board.py checks this against
+        calibration's own board model.
+        """
+        cols, rows = self.squares
+        s = self.square_size_m
+        xs = -cols * s / 2 + s * np.arange(1, cols)
+        ys = -rows * s / 2 + s * np.arange(1, rows)
+        return np.array([[x, y, 0.0] for y in ys for x in xs])
 
     def outline(self) -> np.ndarray:
         """The board's four outer corners in its frame (4, 3)."""

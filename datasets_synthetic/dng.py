@@ -18,7 +18,7 @@ from pathlib import Path
 
 import numpy as np
 
-from workbench.files import atomic_write
+from workbench.core.files import atomic_write
 
 CFA_CODES = {"R": 0, "G": 1, "B": 2}
 MIN_SIDE = 32

@@ -28,7 +28,7 @@ import cv2
 import numpy as np
 
 from renderer.response import ResponseCurve
-from workbench.files import atomic_write
+from workbench.core.files import atomic_write
 
 # OpenCV names a Bayer pattern by the 2x2 block starting at the second row and column.
 OPENCV_BAYER = {"RGGB": cv2.COLOR_BayerBG2RGB, "BGGR": cv2.COLOR_BayerRG2RGB,

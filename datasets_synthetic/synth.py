@@ -51,8 +51,8 @@ from datasets_synthetic.board import BOARD_KEY, Checkerboard, corners_visible, s
 from datasets_synthetic.dng import DngMetadata, write_dng
 from datasets_synthetic.jpeg import develop, hidden_response, write_jpeg
 from datasets_synthetic.sensor import SensorModel
-from workbench.errors import UserInputError
-from workbench.files import atomic_write_text
+from workbench.core.errors import UserInputError
+from workbench.core.files import atomic_write_text
 
 PRESETS = {
     "draft": {"resolution": (640, 480), "spp": 64, "views": 2, "calibration_views": 20, "calibration_spp": 16},
@@ -266,10 +266,10 @@ def _flash(spec, camera) -> dict:
 def _write_run_record(out: Path, scene: str, seed: int, preset: str, settings: dict, timings: dict) -> None:
     import mitsuba
 
-    import workbench
+    from workbench.core.version import __version__ as workbench_version
 
     record = {"command": "workbench synth", "scene": scene, "seed": seed, "preset": preset, "settings": settings,
-              "timings": timings, "versions": {"workbench": workbench.__version__, "mitsuba": mitsuba.__version__,
+              "timings": timings, "versions": {"workbench": workbench_version, "mitsuba": mitsuba.__version__,
                                                "numpy": np.__version__, "python": platform.python_version()}}
     atomic_write_text(out / "run.json", json.dumps(record, indent=2, default=list))
 

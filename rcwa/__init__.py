@@ -2,7 +2,7 @@
 
 The C++ core (rcwa._core) computes layer eigenmodes and the stack solution; this package
 reads structures, builds the Fourier matrices and turns amplitudes into efficiencies.
-See docs/architecture.md and workbench.conventions for units, signs and frames.
+See docs/architecture.md and workbench.core.conventions for units, signs and frames.
 """
 
 from __future__ import annotations

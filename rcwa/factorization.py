@@ -60,7 +60,7 @@ class HarmonicIndices:
 
 def resolve_rule(rule: str, dimension: int, layers: tuple[Layer, ...] = ()) -> str:
     if rule not in FACTORIZATION_RULES:
-        from workbench.errors import UserInputError
+        from workbench.core.errors import UserInputError
 
         raise UserInputError("unknown factorization rule", field="factorization", expected=f"one of {FACTORIZATION_RULES}", got=rule)
     if rule == "auto":

@@ -1,6 +1,6 @@
 """Fourier coefficients of piecewise-constant periodic cells and their Toeplitz matrices.
 
-Conventions (workbench.conventions): a periodic function is
+Conventions (workbench.core.conventions): a periodic function is
 ``f(r) = sum_g c(g) exp(+i g.G r)`` with ``c(g) = (1/A) int_cell f(r) exp(-i g.G r) dr``.
 Harmonic ``m`` of a field has ``k_m = k_inc - m G`` (Lange et al. 2021, Eq. 2 sign), so the
 product ``f E`` has, at harmonic ``m``, ``sum_n c(n - m) E_n``: the convolution matrix is

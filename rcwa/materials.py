@@ -2,10 +2,10 @@
 
 A :class:`Material` maps vacuum wavelengths in nanometres to the complex refractive index
 ``n + i k`` with ``k >= 0`` (the ``exp(-i omega t)`` convention of
-:mod:`workbench.conventions`: lossy media have ``Im(n) > 0``) and to the relative
+:mod:`workbench.core.conventions`: lossy media have ``Im(n) > 0``) and to the relative
 permittivity ``eps = (n + i k)**2``. Evaluation is vectorised: pass an array of wavelengths
 and get an array back. Asking outside a material's data range raises
-:class:`~workbench.errors.UserInputError`; nothing is extrapolated.
+:class:`~workbench.core.errors.UserInputError`; nothing is extrapolated.
 
 Built-in materials
 ------------------
@@ -78,7 +78,7 @@ from typing import Any
 import numpy as np
 from scipy.interpolate import PchipInterpolator
 
-from workbench.errors import UserInputError
+from workbench.core.errors import UserInputError
 
 __all__ = [
     "BUILTIN_MATERIALS",

@@ -5,7 +5,7 @@ formulation of Moharam, Grann, Pommet & Gaylord 1995, JOSA A 12, 1068 and 1077) 
 factorization rules of rcwa.factorization, layer eigenmodes and the enhanced transmittance
 matrix stack in C++ (rcwa/cpp). This module converts units, validates the request, builds
 the Fourier matrices and turns amplitudes into efficiencies. Conventions:
-workbench.conventions.
+workbench.core.conventions.
 """
 
 from __future__ import annotations
@@ -21,8 +21,8 @@ from rcwa.factorization import HarmonicIndices, permittivity_matrices, resolve_r
 from rcwa.materials import Material
 from rcwa.result import OrderResult, SolveResult
 from rcwa.structure import Structure
-from workbench.conventions import Polarization, incident_tangential_k
-from workbench.errors import UserInputError
+from workbench.core.conventions import Polarization, incident_tangential_k
+from workbench.core.errors import UserInputError
 
 # One BLAS thread inside the core: its matrices are small (2N <= ~1000), OpenBLAS's idle
 # threads spin after each call and then starve numpy's own BLAS on a 2-core machine
@@ -97,7 +97,7 @@ def solve(
     Parameters
     ----------
     wavelength_nm: vacuum wavelength in nanometres.
-    theta_deg, phi_deg: incidence angles in degrees (workbench.conventions): polar angle
+    theta_deg, phi_deg: incidence angles in degrees (workbench.core.conventions): polar angle
         in the superstrate, ``0 <= theta < 90``, and azimuth of the tangential wave vector.
     orders: retained harmonics per direction, odd: ``N`` (1D) or ``(Nx, Ny)`` (2D; an
         int means ``(N, N)``).

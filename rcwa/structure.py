@@ -17,8 +17,8 @@ from typing import Any
 
 from rcwa.materials import Material, material_from_spec
 from rcwa.shapes import Circle, Polygon, Rect, Shape, Stripe
-from workbench import validation
-from workbench.errors import UserInputError
+from workbench.core import validation
+from workbench.core.errors import UserInputError
 
 BUILTIN_STRUCTURES: tuple[str, ...] = ("cd", "gold2d")
 

@@ -149,7 +149,7 @@ def recommend(truncation: list[dict], interpolation: list[dict], cfg: StudyConfi
 def run_study(structure: Structure, out: str | Path, cfg: StudyConfig = StudyConfig()) -> dict:
     import platform
 
-    import workbench
+    from workbench.core.version import __version__ as workbench_version
 
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
@@ -159,7 +159,7 @@ def run_study(structure: Structure, out: str | Path, cfg: StudyConfig = StudyCon
     presets = recommend(truncation, interpolation, cfg)
     data = {"structure": structure.name, "config": asdict(cfg), "truncation": truncation,
             "interpolation": interpolation, "presets": presets,
-            "run": {"workbench_version": workbench.__version__, "numpy": np.__version__, "python": platform.python_version(),
+            "run": {"workbench_version": workbench_version, "numpy": np.__version__, "python": platform.python_version(),
                     "machine": platform.machine(), "seconds": time.perf_counter() - start,
                     "structure_sha256": structure.content_hash}}
     (out / "study_rcwa.json").write_text(json.dumps(data, indent=2))
@@ -178,7 +178,7 @@ def _write_csv(path: Path, rows: list[dict]) -> None:
 
 
 def _plot(truncation: list[dict], interpolation: list[dict], out: Path, name: str) -> None:
-    from workbench.plots import new_figure, save_figure
+    from workbench.core.plots import new_figure, save_figure
 
     fig, axes = new_figure()
     for rule in ("li", "laurent"):

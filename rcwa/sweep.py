@@ -20,7 +20,7 @@ import numpy as np
 from rcwa import _core
 from rcwa.solver import check_stack, efficiencies, prepare
 from rcwa.structure import Structure
-from workbench.errors import UserInputError
+from workbench.core.errors import UserInputError
 
 
 @dataclass(frozen=True)

@@ -28,13 +28,13 @@ from pathlib import Path
 
 import numpy as np
 
-import workbench
+from workbench.core.version import __version__ as workbench_version
 from rcwa import symmetry
 from rcwa.structure import Layer, Structure
 from rcwa.sweep import default_threads, sweep_directions
-from workbench.errors import UserInputError
-from workbench.files import atomic_write_text
-from workbench.timing import timed
+from workbench.core.errors import UserInputError
+from workbench.core.files import atomic_write_text
+from workbench.core.timing import timed
 
 FORMAT_VERSION = 1
 GRAZING_THETA_DEG = 89.999  # theta = 90 (no incident power) is solved at this limit
@@ -147,7 +147,7 @@ def _counts(value, dim: int, name: str) -> tuple[int, ...]:
 def request_key(structure: Structure, settings: TableSettings) -> str:
     """Content hash of what a table holds (structure text, settings, solver version)."""
     payload = json.dumps({"structure": structure.text, "settings": settings.to_json(), "format": FORMAT_VERSION,
-                          "version": workbench.__version__}, sort_keys=True)
+                          "version": workbench_version}, sort_keys=True)
     return hashlib.sha256(payload.encode()).hexdigest()
 
 
@@ -249,43 +249,6 @@ def build_table(structure: Structure, settings: TableSettings, out: str | Path, 
     return report
 
 
-class DaskExecutor:
-    """Chunks on a dask.distributed cluster: an existing scheduler, or a LocalCluster.
-
-    Each worker process runs one chunk at a time on one solver thread; results come back
-    to this process, which alone writes the table (so atomic writes and resume work the
-    same as locally).
-    """
-
-    def __init__(self, scheduler: str | None = None, workers: int | None = None) -> None:
-        from distributed import Client, LocalCluster
-
-        self._cluster = None
-        if scheduler:
-            try:
-                self._client = Client(scheduler, timeout="10s")
-            except (OSError, TimeoutError) as exc:
-                raise UserInputError(f"cannot reach the dask scheduler ({exc})", field="--scheduler", got=scheduler) from None
-        else:
-            self._cluster = LocalCluster(n_workers=workers or 2, threads_per_worker=1, processes=True,
-                                         host="127.0.0.1", dashboard_address=None)
-            self._client = Client(self._cluster)
-
-    def submit(self, fn, *args):
-        return self._client.submit(fn, *args, pure=False)
-
-    def close(self) -> None:
-        self._client.close()
-        if self._cluster is not None:
-            self._cluster.close()
-
-    def __enter__(self) -> "DaskExecutor":
-        return self
-
-    def __exit__(self, *exc) -> None:
-        self.close()
-
-
 def _open_store(out: Path, structure: Structure, settings: TableSettings, key: str, force: bool):
     import zarr
 
@@ -320,7 +283,7 @@ def _open_store(out: Path, structure: Structure, settings: TableSettings, key: s
         "orders_m": [int(m) for m in _kept_indices(settings.keep)[0]], "orders_n": [int(n) for n in _kept_indices(settings.keep)[1]],
         "symmetry": {"mirror_x": sym.x, "mirror_y": sym.y, "phi_range_deg": list(sym.azimuth_range())},
         "grazing_theta_deg": GRAZING_THETA_DEG, "factorization": resolve_rule(settings.factorization, structure.dimension, structure.layers),
-        "solver_version": workbench.__version__, "complete": False,
+        "solver_version": workbench_version, "complete": False,
     }
     group.attrs.update(meta)
     _atomic_write_json(out / "progress.json", {})

@@ -15,7 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
-from workbench.files import atomic_write_text
+from workbench.core.files import atomic_write_text
 from renderer.scene import CD_TOP_THICKNESS_M, MM, SPECTRAL_RANGE_NM, SceneSpec, box_scale, cornell_data
 
 CACHE = Path("build")

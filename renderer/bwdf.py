@@ -29,7 +29,7 @@ uniform_share : float in [0, 1], default 0.5
     Improved mode: the share of the diffracted-order choice made uniformly over the
     orders that carry light, the rest in proportion to efficiency. 0.5 gave the lowest
     noise on cornell_cd's CD (relative pixel noise at 128 spp: 0.75 at 0, 0.51 at 0.5,
-    0.54 at 0.8, 0.58 at 1; renderer.bench_render).
+    0.54 at 0.8, 0.58 at 1; benchmarks/bench_render.py).
 
 Weights, and where paper mode differs. Mitsuba's ``sample`` returns f |cos| / pdf. A
 grating order maps direction cosines (times the superstrate index) by a translation,
@@ -50,7 +50,7 @@ coin between reflection and transmission (weight x2), as the paper's Sec. 2.2 do
 
 Directions (Mitsuba's si.wi is the paper's omega_o, toward the camera; bs.wo is its
 omega_i, toward the light). In the grating frame, order (m, n) relates them by the
-grating equation with the order sign of workbench.conventions:
+grating equation with the order sign of workbench.core.conventions:
     omega_i,t = -omega_o,t - (m lambda / (n1 Lambda_x), n lambda / (n1 Lambda_y)),
 and the table is read at the incident wave's (theta, phi): theta of omega_i and the
 azimuth of -omega_i,t.

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from workbench.errors import UserInputError
+from workbench.core.errors import UserInputError
 
 # A camera "sees" a wavelength where any channel's sensitivity is at least this fraction
 # of the largest sensitivity of any channel. Beyond that, a missing table contributes at

@@ -2,7 +2,7 @@
 
 The table (rcwa.table) is indexed by the incident light's (theta, phi) in the RCWA
 convention: the tangential wave vector of the incident wave, i.e. pointing *away* from
-the light (workbench.conventions). Interpolation is linear in wavelength and bilinear in
+the light (workbench.core.conventions). Interpolation is linear in wavelength and bilinear in
 (theta, phi), the paper's choice (Lange et al. 2021, Sec. 2.2); the accuracy study
 (rcwa.study) measured it. Azimuths are folded into the stored range by the cell's mirror
 symmetries, with the order flips that go with them (rcwa.table.Table.fold_azimuth does

@@ -5,15 +5,13 @@ re-rendering hundreds of times. Here the Mitsuba scene is built and compiled onc
 a change of pose or field of view updates the sensor through ``mi.traverse`` (no
 rebuild, and Dr.Jit reuses the compiled kernel), a change of light power scales the
 emitter's spectrum in place, and the exposure and the lens distortion only change the
-final warp (renderer.camera). ``python -m renderer.fit`` prints the time per re-render.
+final warp (renderer.camera). ``make bench`` (benchmarks/bench_fit.py)
+prints the time per re-render.
 """
 
 from __future__ import annotations
 
-import argparse
-import dataclasses
 import math
-import time
 
 import numpy as np
 
@@ -97,31 +95,3 @@ class FitRenderer:
         wide = np.array(self.mi.render(self.scene, self.params, seed=seed))
         plan = PinholePlan(self.wide_size[0], self.wide_size[1], self.focal, 0.0, self.camera.mitsuba_to_world())
         return self.camera.warp(wide, plan) * self.exposure
-
-
-def main() -> None:
-    parser = argparse.ArgumentParser(description="time per re-render after a parameter change (fit preset)")
-    parser.add_argument("--scene", default="cornell_cd")
-    parser.add_argument("--repeats", type=int, default=10)
-    args = parser.parse_args()
-    start = time.perf_counter()
-    fit = FitRenderer(args.scene)
-    fit.render()  # compile
-    setup = time.perf_counter() - start
-    rng = np.random.default_rng(0)
-    times = []
-    for i in range(args.repeats):
-        cam = fit.camera
-        moved = dataclasses.replace(cam, world_to_camera=cam.world_to_camera.copy(), fx=cam.fx * (1 + rng.normal(0, 0.01)),
-                                    fy=cam.fy * (1 + rng.normal(0, 0.01)))
-        moved.world_to_camera[:3, 3] += rng.normal(0, 0.005, 3)
-        t = time.perf_counter()
-        fit.set(camera=moved, exposure=1.0 + 0.1 * i, light_power_scale=1.0 + 0.05 * i)
-        fit.render(seed=i)
-        times.append(time.perf_counter() - t)
-    print(f"fit preset, {args.scene} at {FIT_RESOLUTION[0]}x{FIT_RESOLUTION[1]}, {FIT_SPP} spp: setup {setup:.1f} s, "
-          f"re-render after a parameter change {np.median(times) * 1e3:.0f} ms (median of {args.repeats}; aim: well under 1 s)")
-
-
-if __name__ == "__main__":
-    main()

@@ -20,9 +20,9 @@ from pathlib import Path
 import numpy as np
 
 from renderer.scene import SceneSpec, load_scene
-from workbench.errors import UserInputError
-from workbench.files import atomic_write as _atomic
-from workbench.timing import timed
+from workbench.core.errors import UserInputError
+from workbench.core.files import atomic_write as _atomic
+from workbench.core.timing import timed
 
 PRESETS = {"draft": {"spp": 256, "pass_spp": 64}, "paper": {"spp": 2045, "pass_spp": 128, "resolution": (978, 734)}}
 
@@ -54,7 +54,7 @@ def render_pass(spec: SceneSpec, pass_spp: int, integrator: str, mode: str, pass
 def render(scene: str | Path, out: str | Path, *, preset: str = "draft", spp: int | None = None,
            resolution: tuple[int, int] | None = None, integrator: str = "path", mode: str = "improved",
            seed: int = 0, progress: bool = True, executor=None) -> dict:
-    """Render ``scene``; with ``executor`` (rcwa.table.DaskExecutor) the passes run on a
+    """Render ``scene``; with ``executor`` (workbench.core.executor.DaskExecutor) the passes run on a
     dask.distributed cluster, each with its own seed, averaged here: the result is the
     same as a local render with the same seed."""
     from tqdm import tqdm

@@ -16,7 +16,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.interpolate import PchipInterpolator
 
-from workbench.errors import UserInputError
+from workbench.core.errors import UserInputError
 
 RESPONSE_KINDS = ("linear", "gamma", "points")
 

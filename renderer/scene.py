@@ -52,8 +52,8 @@ import numpy as np
 
 from renderer.camera import CameraModel, look_at
 from renderer.response import ResponseCurve
-from workbench import validation as v
-from workbench.errors import UserInputError
+from workbench.core import validation as v
+from workbench.core.errors import UserInputError
 
 BUILTIN_SCENES: tuple[str, ...] = ("cornell_cd", "cornell_cd_view2", "grating2d_gold")
 MM = 1e-3

@@ -2,10 +2,10 @@
 
 Writes JSON, CSV and plots (PNG, SVG) for the HTML report, measured on the scene's
 diffractive elements (CDs and gratings; the film is cropped to them, as in
-renderer.bench_noise, so every sample is spent where the comparison is made):
+renderer.accuracy, so every sample is spent where the comparison is made):
 1. error versus wall time: relative RMS error and relative MSE against a converged
    reference (two improved-mode renders at ``reference_spp``, whose own noise is
-   subtracted; renderer.bench_noise.errors), for paper and improved modes at
+   subtracted; renderer.accuracy.errors), for paper and improved modes at
    increasing spp;
 2. paper mode's bias and colour shift against Delta (its Eq. 4-5 tolerance), measured as
    the relative error of the elements' mean radiance and the change of their
@@ -23,7 +23,7 @@ from pathlib import Path
 
 import numpy as np
 
-from workbench.files import atomic_write_text
+from workbench.core.files import atomic_write_text
 
 
 @dataclass(frozen=True)
@@ -47,7 +47,7 @@ def run_render_study(scene: str | Path, out: str | Path, cfg: RenderStudyConfig 
     variant = set_variant()
     import mitsuba as mi
 
-    from renderer import bench_noise as bn
+    from renderer import accuracy
     from renderer.bwdf import register
     from renderer.render import with_resolution
     from renderer.scene import load_scene
@@ -56,26 +56,26 @@ def run_render_study(scene: str | Path, out: str | Path, cfg: RenderStudyConfig 
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     spec = with_resolution(load_scene(scene), cfg.resolution)
-    crop, mask = bn.element_crop(mi, spec)
-    ref_scene = bn.load_cropped(mi, spec, "improved", crop)
-    ref_a, _ = bn.timed_render(mi, ref_scene, seed=1001, spp=cfg.reference_spp)
-    ref_b, _ = bn.timed_render(mi, ref_scene, seed=1002, spp=cfg.reference_spp)
+    crop, mask = accuracy.element_crop(mi, spec)
+    ref_scene = accuracy.load_cropped(mi, spec, "improved", crop)
+    ref_a, _ = accuracy.timed_render(mi, ref_scene, seed=1001, spp=cfg.reference_spp)
+    ref_b, _ = accuracy.timed_render(mi, ref_scene, seed=1002, spp=cfg.reference_spp)
     ref = ((ref_a + ref_b) / 2)[mask]
 
     curve = []
     for mode in ("paper", "improved"):
-        sc = bn.load_cropped(mi, spec, mode, crop)
-        bn.timed_render(mi, sc, seed=0, spp=cfg.spp_steps[0])  # compile
+        sc = accuracy.load_cropped(mi, spec, mode, crop)
+        accuracy.timed_render(mi, sc, seed=0, spp=cfg.spp_steps[0])  # compile
         for spp in cfg.spp_steps:
-            image, seconds = bn.timed_render(mi, sc, seed=7, spp=spp)
-            e = bn.errors(image, ref_a, ref_b, mask)
+            image, seconds = accuracy.timed_render(mi, sc, seed=7, spp=spp)
+            e = accuracy.errors(image, ref_a, ref_b, mask)
             curve.append({"mode": mode, "spp": spp, "seconds": seconds, "relative_rms_error": e["relative_rms_error"],
                           "relative_mse": e["relative_mse"]})
 
     bias = []
     for delta in cfg.deltas:
-        sc = bn.load_cropped(mi, spec, "paper", crop, delta=delta)
-        image, _ = bn.timed_render(mi, sc, seed=5, spp=cfg.delta_spp)
+        sc = accuracy.load_cropped(mi, spec, "paper", crop, delta=delta)
+        image, _ = accuracy.timed_render(mi, sc, seed=5, spp=cfg.delta_spp)
         bias.append({"delta": delta, "mean_relative_error": float(image[mask].mean() / ref.mean() - 1),
                      "chromaticity_shift": float(np.linalg.norm(_chromaticity(image[mask]) - _chromaticity(ref)))})
 
@@ -119,7 +119,7 @@ def _furnace_energies(mi, out: Path, samples: int) -> list[dict]:
 
 
 def _plot(curve, bias, out: Path) -> None:
-    from workbench.plots import new_figure, save_figure
+    from workbench.core.plots import new_figure, save_figure
 
     fig, axes = new_figure()
     for mode in ("paper", "improved"):

@@ -12,7 +12,7 @@ import signal
 import sys
 from collections.abc import Sequence
 
-from workbench.errors import UserInputError
+from workbench.core.errors import UserInputError
 
 
 def _orders_argument(text: str) -> int | tuple[int, ...]:
@@ -145,7 +145,7 @@ def _run_rcwa_table(args: argparse.Namespace) -> int:
     if args.workers is not None and args.workers < 1:
         raise UserInputError("must be at least 1", field="--workers", got=args.workers)
     if args.scheduler or args.workers:
-        from rcwa.table import DaskExecutor
+        from workbench.core.executor import DaskExecutor
 
         with DaskExecutor(args.scheduler, args.workers) as executor:
             report = build_table(structure, settings, args.out, progress=not args.quiet, force=args.force, executor=executor)
@@ -201,7 +201,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             if args.workers is not None and args.workers < 1:
                 raise UserInputError("must be at least 1", field="--workers", got=args.workers)
             if args.scheduler or args.workers:
-                from rcwa.table import DaskExecutor
+                from workbench.core.executor import DaskExecutor
 
                 with DaskExecutor(args.scheduler, args.workers) as executor:
                     info = run_render(args.scene, args.out, executor=executor, **kwargs)

@@ -16,7 +16,7 @@ from datasets_synthetic.jpeg import demosaic, develop, read_exposure_time
 from datasets_synthetic.sensor import SensorModel
 from datasets_synthetic.synth import BRACKET_EV, PRESETS, synth
 from renderer.response import ResponseCurve
-from workbench.errors import UserInputError
+from workbench.core.errors import UserInputError
 
 SEED = 5
 

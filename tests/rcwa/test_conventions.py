@@ -1,4 +1,4 @@
-"""The order-numbering, angle and polarization conventions (workbench.conventions).
+"""The order-numbering, angle and polarization conventions (workbench.core.conventions).
 
 Order m leaves with k_x,m = k_x,inc - m * 2 pi / Lambda (Lange et al. 2021, Eq. 2): its
 reflected direction must satisfy n1 sin(theta_m) cos(phi_m) = n1 sin(theta) cos(phi)

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from rcwa.materials import BUILTIN_MATERIALS, HC_EV_NM, Material, material_from_spec
-from workbench.errors import UserInputError
+from workbench.core.errors import UserInputError
 
 # Tolerances, each with its reason.
 TOL_CATALOGUE_5_DECIMALS = 2e-5

@@ -16,7 +16,7 @@ import pytest
 
 import rcwa
 from rcwa.table import build_table, open_table, settings_for
-from workbench.errors import UserInputError
+from workbench.core.errors import UserInputError
 
 TOLERANCE_FLOAT32 = 1e-6
 
@@ -155,7 +155,7 @@ def test_bad_table_arguments(tmp_path, capsys, args, field):
 
 def test_dask_local_cluster_equals_local_run(tmp_path):
     """Two worker processes on loopback give exactly the local result."""
-    from rcwa.table import DaskExecutor
+    from workbench.core.executor import DaskExecutor
 
     s = rcwa.load_structure("cd")
     st = _small(s)

@@ -14,7 +14,7 @@ import pytest
 
 @pytest.mark.slow
 def test_improved_is_not_noisier_at_equal_time(mitsuba_variant):
-    from renderer.bench_noise import noise_at_equal_time
+    from benchmarks.bench_noise import noise_at_equal_time
 
     r = noise_at_equal_time(resolution=(320, 240), budget_s=2.0, reference_spp=2048)
     paper, improved = r["modes"]["paper"]["at_budget"], r["modes"]["improved"]["at_budget"]

@@ -8,7 +8,7 @@ import pytest
 
 from renderer.response import ResponseCurve
 from renderer.scene import load_scene, parse_scene
-from workbench.errors import UserInputError
+from workbench.core.errors import UserInputError
 
 
 def test_gamma_and_its_inverse():

@@ -21,7 +21,7 @@ import numpy as np
 import pytest
 
 from renderer.scene import load_scene, parse_scene
-from workbench.errors import UserInputError
+from workbench.core.errors import UserInputError
 
 TOLERANCE_SPECTRAL = 0.015
 
@@ -145,7 +145,7 @@ def test_dask_render_equals_local_render(mitsuba_variant, tmp_path):
     pass has its own seed wherever it runs (float round-off tolerance)."""
     import mitsuba as mi
 
-    from rcwa.table import DaskExecutor
+    from workbench.core.executor import DaskExecutor
     from renderer.render import render
 
     kwargs = dict(spp=192, resolution=(48, 36), progress=False)  # 3 passes of 64 spp

@@ -1,5 +1,5 @@
 """Benchmark of the BWDF (``make bench``): speed against Mitsuba's conductor. (Noise at
-equal time is measured on the real cornell_cd scene by renderer.bench_noise.)
+equal time is measured on the real cornell_cd scene by benchmarks.bench_noise.)
 
 The scene is Mitsuba's Cornell box with a CD-like disk (radial grooves, the built-in
 ``cd`` table) on the floor: the same disk with either material, so that only the
@@ -14,7 +14,7 @@ import argparse
 import math
 from pathlib import Path
 
-from renderer.bench_noise import timed_render
+from renderer.accuracy import timed_render
 
 TABLE_DIR = Path("build/tables")
 

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 from typing import Any
 
-from workbench.errors import UserInputError
+from workbench.core.errors import UserInputError
 
 
 def required(table: dict[str, Any], key: str, where: str) -> Any:

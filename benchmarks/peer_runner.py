@@ -5,7 +5,7 @@ nothing from this project, so the peers' pinned numpy/scipy never meet ours.
 
 Usage::
 
-    .venv-bench/bin/python rcwa/benchmarks/peer_runner.py CASE.json [--peer meent|grcwa]
+    .venv-bench/bin/python benchmarks/peer_runner.py CASE.json [--peer meent|grcwa]
                                                           [--repeats K]
 
 CASE.json is one benchmark case (format in ``bench_solve.py``; its ``"structure"`` is the

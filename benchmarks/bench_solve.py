@@ -3,8 +3,8 @@
 Runs in the project's ``.venv``; the peers (meent, grcwa) run in their own ``.venv-bench``
 through ``peer_runner.py`` in a subprocess, so their pinned numpy never meets ours::
 
-    bash rcwa/benchmarks/setup_peers.sh           # once (``make bench`` does it)
-    .venv/bin/python rcwa/benchmarks/bench_solve.py [--out build/bench/rcwa_solve.json]
+    bash benchmarks/setup_peers.sh           # once (``make bench`` does it)
+    .venv/bin/python benchmarks/bench_solve.py [--out build/bench/rcwa_solve.json]
                      [--repeats 5] [--rounds 5] [--peers meent,grcwa] [--cases a1,a2,b]
                      [--no-reference] [--peers-only | --no-peers]
 
@@ -68,7 +68,7 @@ import time  # noqa: E402
 from pathlib import Path  # noqa: E402
 
 HERE = Path(__file__).resolve().parent
-ROOT = HERE.parent.parent
+ROOT = HERE.parent
 PEER_RUNNER = HERE / "peer_runner.py"
 PEER_PYTHON = ROOT / ".venv-bench" / "bin" / "python"
 DEFAULT_OUT = ROOT / "build" / "bench" / "rcwa_solve.json"

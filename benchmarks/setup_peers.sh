@@ -1,14 +1,14 @@
 #!/usr/bin/env bash
 # Create .venv-bench (the peers' own virtual environment) and install
-# rcwa/benchmarks/requirements-peers.txt into it. Idempotent: when the environment already
+# benchmarks/requirements-peers.txt into it. Idempotent: when the environment already
 # holds exactly these requirements it returns at once.
 #
-#   bash rcwa/benchmarks/setup_peers.sh            # from the repository root (or anywhere)
-#   PYTHON=python3.11 VENV=/path/to/venv bash rcwa/benchmarks/setup_peers.sh
+#   bash benchmarks/setup_peers.sh            # from the repository root (or anywhere)
+#   PYTHON=python3.11 VENV=/path/to/venv bash benchmarks/setup_peers.sh
 set -euo pipefail
 
 here="$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)"
-root="$(cd "$here/../.." && pwd)"
+root="$(cd "$here/.." && pwd)"
 venv="${VENV:-$root/.venv-bench}"
 python="${PYTHON:-python3}"
 req="$here/requirements-peers.txt"

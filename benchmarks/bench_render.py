@@ -39,7 +39,7 @@ def noise_per_mode(spp: int = NOISE_SPP, resolution=NOISE_RESOLUTION) -> dict:
     set_variant()
     import mitsuba as mi
 
-    from renderer.bench_noise import element_mask
+    from renderer.accuracy import element_mask
     from renderer.build import scene_dict
     from renderer.render import with_resolution
     from renderer.scene import load_scene

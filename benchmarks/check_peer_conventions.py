@@ -3,7 +3,7 @@
 Runs in ``.venv-bench`` next to ``peer_runner.py`` (it imports that module, nothing from the
 project)::
 
-    .venv-bench/bin/python rcwa/benchmarks/check_peer_conventions.py
+    .venv-bench/bin/python benchmarks/check_peer_conventions.py
 
 What it checks, for each peer, through the very functions ``peer_runner`` times:
 

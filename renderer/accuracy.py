@@ -1,0 +1,93 @@
+"""How rendering accuracy is measured on a scene's diffractive elements.
+
+Shared by ``workbench study render`` (renderer.study) and the benchmarks. The film is
+cropped to the pixels whose primary ray hits a CD (or its polycarbonate top) or a
+grating, so every sample is spent where the comparison is made. Two independent
+references A and B give the reference's own noise: for an image I,
+E|I - A|^2 = E|I - truth|^2 + E|A - truth|^2 and E|A - B|^2 = 2 E|A - truth|^2, so
+|I - A|^2 - |A - B|^2 / 2 estimates I's error against the truth without the reference's
+noise.
+
+Two error measures, both standard: the relative RMS error (RMS of I - truth over the
+mean of the truth), dominated by the brightest pixels, and the relative MSE of Rousselle
+et al. 2011 ("Adaptive sampling and reconstruction using greedy error minimization",
+ACM TOG 30(6), Sec. 6: mean over pixels of (I - truth)^2 / (truth^2 + eps), here
+eps = 1e-2 times the mean squared truth), which weighs every pixel alike.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from workbench.core.timing import timed
+
+RELMSE_EPS = 1e-2
+
+
+ELEMENT_PREFIXES = ("cd", "grating")  # scene keys of diffractive elements (renderer.build), CD tops included
+
+
+def element_mask(mi, scene_d: dict) -> np.ndarray:
+    """Pixels of the (uncropped) film whose primary ray hits a diffractive element (a CD,
+    its polycarbonate top, a grating)."""
+    sc = mi.load_dict(scene_d)
+    sensor = sc.sensors()[0]
+    W, H = sensor.film().crop_size()
+    y, x = np.mgrid[0:H, 0:W]
+    ray, _ = sensor.sample_ray(0.0, 0.5, mi.Point2f(((x + 0.5) / W).ravel().astype(np.float32),
+                                                    ((y + 0.5) / H).ravel().astype(np.float32)), mi.Point2f(0.5, 0.5))
+    si = sc.ray_intersect(ray)
+    hit = np.zeros(W * H, bool)
+    for s in sc.shapes():
+        if s.id().startswith(ELEMENT_PREFIXES):
+            hit |= np.array(si.shape == mi.ShapePtr(s))
+    return hit.reshape(H, W)
+
+
+def element_crop(mi, spec, margin: int = 2) -> tuple[tuple[list[int], list[int]], np.ndarray]:
+    """((offset, size) of the film region the scene's diffractive elements cover, their
+    mask over that region). Raises UserInputError when the camera sees none."""
+    from renderer.build import scene_dict
+    from workbench.core.errors import UserInputError
+
+    d, _ = scene_dict(mi, spec, spp=1)
+    hit = element_mask(mi, d)
+    if not hit.any():
+        raise UserInputError("the camera sees no diffractive element (CD or grating) to measure", field="scene",
+                             expected="a scene whose camera sees a [[cd]] or [[grating]]", got=spec.name)
+    H, W = hit.shape
+    ys, xs = np.nonzero(hit)
+    x0, y0 = max(xs.min() - margin, 0), max(ys.min() - margin, 0)
+    x1, y1 = min(xs.max() + margin + 1, W), min(ys.max() + margin + 1, H)
+    return ([int(x0), int(y0)], [int(x1 - x0), int(y1 - y0)]), hit[y0:y1, x0:x1]
+
+
+def load_cropped(mi, spec, mode: str, crop, *, delta: float | None = None, spp: int = 64):
+    """The scene in ``mode``, its film cropped; ``delta`` sets paper mode's Delta."""
+    from renderer.build import scene_dict
+
+    d, _ = scene_dict(mi, spec, spp=spp, mode=mode)
+    if delta is not None:
+        for key, obj in d.items():
+            if key.startswith(ELEMENT_PREFIXES) and isinstance(obj, dict) and obj.get("bsdf", {}).get("type") == "bwdf":
+                obj["bsdf"]["delta"] = delta
+    (x, y), (w, h) = crop
+    d["sensor"]["film"].update(crop_offset_x=x, crop_offset_y=y, crop_width=w, crop_height=h)
+    return mi.load_dict(d)
+
+
+def timed_render(mi, sc, seed: int, spp: int = 0) -> tuple[np.ndarray, float]:
+    return timed(lambda: np.array(mi.render(sc, seed=seed, spp=spp)))
+
+
+def errors(image: np.ndarray, ref_a: np.ndarray, ref_b: np.ndarray, mask: np.ndarray) -> dict:
+    """Relative RMS error and relative MSE against the truth, the references' noise removed."""
+    i, a, b = image[mask], ref_a[mask], ref_b[mask]
+    sq = np.sum((i - a) ** 2, axis=-1)
+    ref_noise = np.sum((a - b) ** 2, axis=-1) / 2
+    truth2 = np.sum(((a + b) / 2) ** 2, axis=-1)
+    scale = np.mean(np.abs((a + b) / 2))
+    rel_rms = np.sqrt(max(np.mean(sq - ref_noise), 0.0) / 3) / scale
+    rel_mse = max(float(np.mean((sq - ref_noise) / (truth2 + RELMSE_EPS * np.mean(truth2)))), 0.0)
+    return {"relative_rms_error": float(rel_rms), "relative_mse": rel_mse,
+            "reference_relative_rms_noise": float(np.sqrt(np.mean(ref_noise) / 3) / scale)}

@@ -1,0 +1,91 @@
+"""The package layering, checked on the source: who may import whom.
+
+- ``workbench.core`` (the shared kernel) imports no project package but itself;
+- the libraries (rcwa, renderer, calibration, datasets_synthetic, reports) never import
+  the face (``workbench`` outside ``workbench.core``: the CLI, the demo, the planner);
+- calibration never sees how synthetic photos are made, and the synthetic datasets'
+  truth never comes from the calibration code (neither imports the other).
+
+Imports are read with ``ast`` from every module, including imports inside functions, so a
+late ``from workbench.cli import main`` is caught as well as a top-level one.
+"""
+
+from __future__ import annotations
+
+import ast
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+PROJECT_PACKAGES = ("workbench", "rcwa", "renderer", "calibration", "datasets_synthetic", "reports")
+LIBRARIES = ("rcwa", "renderer", "calibration", "datasets_synthetic", "reports")
+FORBIDDEN_PAIRS = {"calibration": ("datasets_synthetic",), "datasets_synthetic": ("calibration",)}
+
+
+def imported_modules(path: Path) -> set[str]:
+    """Every module name ``path`` imports (absolute, and relative ones resolved)."""
+    tree = ast.parse(path.read_text(encoding="utf-8"), filename=str(path))
+    package = ".".join(path.relative_to(ROOT).with_suffix("").parts[:-1])
+    names: set[str] = set()
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Import):
+            names.update(alias.name for alias in node.names)
+        elif isinstance(node, ast.ImportFrom):
+            if node.level:
+                base = package.split(".")[: len(package.split(".")) - node.level + 1]
+                module = ".".join([*base, node.module] if node.module else base)
+            else:
+                module = node.module or ""
+            names.add(module)
+            names.update(f"{module}.{alias.name}" for alias in node.names)
+    return names
+
+
+def modules_of(package: str) -> list[Path]:
+    folder = ROOT / package
+    return sorted(folder.rglob("*.py")) if folder.is_dir() else []
+
+
+def _is_face(module: str) -> bool:
+    return (module == "workbench" or module.startswith("workbench.")) and not (
+        module == "workbench.core" or module.startswith("workbench.core."))
+
+
+@pytest.mark.parametrize("package", LIBRARIES)
+def test_libraries_never_import_the_face(package: str) -> None:
+    offenders = {str(p.relative_to(ROOT)): sorted(m for m in imported_modules(p) if _is_face(m))
+                 for p in modules_of(package)}
+    offenders = {k: v for k, v in offenders.items() if v}
+    assert not offenders, f"library modules importing workbench's command-line face: {offenders}"
+
+
+def test_shared_kernel_imports_no_project_package() -> None:
+    files = modules_of("workbench/core")
+    assert files, "workbench/core is missing"
+    offenders = {}
+    for path in files:
+        bad = sorted(m for m in imported_modules(path)
+                     if m.split(".")[0] in PROJECT_PACKAGES and not m.startswith("workbench.core"))
+        if bad:
+            offenders[str(path.relative_to(ROOT))] = bad
+    assert not offenders, f"the shared kernel imports project packages: {offenders}"
+
+
+@pytest.mark.parametrize(("package", "forbidden"), sorted(FORBIDDEN_PAIRS.items()))
+def test_calibration_and_synthetic_data_stay_apart(package: str, forbidden: tuple[str, ...]) -> None:
+    offenders = {str(p.relative_to(ROOT)): sorted(m for m in imported_modules(p) if m.split(".")[0] in forbidden)
+                 for p in modules_of(package)}
+    offenders = {k: v for k, v in offenders.items() if v}
+    assert not offenders, f"{package} imports {forbidden}: {offenders}"
+
+
+def test_the_check_sees_a_violation(tmp_path: Path) -> None:
+    """The scanner itself: a function-level import of the CLI is found."""
+    module = ROOT / "rcwa" / "_architecture_probe.py"
+    try:
+        module.write_text("def f():\n    from workbench.cli import main\n    from ..workbench import demo\n")
+        found = imported_modules(module)
+    finally:
+        module.unlink()
+    assert "workbench.cli" in found and any(_is_face(m) for m in found)
