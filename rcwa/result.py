@@ -43,7 +43,21 @@ class OrderResult:
         return 0.5 * (self.T_s + self.T_p)
 
     def to_dict(self) -> dict[str, Any]:
-        return {"m": self.m, "n": self.n, "R": self.R, "T": self.T}
+        """Efficiencies and, for each propagating order, its direction (see
+        :data:`DIRECTION_CONVENTION`); a non-propagating side has ``None``."""
+        return {"m": self.m, "n": self.n, "R": self.R, "T": self.T,
+                "direction_R": _direction(self.direction_R), "direction_T": _direction(self.direction_T)}
+
+
+DIRECTION_CONVENTION = (
+    "theta_deg, phi_deg of the order's direction of travel, in the medium it travels in: reflected orders in the "
+    "superstrate (theta from +z, the surface normal into the superstrate), transmitted orders in the substrate "
+    "(theta from -z); phi from +x (the grating vector) toward +y"
+)
+
+
+def _direction(direction: tuple[float, float] | None) -> dict[str, float] | None:
+    return None if direction is None else {"theta_deg": float(direction[0]), "phi_deg": float(direction[1])}
 
 
 @dataclass(frozen=True)
@@ -79,5 +93,6 @@ class SolveResult:
             "R_total": self.R_total,
             "T_total": self.T_total,
             "absorption": self.absorption,
+            "directions": DIRECTION_CONVENTION,
             "orders": [o.to_dict() for o in self.orders],
         }

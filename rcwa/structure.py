@@ -76,10 +76,7 @@ class Structure:
     @classmethod
     def from_toml(cls, path: str | Path) -> "Structure":
         path = Path(path)
-        try:
-            text = path.read_text()
-        except OSError as exc:
-            raise UserInputError(f"cannot read the structure file ({exc.strerror})", file=path) from None
+        text = validation.read_text_file(path, "structure")
         return cls.from_toml_string(text, source=str(path), base_dir=path.parent)
 
     @classmethod
@@ -115,7 +112,7 @@ def load_structure(name_or_path: str | Path) -> Structure:
         resource = resources.files("rcwa.structures").joinpath(f"{name}.toml")
         return Structure.from_toml_string(resource.read_text(), source=f"<built-in {name}>")
     path = Path(name)
-    if not path.exists():
+    if not path.exists() and not validation.looks_like_path(name):
         raise UserInputError(
             "no such structure",
             field="structure",

@@ -22,12 +22,12 @@ tables use the paper's (theta, phi) grid.
 
 from __future__ import annotations
 
-import csv
 import json
 import math
 import time
 from dataclasses import asdict, dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 from scipy.interpolate import RegularGridInterpolator
@@ -35,6 +35,7 @@ from scipy.interpolate import RegularGridInterpolator
 import rcwa
 from rcwa.structure import Structure
 from rcwa.sweep import sweep_directions
+from workbench.core.files import atomic_write_csv, atomic_write_text
 
 GRAZING_SIN = math.sin(math.radians(89.999))
 
@@ -54,9 +55,14 @@ class StudyConfig:
     seed: int = 0
 
 
-def truncation_study(structure: Structure, cfg: StudyConfig) -> list[dict]:
-    reference = {(wl, d): _kept(rcwa.solve(structure, wl, *d, cfg.reference_orders, "unpolarized", "li"), cfg.keep)
-                 for wl in cfg.wavelengths_nm for d in cfg.directions_deg}
+def truncation_study(structure: Structure, cfg: StudyConfig, bar: Any = None) -> list[dict]:
+    """``bar``: a progress bar advanced once per solve (tqdm), or None."""
+    tick = bar.update if bar is not None else (lambda n=1: None)
+    reference = {}
+    for wl in cfg.wavelengths_nm:
+        for d in cfg.directions_deg:
+            reference[wl, d] = _kept(rcwa.solve(structure, wl, *d, cfg.reference_orders, "unpolarized", "li"), cfg.keep)
+            tick(1)
     rows = []
     for rule in ("li", "laurent"):
         for n in cfg.orders:
@@ -66,6 +72,7 @@ def truncation_study(structure: Structure, cfg: StudyConfig) -> list[dict]:
                 result = rcwa.solve(structure, wl, *d, n, "unpolarized", rule)
                 seconds.append(time.perf_counter() - start)
                 errors.append(np.max(np.abs(_kept(result, cfg.keep) - ref)))
+                tick(1)
             rows.append({"rule": rule, "orders": n, "max_error": float(np.max(errors)),
                          "seconds_per_solve": float(np.median(seconds))})
     return rows
@@ -81,7 +88,8 @@ def _unpolarized(sw) -> np.ndarray:
     return sw.R.mean(axis=-1) + sw.T.mean(axis=-1)  # (P, K)
 
 
-def interpolation_study(structure: Structure, cfg: StudyConfig) -> list[dict]:
+def interpolation_study(structure: Structure, cfg: StudyConfig, bar: Any = None) -> list[dict]:
+    """``bar``: a progress bar advanced once per grid step (tqdm), or None."""
     rng = np.random.default_rng(cfg.seed)
     wl = cfg.wavelengths_nm[len(cfg.wavelengths_nm) // 2]
     theta_t = np.degrees(np.arcsin(np.sqrt(rng.uniform(0, math.sin(math.radians(85.0)) ** 2, cfg.test_points))))
@@ -113,6 +121,8 @@ def interpolation_study(structure: Structure, cfg: StudyConfig) -> list[dict]:
         points = np.stack([st * np.cos(np.radians(phi_t)), st * np.sin(np.radians(phi_t))], axis=1)
         guess_c = RegularGridInterpolator((u, u), grid_c)(points)
         rows.append(_row("direction-cosines", step, U.size, seconds_c, guess_c - truth, cfg))
+        if bar is not None:
+            bar.update(1)
     return rows
 
 
@@ -146,35 +156,36 @@ def recommend(truncation: list[dict], interpolation: list[dict], cfg: StudyConfi
     return out
 
 
-def run_study(structure: Structure, out: str | Path, cfg: StudyConfig = StudyConfig()) -> dict:
+def study_steps(cfg: StudyConfig) -> int:
+    """Units of work the progress bar counts: solves of the truncation study, grid steps."""
+    points = len(cfg.wavelengths_nm) * len(cfg.directions_deg)
+    return points * (1 + 2 * len(cfg.orders)) + len(cfg.steps_deg)
+
+
+def run_study(structure: Structure, out: str | Path, cfg: StudyConfig = StudyConfig(), *, progress: bool = True) -> dict:
     import platform
+
+    from tqdm import tqdm
 
     from workbench.core.version import __version__ as workbench_version
 
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     start = time.perf_counter()
-    truncation = truncation_study(structure, cfg)
-    interpolation = interpolation_study(structure, cfg)
+    with tqdm(total=study_steps(cfg), desc=f"study {structure.name}", unit="step", disable=not progress) as bar:
+        truncation = truncation_study(structure, cfg, bar)
+        interpolation = interpolation_study(structure, cfg, bar)
     presets = recommend(truncation, interpolation, cfg)
     data = {"structure": structure.name, "config": asdict(cfg), "truncation": truncation,
             "interpolation": interpolation, "presets": presets,
             "run": {"workbench_version": workbench_version, "numpy": np.__version__, "python": platform.python_version(),
                     "machine": platform.machine(), "seconds": time.perf_counter() - start,
                     "structure_sha256": structure.content_hash}}
-    (out / "study_rcwa.json").write_text(json.dumps(data, indent=2))
+    atomic_write_text(out / "study_rcwa.json", json.dumps(data, indent=2))
     for name, rows in (("truncation", truncation), ("interpolation", interpolation), ("presets", presets)):
-        _write_csv(out / f"{name}.csv", rows)
+        atomic_write_csv(out / f"{name}.csv", rows)
     _plot(truncation, interpolation, out, structure.name)
     return data
-
-
-def _write_csv(path: Path, rows: list[dict]) -> None:
-    keys = sorted({k for r in rows for k in r})
-    with open(path, "w", newline="") as f:
-        writer = csv.DictWriter(f, fieldnames=keys)
-        writer.writeheader()
-        writer.writerows(rows)
 
 
 def _plot(truncation: list[dict], interpolation: list[dict], out: Path, name: str) -> None:

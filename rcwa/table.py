@@ -339,6 +339,18 @@ def _read_meta(out: Path) -> dict | None:
         return None
 
 
+def read_table_metadata(path: str | Path) -> dict:
+    """A table's metadata (grid, settings, symmetry, orders) without reading its data.
+
+    Raises UserInputError naming the path when it is not a table of ours."""
+    path = Path(path)
+    meta = _read_meta(path) if path.is_dir() else None
+    if meta is None or meta.get("format") != "workbench-efficiency-table":
+        raise UserInputError("not an efficiency table (no readable zarr.json with our format)", file=path,
+                             expected="a folder written by `workbench rcwa table`")
+    return meta
+
+
 def _size(path: Path) -> int:
     return sum(f.stat().st_size for f in path.rglob("*") if f.is_file())
 

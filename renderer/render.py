@@ -68,7 +68,7 @@ def render(scene: str | Path, out: str | Path, *, preset: str = "draft", spp: in
     if mode not in ("paper", "improved"):
         raise UserInputError("unknown mode", field="--mode", expected="paper or improved", got=mode)
     settings = dict(PRESETS[preset])
-    spp = int(spp or settings["spp"])
+    spp = int(settings["spp"] if spp is None else spp)
     if spp < 1:
         raise UserInputError("must be at least 1", field="--spp", got=spp)
     spec = with_resolution(load_scene(scene), resolution or settings.get("resolution"))

@@ -136,9 +136,9 @@ def load_scene(name_or_path: str | Path) -> SceneSpec:
         text = resources.files("renderer.scenes").joinpath(f"{name}.toml").read_text()
         return parse_scene(text, source=f"<built-in {name}>", base_dir=None)
     path = Path(name)
-    if not path.exists():
+    if not path.exists() and not v.looks_like_path(name):
         raise UserInputError("no such scene", field="scene", expected=f"a built-in name ({', '.join(BUILTIN_SCENES)}) or a TOML file", got=name)
-    return parse_scene(path.read_text(), source=str(path), base_dir=path.parent)
+    return parse_scene(v.read_text_file(path, "scene"), source=str(path), base_dir=path.parent)
 
 
 def parse_scene(text: str, *, source: str, base_dir: Path | None) -> SceneSpec:
@@ -262,10 +262,54 @@ def _normal(value: Any, where: str) -> tuple[float, float, float]:
     return tuple(normal / np.linalg.norm(normal))
 
 
+TABLE_OPTIONS = {  # a scene's ``table = {...}``: the options of ``workbench rcwa table`` (rcwa.table.settings_for)
+    "preset": "draft, paper or fine",
+    "theta_step": "degrees, > 0", "phi_step": "degrees, > 0",
+    "wavelengths": "'START:STOP:COUNT' in nm or 'NM,NM,...'",
+    "orders": "retained harmonics: an odd integer N (1D) or [NX, NY] (2D)",
+    "keep": "stored orders: an odd integer N (1D) or [NX, NY] (2D), at most `orders`",
+    "pol": "unpolarized, s, p or all",
+    "reflection_only": "true or false", "both_sides": "true or false", "use_symmetry": "true or false",
+    "factorization": "auto, li, nv or laurent",
+    "theta_range": "[LO, HI] in degrees", "phi_range": "[LO, HI] in degrees",
+    "path": "a table built with `workbench rcwa table` (a .zarr folder)",
+}
+_TABLE_CHOICES = {"preset": ("draft", "paper", "fine"), "pol": ("unpolarized", "s", "p", "all"),
+                  "factorization": ("auto", "li", "nv", "laurent")}
+
+
 def _table_options(value: Any, where: str) -> dict:
+    """A CD's or grating's ``table`` options, checked here so that a mistake names the scene
+    file and field (``cd[0].table.orders``) rather than a command-line option."""
     if not isinstance(value, dict):
-        raise UserInputError("must be a table of `workbench rcwa table` options", field=where, got=value)
-    return value
+        raise UserInputError("must be a table of `workbench rcwa table` options", field=where,
+                             expected="{ preset = \"draft\", orders = 31, ... }", got=value)
+    for key, item in value.items():
+        field_name = f"{where}.{key}"
+        if key not in TABLE_OPTIONS:
+            raise UserInputError("unknown table option", field=field_name, expected=f"one of {sorted(TABLE_OPTIONS)}")
+        if key in _TABLE_CHOICES and item not in _TABLE_CHOICES[key]:
+            raise UserInputError("unknown value", field=field_name, expected=TABLE_OPTIONS[key], got=item)
+        if key in ("orders", "keep"):
+            counts = item if isinstance(item, list) else [item]
+            if not counts or any(isinstance(c, bool) or not isinstance(c, int) or c < 1 or c % 2 == 0 for c in counts):
+                raise UserInputError("must be positive odd integers", field=field_name, expected=TABLE_OPTIONS[key], got=item)
+        elif key in ("theta_step", "phi_step"):
+            v.number(item, field_name, positive=True)
+        elif key in ("reflection_only", "both_sides", "use_symmetry") and not isinstance(item, bool):
+            raise UserInputError("must be true or false", field=field_name, got=item)
+        elif key in ("theta_range", "phi_range"):
+            v.vector(item, field_name, 2)
+        elif key in ("wavelengths", "path") and not isinstance(item, str):
+            raise UserInputError("must be a string", field=field_name, expected=TABLE_OPTIONS[key], got=item)
+    options = dict(value)
+    for key in ("orders", "keep"):
+        if isinstance(options.get(key), list):
+            options[key] = tuple(options[key])
+    for key in ("theta_range", "phi_range"):
+        if key in options:
+            options[key] = tuple(float(x) for x in options[key])
+    return options
 
 
 def _parse_grating(d: Any, where: str, base_dir: Path | None) -> GratingSpec:

@@ -16,14 +16,13 @@ renderer.accuracy, so every sample is spent where the comparison is made):
 
 from __future__ import annotations
 
-import csv
 import json
 from dataclasses import asdict, dataclass
 from pathlib import Path
 
 import numpy as np
 
-from workbench.core.files import atomic_write_text
+from workbench.core.files import atomic_write_csv, atomic_write_text
 
 
 @dataclass(frozen=True)
@@ -41,7 +40,14 @@ def _chromaticity(values: np.ndarray) -> np.ndarray:
     return (values / np.maximum(total, 1e-12))[..., :2].mean(axis=0)
 
 
-def run_render_study(scene: str | Path, out: str | Path, cfg: RenderStudyConfig = RenderStudyConfig()) -> dict:
+def run_render_study(scene: str | Path, out: str | Path, cfg: RenderStudyConfig = RenderStudyConfig(), *,
+                     progress: bool = True) -> dict:
+    """Render error against time on the scene's diffractive elements (see the module's docstring).
+
+    ``progress``: a progress bar over the renders (references, each mode's spp steps,
+    paper mode's Delta values, the furnace test)."""
+    from tqdm import tqdm
+
     from renderer.variant import set_variant
 
     variant = set_variant()
@@ -57,20 +63,25 @@ def run_render_study(scene: str | Path, out: str | Path, cfg: RenderStudyConfig 
     out.mkdir(parents=True, exist_ok=True)
     spec = with_resolution(load_scene(scene), cfg.resolution)
     crop, mask = accuracy.element_crop(mi, spec)
+    steps = 2 + 2 * (1 + len(cfg.spp_steps)) + len(cfg.deltas) + 1
+    bar = tqdm(total=steps, desc=f"study {spec.name}", unit="render", disable=not progress)
     ref_scene = accuracy.load_cropped(mi, spec, "improved", crop)
     ref_a, _ = accuracy.timed_render(mi, ref_scene, seed=1001, spp=cfg.reference_spp)
     ref_b, _ = accuracy.timed_render(mi, ref_scene, seed=1002, spp=cfg.reference_spp)
+    bar.update(2)
     ref = ((ref_a + ref_b) / 2)[mask]
 
     curve = []
     for mode in ("paper", "improved"):
         sc = accuracy.load_cropped(mi, spec, mode, crop)
         accuracy.timed_render(mi, sc, seed=0, spp=cfg.spp_steps[0])  # compile
+        bar.update(1)
         for spp in cfg.spp_steps:
             image, seconds = accuracy.timed_render(mi, sc, seed=7, spp=spp)
             e = accuracy.errors(image, ref_a, ref_b, mask)
             curve.append({"mode": mode, "spp": spp, "seconds": seconds, "relative_rms_error": e["relative_rms_error"],
                           "relative_mse": e["relative_mse"]})
+            bar.update(1)
 
     bias = []
     for delta in cfg.deltas:
@@ -78,16 +89,16 @@ def run_render_study(scene: str | Path, out: str | Path, cfg: RenderStudyConfig 
         image, _ = accuracy.timed_render(mi, sc, seed=5, spp=cfg.delta_spp)
         bias.append({"delta": delta, "mean_relative_error": float(image[mask].mean() / ref.mean() - 1),
                      "chromaticity_shift": float(np.linalg.norm(_chromaticity(image[mask]) - _chromaticity(ref)))})
+        bar.update(1)
 
     energy = _furnace_energies(mi, out, cfg.furnace_samples)
+    bar.update(1)
+    bar.close()
     data = {"variant": variant, "scene": spec.name, "config": asdict(cfg), "crop": crop, "element_pixels": int(mask.sum()),
             "error_vs_time": curve, "delta_bias": bias, "energy": energy, "reference_spp": cfg.reference_spp}
     atomic_write_text(out / "study_render.json", json.dumps(data, indent=2))
     for name, rows in (("render_error_vs_time", curve), ("render_delta_bias", bias), ("render_energy", energy)):
-        with open(out / f"{name}.csv", "w", newline="") as f:
-            writer = csv.DictWriter(f, fieldnames=sorted(rows[0]))
-            writer.writeheader()
-            writer.writerows(rows)
+        atomic_write_csv(out / f"{name}.csv", rows)
     _plot(curve, bias, out)
     return data
 

@@ -11,7 +11,9 @@ import json
 import signal
 import sys
 from collections.abc import Sequence
+from pathlib import Path
 
+from workbench.catalog import KINDS
 from workbench.core.errors import UserInputError
 
 
@@ -42,41 +44,91 @@ def _pair_argument(text: str) -> tuple[float, float]:
     return lo, hi
 
 
+DESCRIPTION = """\
+A photograph-validation and calibration workbench for wave-optical rendering: rigorous
+diffraction efficiencies of periodic surfaces (RCWA), spectral renders of them in a scene
+(Mitsuba 3), synthetic raw photographs with known truth, and camera calibration from
+photographs. `workbench list scenes` shows the built-in scenes; `workbench demo` runs the
+main job on the defaults. Caches and outputs: see the README."""
+
+SEED_MAX = 2**32 - 1  # Mitsuba's and numpy's seeds are unsigned 32-bit
+
+
+class _HelpFormatter(argparse.RawDescriptionHelpFormatter):
+    """Shows each option's default where it has a meaningful one (not None or False)."""
+
+    def _get_help_string(self, action: argparse.Action) -> str | None:
+        text = action.help or ""
+        if action.default is None or action.default is False or action.default is argparse.SUPPRESS or "default" in text:
+            return text
+        if action.option_strings or action.nargs in (argparse.OPTIONAL, argparse.ZERO_OR_MORE):
+            return f"{text} (default: %(default)s)"
+        return text
+
+
+class _Parser(argparse.ArgumentParser):
+    """Every (sub)command's parser shows defaults and keeps the description's line breaks."""
+
+    def __init__(self, *args, **kwargs) -> None:  # type: ignore[no-untyped-def]
+        kwargs.setdefault("formatter_class", _HelpFormatter)
+        super().__init__(*args, **kwargs)
+
+
+def _count_argument(minimum: int, maximum: int | None = None):  # type: ignore[no-untyped-def]
+    """An argparse type: an integer in [minimum, maximum], with the range in the error."""
+
+    def parse(text: str) -> int:
+        try:
+            value = int(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"expected an integer, got {text!r}") from None
+        if value < minimum or (maximum is not None and value > maximum):
+            bound = f"from {minimum} to {maximum}" if maximum is not None else f">= {minimum}"
+            raise argparse.ArgumentTypeError(f"expected an integer {bound}, got {text!r}")
+        return value
+
+    return parse
+
+
 def _build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(prog="workbench", description=__doc__.splitlines()[0])
-    commands = parser.add_subparsers(dest="command", required=True)
+    from workbench import __version__
+
+    parser = _Parser(prog="workbench", description=DESCRIPTION)
+    parser.add_argument("--version", action="version", version=f"workbench {__version__}")
+    commands = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
 
     rcwa_parser = commands.add_parser("rcwa", help="rigorous coupled-wave analysis")
     rcwa_commands = rcwa_parser.add_subparsers(dest="rcwa_command", required=True)
     solve = rcwa_commands.add_parser("solve", help="diffraction efficiencies for one incident plane wave")
-    solve.add_argument("structure", help="a built-in structure (cd, gold2d) or a TOML file")
+    solve.add_argument("structure", help=STRUCTURE_HELP)
     solve.add_argument("--wavelength", type=float, required=True, metavar="NM", help="vacuum wavelength in nm")
     solve.add_argument("--theta", type=float, default=0.0, metavar="DEG", help="polar angle of incidence (default 0)")
     solve.add_argument("--phi", type=float, default=0.0, metavar="DEG", help="azimuth of incidence from +x (default 0)")
     solve.add_argument("--orders", type=_orders_argument, required=True, metavar="N|NX,NY",
                        help="retained harmonics per direction (odd)")
-    solve.add_argument("--pol", choices=["s", "p", "unpolarized"], default="unpolarized")
-    solve.add_argument("--factorization", choices=["auto", "li", "nv", "laurent"], default="auto",
-                       help="Fourier factorization rule (default: li in 1D, nv in 2D)")
+    solve.add_argument("--pol", choices=["s", "p", "unpolarized"], default="unpolarized",
+                       help="incident polarization; unpolarized is the mean of s and p")
+    solve.add_argument("--factorization", choices=["auto", "li", "nv", "laurent"], default="auto", help=FACTORIZATION_HELP)
     solve.add_argument("--stack", choices=["etm", "smatrix"], default="etm",
                        help="layer stacking: enhanced transmittance matrix (default) or Redheffer star product")
     solve.add_argument("--json", action="store_true", help="print one JSON object instead of a table")
 
     table = rcwa_commands.add_parser("table", help="efficiency table over wavelength x incidence angles (for rendering)")
-    table.add_argument("structure", help="a built-in structure (cd, gold2d) or a TOML file")
+    table.add_argument("structure", help=STRUCTURE_HELP)
     table.add_argument("--out", required=True, metavar="PATH", help="table directory (zarr); resumed if unfinished")
-    table.add_argument("--preset", choices=["paper", "draft", "fine"], default="paper")
-    table.add_argument("--theta-step", type=float, metavar="DEG")
-    table.add_argument("--phi-step", type=float, metavar="DEG")
+    table.add_argument("--preset", choices=["paper", "draft", "fine"], default="paper", help=PRESET_HELP)
+    table.add_argument("--theta-step", type=float, metavar="DEG", help="polar-angle step (default: the preset's)")
+    table.add_argument("--phi-step", type=float, metavar="DEG", help="azimuth step (default: the preset's)")
     table.add_argument("--wavelengths", metavar="START:STOP:COUNT", help="nm, inclusive (e.g. 400:700:31), or NM,NM,...")
     table.add_argument("--theta-range", type=_pair_argument, metavar="LO,HI", help="polar angles to cover (deg)")
     table.add_argument("--phi-range", type=_pair_argument, metavar="LO,HI", help="azimuths to cover (deg, in the stored range)")
     table.add_argument("--orders", type=_orders_argument, metavar="N|NX,NY", help="retained harmonics (odd)")
     table.add_argument("--keep-orders", type=_orders_argument, metavar="N|NX,NY", help="orders stored (odd, <= --orders)")
-    table.add_argument("--pol", choices=["unpolarized", "s", "p", "all"], default="unpolarized")
-    table.add_argument("--reflection-only", action="store_true")
+    table.add_argument("--pol", choices=["unpolarized", "s", "p", "all"], default="unpolarized",
+                       help="polarizations stored; all = s, p and their mean")
+    table.add_argument("--reflection-only", action="store_true", help="store R only, even where the substrate transmits")
     table.add_argument("--both-sides", action="store_true", help="also light from below (see-through elements)")
-    table.add_argument("--factorization", choices=["auto", "li", "nv", "laurent"], default="auto")
+    table.add_argument("--factorization", choices=["auto", "li", "nv", "laurent"], default="auto", help=FACTORIZATION_HELP)
     table.add_argument("--no-symmetry", action="store_true", help="compute the whole azimuth range")
     table.add_argument("--threads", type=int, default=None, help="solver threads (default: all cores)")
     table.add_argument("--scheduler", metavar="ADDRESS", help="run the chunks on this dask.distributed scheduler")
@@ -85,37 +137,61 @@ def _build_parser() -> argparse.ArgumentParser:
     table.add_argument("--quiet", action="store_true", help="no progress bar")
 
     render = commands.add_parser("render", help="render a scene to linear camera RGB (EXR, PNG preview, JSON)")
-    render.add_argument("scene", help="a built-in scene (cornell_cd) or a TOML file")
-    render.add_argument("--out", required=True, metavar="PATH.exr")
-    render.add_argument("--preset", choices=["draft", "paper"], default="draft")
-    render.add_argument("--spp", type=int)
-    render.add_argument("--resolution", type=_resolution_argument, metavar="WxH")
-    render.add_argument("--integrator", choices=["path", "direct"], default="path")
-    render.add_argument("--mode", choices=["paper", "improved"], default="improved", help="BWDF sampling mode")
-    render.add_argument("--seed", type=int, default=0)
+    render.add_argument("scene", help=SCENE_HELP)
+    render.add_argument("--out", required=True, metavar="PATH.exr",
+                        help="the linear camera-RGB EXR; the PNG preview and JSON sidecar go beside it")
+    render.add_argument("--preset", choices=["draft", "paper"], default="draft",
+                        help="draft: the scene camera's resolution, 256 spp; paper: the paper's frame, 978 x 734 at 2045 spp")
+    render.add_argument("--spp", type=_count_argument(1), metavar="N", help="samples per pixel (default: the preset's)")
+    render.add_argument("--resolution", type=_resolution_argument, metavar="WxH", help="image size (default: the preset's)")
+    render.add_argument("--integrator", choices=["path", "direct"], default="path",
+                        help="path: global illumination; direct: light sources only, as the paper's second mode")
+    render.add_argument("--mode", choices=["paper", "improved"], default="improved",
+                        help="BWDF sampling: paper reproduces Lange et al. 2021 Eqs. 2-5; improved is unbiased and less noisy")
+    render.add_argument("--seed", type=_count_argument(0, SEED_MAX), default=0, help="random seed of the first pass")
     render.add_argument("--scheduler", metavar="ADDRESS", help="render the passes on this dask.distributed scheduler")
     render.add_argument("--workers", type=int, metavar="N", help="start a local dask cluster with N worker processes")
-    render.add_argument("--quiet", action="store_true")
+    render.add_argument("--quiet", action="store_true", help="no progress bar")
 
     synth = commands.add_parser("synth", help="synthetic raw photographs (DNG) with known truth")
-    synth.add_argument("scene", help="a built-in scene (cornell_cd) or a TOML file")
-    synth.add_argument("--out", required=True, metavar="DIR")
-    synth.add_argument("--seed", type=int, default=0)
-    synth.add_argument("--preset", default="draft", help="draft or full")
+    synth.add_argument("scene", help=SCENE_HELP)
+    synth.add_argument("--out", required=True, metavar="DIR", help="the dataset folder (photos/, brackets/, calibration/, truth.json)")
+    synth.add_argument("--seed", type=_count_argument(0, SEED_MAX), default=0,
+                       help="seed of the hidden camera and the noise: same seed, same bytes")
+    synth.add_argument("--preset", choices=["draft", "full"], default="draft",
+                       help="draft: 640 x 480, 2 views, 20 board views (about a minute); full: 978 x 734, 3 views (about 14 minutes)")
     synth.add_argument("--force", action="store_true", help="replace an existing dataset in DIR")
 
     study = commands.add_parser("study", help="accuracy-versus-time studies")
     study_commands = study.add_subparsers(dest="study_command", required=True)
     study_rcwa = study_commands.add_parser("rcwa", help="truncation and interpolation error versus time for tables")
-    study_rcwa.add_argument("structure", help="a built-in structure (cd, gold2d) or a TOML file")
-    study_rcwa.add_argument("--out", required=True, metavar="DIR")
+    study_rcwa.add_argument("structure", help=STRUCTURE_HELP)
+    study_rcwa.add_argument("--out", required=True, metavar="DIR", help="folder for the JSON, CSV and figures")
 
     study_render = study_commands.add_parser("render", help="render error versus time, paper against improved BWDF")
     study_render.add_argument("scene", nargs="?", default="cornell_cd", help="a built-in scene name or a TOML file; its camera must see a CD or grating")
-    study_render.add_argument("--out", required=True, metavar="DIR")
+    study_render.add_argument("--out", required=True, metavar="DIR", help="folder for the JSON, CSV and figures")
 
-    commands.add_parser("demo", help="the main job on the built-in scene (for now: the CD's orders)")
+    commands.add_parser("demo", help="the main job on the built-in defaults: the CD's orders, then a synthetic dataset "
+                        "of cornell_cd in out/demo/", description="Solves the built-in CD at one direction, then writes "
+                        "the default synthetic dataset (workbench synth cornell_cd) to out/demo/dataset.")
+
+    listing = commands.add_parser("list", help="the built-in structures, scenes, materials and cameras")
+    listing.add_argument("kind", choices=list(KINDS), help="what to list")
+
+    info = rcwa_commands.add_parser("info", help="what a table holds: grid, settings, size, symmetry, integrity")
+    info.add_argument("table", metavar="TABLE", help="a table folder written by `workbench rcwa table`")
+    info.add_argument("--json", action="store_true", help="print one JSON object instead of text")
     return parser
+
+
+SCENE_HELP = "a built-in scene (`workbench list scenes`) or a scene file (docs/scene_format.md)"
+STRUCTURE_HELP = "a built-in structure (`workbench list structures`) or a structure file (docs/structure_format.md)"
+FACTORIZATION_HELP = ("Fourier factorization rule: auto = li for 1D and for 2D cells of rectangles only, nv (normal "
+                      "vector method) for other 2D cells; laurent = the plain product rule, for comparison")
+PRESET_HELP = ("paper: 31 wavelengths 400-700 nm, 2 deg steps in theta and phi, 61 (1D) or 11x11 (2D) harmonics "
+               "(the CD takes about 70-95 s here); draft: 11 wavelengths, 5/10 deg steps, 31 or 7x7 harmonics "
+               "(seconds); fine: 81 wavelengths 380-780 nm, 1 deg steps, 81 or 15x15 harmonics")
 
 
 def _run_rcwa_solve(args: argparse.Namespace) -> int:
@@ -214,6 +290,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         if args.command == "synth":
             from datasets_synthetic.synth import synth
 
+            if Path(args.out).exists() and not Path(args.out).is_dir():
+                raise UserInputError("is a file, not a folder", field="--out", expected="a new or dataset folder", got=args.out)
             truth = synth(args.scene, args.out, seed=args.seed, preset=args.preset, force=args.force)
             n = {k: sum(1 for name in truth["exposure_time_s"] if name.startswith(k)) for k in ("view", "ev", "board")}
             print(f"wrote {args.out}: {n['view']} photos (photos/*.dng), {n['ev']} bracket files (brackets/*.dng, *.jpg), "
@@ -229,6 +307,17 @@ def main(argv: Sequence[str] | None = None) -> int:
             print(f"wrote {args.out}/study_render.json, the CSV files and study_render.png/.svg")
             for e in data["energy"]:
                 print(f"furnace energy, {e['mode']} mode: {e['energy']:.4f}")
+            return 0
+        if args.command == "list":
+            from workbench.catalog import format_builtins
+
+            print(format_builtins(args.kind))
+            return 0
+        if args.command == "rcwa" and args.rcwa_command == "info":
+            from workbench.catalog import format_table_info, table_info
+
+            data = table_info(args.table)
+            print(json.dumps(data, indent=2) if args.json else format_table_info(data))
             return 0
         if args.command == "demo":
             from workbench.demo import run_demo

@@ -8,9 +8,13 @@ import subprocess
 import sys
 import textwrap
 
+import numpy as np
 import pytest
 
+from rcwa.materials import material_from_spec
 from workbench.cli import main
+
+DIRECTION_COSINE_TOL = 1e-9  # angles printed as float64 degrees: only round-off separates them from the equation
 
 GOOD = textwrap.dedent("""\
     name = "grating"
@@ -46,8 +50,28 @@ def test_json_output_has_the_documented_fields(tmp_path, capsys):
     for key in ("wavelength_nm", "theta_deg", "phi_deg", "pol", "R_total", "T_total", "absorption", "orders"):
         assert key in data
     assert data["pol"] == "p" and data["wavelength_nm"] == 550.0
-    assert all(set(o) == {"m", "n", "R", "T"} and o["n"] == 0 for o in data["orders"])
+    assert all(set(o) == {"m", "n", "R", "T", "direction_R", "direction_T"} and o["n"] == 0 for o in data["orders"])
     assert sum(o["R"] for o in data["orders"]) == pytest.approx(data["R_total"], abs=1e-12)
+    assert "superstrate" in data["directions"] and "substrate" in data["directions"]
+
+
+def test_json_directions_follow_the_grating_equation(tmp_path, capsys):
+    """Reflected order m leaves with tangential direction cosines (in the superstrate)
+    sin(theta_m) (cos phi_m, sin phi_m) = sin(theta) (cos phi, sin phi) - (m lambda / (n1 Lambda), 0)
+    (Lange et al. 2021 Eq. 2 sign); over aluminium nothing is transmitted."""
+    path = _write(tmp_path, GOOD)
+    wavelength, theta, phi = 550.0, 20.0, 10.0
+    code, out, _ = _run(capsys, "rcwa", "solve", str(path), "--wavelength", str(wavelength), "--theta", str(theta),
+                        "--phi", str(phi), "--orders", "31", "--json")
+    assert code == 0
+    n1 = float(np.sqrt(material_from_spec("polycarbonate").epsilon(np.array([wavelength]))[0]).real)
+    for order in json.loads(out)["orders"]:
+        assert order["direction_T"] is None
+        t, p = np.radians(order["direction_R"]["theta_deg"]), np.radians(order["direction_R"]["phi_deg"])
+        ux = np.sin(np.radians(theta)) * np.cos(np.radians(phi)) - order["m"] * wavelength / 1000 / (n1 * 1.6)
+        uy = np.sin(np.radians(theta)) * np.sin(np.radians(phi))
+        assert np.sin(t) * np.cos(p) == pytest.approx(ux, abs=DIRECTION_COSINE_TOL)
+        assert np.sin(t) * np.sin(p) == pytest.approx(uy, abs=DIRECTION_COSINE_TOL)
 
 
 def test_table_output_for_builtin_2d(capsys):

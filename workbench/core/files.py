@@ -33,3 +33,15 @@ def atomic_write_text(path: str | Path, text: str, *, sync: bool = False) -> Pat
                 f.flush()
                 os.fsync(f.fileno())
     return atomic_write(path, write)
+
+
+def atomic_write_csv(path: str | Path, rows: list[dict]) -> Path:
+    """Rows of dicts as CSV (columns: every key, sorted), written atomically."""
+    import csv
+    import io
+
+    buffer = io.StringIO()
+    writer = csv.DictWriter(buffer, fieldnames=sorted({k for r in rows for k in r}), lineterminator="\n")
+    writer.writeheader()
+    writer.writerows(rows)
+    return atomic_write_text(path, buffer.getvalue())

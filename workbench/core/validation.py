@@ -3,6 +3,7 @@ UserInputError naming the field and what was expected; callers add the file."""
 
 from __future__ import annotations
 
+from pathlib import Path
 from typing import Any
 
 from workbench.core.errors import UserInputError
@@ -40,3 +41,33 @@ def vector(value: Any, where: str, length: int, *, positive: bool = False) -> tu
 
 def pair(value: Any, where: str) -> tuple[float, float]:
     return vector(value, where, 2)  # type: ignore[return-value]
+
+
+def read_text_file(path: str | Path, what: str) -> str:
+    """The UTF-8 text of the ``what`` file at ``path`` (for example ``"structure"``).
+
+    Each way a user's file can be wrong is a UserInputError naming the file: not found,
+    a folder, unreadable, not text (a binary file), or empty.
+    """
+    path = Path(path)
+    if not path.exists():
+        raise UserInputError(f"{what} file not found", file=path, expected=f"an existing {what} file (TOML)")
+    if path.is_dir():
+        raise UserInputError(f"is a folder, not a {what} file", file=path, expected=f"a {what} file (TOML)")
+    try:
+        data = path.read_bytes()
+    except OSError as exc:
+        raise UserInputError(f"cannot read the {what} file ({exc.strerror})", file=path) from None
+    try:
+        text = data.decode("utf-8-sig")
+    except UnicodeDecodeError as exc:
+        raise UserInputError(f"not a text file: byte {data[exc.start]:#04x} at offset {exc.start} is not UTF-8",
+                             file=path, expected=f"a {what} file in TOML (UTF-8 text)") from None
+    if not text.strip():
+        raise UserInputError(f"the {what} file is empty", file=path, expected=f"a {what} in TOML (see docs/)")
+    return text
+
+
+def looks_like_path(name: str) -> bool:
+    """Whether a name given on the command line is meant as a file rather than a built-in."""
+    return "/" in name or "\\" in name or Path(name).suffix != ""
