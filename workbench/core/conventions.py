@@ -16,7 +16,8 @@ Written down once here and imported by the solver, the renderer and the tests.
   the light comes *from* the azimuth ``phi + pi`` (a renderer's light direction
   ``omega_i`` with azimuth ``phi_i`` is an RCWA solve at ``phi = phi_i + pi``).
 * Orders: ``k_x,m = k_x,inc - m * 2 pi / Lambda_x`` (and ``k_y,n = k_y,inc - n * 2 pi /
-  Lambda_y``), the sign of Eq. 2 of Lange et al. 2021.
+  Lambda_y``), the sign of Eq. 2 of Lange et al. 2021: ``ORDER_SIGN`` below, which
+  ``order_kx`` and the renderer's BWDF (Dr.Jit code, renderer/bwdf.py) both use.
 * Polarization: ``s`` (TE, E perpendicular to the plane of incidence) and ``p`` (TM);
   ``unpolarized`` is the mean of the s and p efficiencies.
 * Diffraction efficiency: the fraction of the incident power carried by an order through
@@ -39,13 +40,17 @@ class Polarization(str, Enum):
     UNPOLARIZED = "unpolarized"
 
 
+ORDER_SIGN = -1
+"""The order sign: ``k_x,m = k_x,inc + ORDER_SIGN * m * 2 pi / Lambda_x`` (Lange et al. 2021, Eq. 2)."""
+
+
 def order_kx(kx_inc: float, m: np.ndarray | int, period: float, wavelength: float) -> np.ndarray:
-    """Normalized tangential wave number of order ``m``: ``kx_inc - m * lambda / Lambda``.
+    """Normalized tangential wave number of order ``m``: ``kx_inc + ORDER_SIGN * m * lambda / Lambda``.
 
     All quantities are divided by ``k0 = 2 pi / lambda`` (Lange et al. 2021, Eq. 2 sign).
     ``period`` and ``wavelength`` must share a unit.
     """
-    return kx_inc - np.asarray(m, dtype=float) * (wavelength / period)
+    return kx_inc + ORDER_SIGN * np.asarray(m, dtype=float) * (wavelength / period)
 
 
 def incident_tangential_k(n_superstrate: float, theta_rad: float, phi_rad: float) -> tuple[float, float]:
