@@ -239,7 +239,7 @@ def _parse_cd(d: Any, where: str, base_dir: Path | None) -> CDSpec:
     table = _table_options(d.get("table", {"preset": "draft"}), f"{where}.table")
     return CDSpec(v.vector(v.required(d, "center", f"{where}."), f"{where}.center", 3), normal,
                   v.number(d.get("rotation_deg", 0.0), f"{where}.rotation_deg"), outer, inner, structure, table,
-                  bool(d.get("top_surface", True)), _flag(d, "dispersion", where, True))
+                  _flag(d, "top_surface", where, True), _flag(d, "dispersion", where, True))
 
 
 def _structure_reference(value: Any, where: str, base_dir: Path | None) -> str:
