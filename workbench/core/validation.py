@@ -63,8 +63,9 @@ def read_text_file(path: str | Path, what: str) -> str:
     except UnicodeDecodeError as exc:
         raise UserInputError(f"not a text file: byte {data[exc.start]:#04x} at offset {exc.start} is not UTF-8",
                              file=path, expected=f"a {what} file in TOML (UTF-8 text)") from None
-    if not text.strip():
-        raise UserInputError(f"the {what} file is empty", file=path, expected=f"a {what} in TOML (see docs/)")
+    if not any(line.strip() and not line.lstrip().startswith("#") for line in text.splitlines()):
+        raise UserInputError(f"the {what} file is empty (nothing but blank lines and comments)", file=path,
+                             expected=f"a {what} in TOML (docs/{what}_format.md)")
     return text
 
 

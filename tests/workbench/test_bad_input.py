@@ -1,0 +1,126 @@
+"""Every subcommand on a corpus of bad input: exit status 2, an ``error:`` line that says
+what is wrong, and never a Python traceback (issue 13).
+
+Runs ``workbench.cli.main`` in this process (the same code path as the command; an
+escaping exception fails the test with its traceback), plus one run as a real process.
+Commands added later (calibration, reports, verify) add their cases here.
+"""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from workbench.cli import main
+
+GOOD_STRUCTURE = 'period = [1.0]\nsuperstrate = "air"\nsubstrate = "aluminum"\n'
+
+
+@pytest.fixture(scope="module")
+def files(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
+    root = tmp_path_factory.mktemp("bad_input")
+    made = {
+        "binary.toml": bytes(range(256)) * 4,
+        "empty.toml": b"",
+        "blank.toml": b"   \n# only a comment\n",
+        "broken.toml": b"period = [1.0\n",
+        "good.toml": GOOD_STRUCTURE.encode(),
+        "notes.txt": b"not a table\n",
+    }
+    out = {}
+    for name, data in made.items():
+        (root / name).write_bytes(data)
+        out[name] = root / name
+    scene = (Path(__file__).resolve().parents[2] / "renderer" / "scenes" / "cornell_cd.toml").read_text()
+    for name, table in (("misspelt.toml", '{ preset = "draft", ordres = 31 }'), ("even.toml", '{ preset = "draft", orders = 20 }'),
+                        ("badpreset.toml", '{ preset = "huge" }')):
+        (root / name).write_text(scene.replace('table = { preset = "draft" }', f"table = {table}"))
+        out[name] = root / name
+    (root / "nocamera.toml").write_text(scene.split("[camera]")[0])
+    out["nocamera.toml"] = root / "nocamera.toml"
+    (root / "a_folder").mkdir()
+    out["a_folder"] = root / "a_folder"
+    out["root"] = root
+    return out
+
+
+CASES: list[tuple[str, list[str], str]] = [
+    # (case id, argv with {placeholders} for the files above, a phrase the message must hold)
+    ("solve-binary", ["rcwa", "solve", "{binary.toml}", "--wavelength", "500", "--orders", "5"], "not a text file"),
+    ("solve-empty", ["rcwa", "solve", "{empty.toml}", "--wavelength", "500", "--orders", "5"], "is empty"),
+    ("solve-blank", ["rcwa", "solve", "{blank.toml}", "--wavelength", "500", "--orders", "5"], "is empty"),
+    ("solve-broken", ["rcwa", "solve", "{broken.toml}", "--wavelength", "500", "--orders", "5"], "not valid TOML"),
+    ("solve-missing-file", ["rcwa", "solve", "{root}/nosuch.toml", "--wavelength", "500", "--orders", "5"], "not found"),
+    ("solve-folder", ["rcwa", "solve", "{a_folder}/", "--wavelength", "500", "--orders", "5"], "folder"),
+    ("solve-unknown-builtin", ["rcwa", "solve", "nosuch", "--wavelength", "500", "--orders", "5"], "no such structure"),
+    ("solve-even-orders", ["rcwa", "solve", "cd", "--wavelength", "500", "--orders", "4"], "odd"),
+    ("solve-orders-not-int", ["rcwa", "solve", "cd", "--wavelength", "500", "--orders", "many"], "expected N"),
+    ("solve-wavelength-outside-data", ["rcwa", "solve", "cd", "--wavelength", "100", "--orders", "5"], "superstrate"),
+    ("solve-negative-wavelength", ["rcwa", "solve", "cd", "--wavelength", "-5", "--orders", "5"], "wavelength"),
+    ("solve-theta-over-90", ["rcwa", "solve", "cd", "--wavelength", "500", "--theta", "95", "--orders", "5"], "theta"),
+    ("table-bad-wavelengths", ["rcwa", "table", "cd", "--out", "{root}/t1.zarr", "--wavelengths", "700:400:3"], "wavelengths"),
+    ("table-even-orders", ["rcwa", "table", "cd", "--out", "{root}/t2.zarr", "--orders", "20"], "odd"),
+    ("table-keep-more", ["rcwa", "table", "cd", "--out", "{root}/t3.zarr", "--orders", "11", "--keep-orders", "21"], "keep"),
+    ("table-threads", ["rcwa", "table", "cd", "--out", "{root}/t4.zarr", "--preset", "draft", "--threads", "0"], "threads"),
+    ("table-binary", ["rcwa", "table", "{binary.toml}", "--out", "{root}/t5.zarr"], "not a text file"),
+    ("info-not-a-table", ["rcwa", "info", "{a_folder}"], "not an efficiency table"),
+    ("info-missing", ["rcwa", "info", "{root}/nosuch.zarr"], "not an efficiency table"),
+    ("render-binary", ["render", "{binary.toml}", "--out", "{root}/r.exr"], "not a text file"),
+    ("render-empty", ["render", "{empty.toml}", "--out", "{root}/r.exr"], "is empty"),
+    ("render-missing", ["render", "{root}/nosuch.toml", "--out", "{root}/r.exr"], "not found"),
+    ("render-unknown-builtin", ["render", "nosuch", "--out", "{root}/r.exr"], "no such scene"),
+    ("render-misspelt-table-key", ["render", "{misspelt.toml}", "--out", "{root}/r.exr"], "cd[0].table.ordres"),
+    ("render-even-table-orders", ["render", "{even.toml}", "--out", "{root}/r.exr"], "cd[0].table.orders"),
+    ("render-bad-table-preset", ["render", "{badpreset.toml}", "--out", "{root}/r.exr"], "cd[0].table.preset"),
+    ("render-no-camera", ["render", "{nocamera.toml}", "--out", "{root}/r.exr"], "camera"),
+    ("render-spp-zero", ["render", "cornell_cd", "--out", "{root}/r.exr", "--spp", "0"], "--spp"),
+    ("render-seed-negative", ["render", "cornell_cd", "--out", "{root}/r.exr", "--seed", "-1"], "--seed"),
+    ("render-not-exr", ["render", "cornell_cd", "--out", "{root}/r.png"], ".exr"),
+    ("render-bad-resolution", ["render", "cornell_cd", "--out", "{root}/r.exr", "--resolution", "0x5"], "WxH"),
+    ("synth-seed-negative", ["synth", "cornell_cd", "--out", "{root}/d", "--seed", "-1"], "--seed"),
+    ("synth-out-is-a-file", ["synth", "cornell_cd", "--out", "{notes.txt}"], "--out"),
+    ("synth-bad-preset", ["synth", "cornell_cd", "--out", "{root}/d", "--preset", "huge"], "--preset"),
+    ("synth-binary-scene", ["synth", "{binary.toml}", "--out", "{root}/d"], "not a text file"),
+    ("study-rcwa-missing", ["study", "rcwa", "{root}/nosuch.toml", "--out", "{root}/s"], "not found"),
+    ("study-rcwa-2d", ["study", "rcwa", "gold2d", "--out", "{root}/s"], "1D"),
+    ("study-render-missing", ["study", "render", "{root}/nosuch.toml", "--out", "{root}/s"], "not found"),
+    ("list-unknown-kind", ["list", "gizmos"], "invalid choice"),
+    ("unknown-command", ["frobnicate"], "invalid choice"),
+]
+
+
+def _expand(argv: list[str], files: dict[str, Path]) -> list[str]:
+    out = []
+    for arg in argv:
+        for key, path in files.items():
+            arg = arg.replace("{" + key + "}", str(path))
+        out.append(arg)
+    return out
+
+
+@pytest.mark.parametrize(("argv", "phrase"), [(c[1], c[2]) for c in CASES], ids=[c[0] for c in CASES])
+def test_bad_input_is_a_clear_error(argv: list[str], phrase: str, files: dict[str, Path],
+                                    capsys: pytest.CaptureFixture[str]) -> None:
+    try:
+        code = main(_expand(argv, files))
+    except SystemExit as exc:  # argparse's own errors
+        code = exc.code
+    err = capsys.readouterr().err
+    assert code == 2, err
+    assert "error:" in err and phrase in err, err
+    assert "Traceback" not in err
+
+
+def test_a_bad_input_as_a_real_process_prints_no_traceback(files: dict[str, Path]) -> None:
+    run = subprocess.run([sys.executable, "-m", "workbench.cli", "rcwa", "solve", str(files["binary.toml"]),
+                          "--wavelength", "500", "--orders", "5"], capture_output=True, text=True, timeout=120)
+    assert run.returncode == 2 and run.stderr.startswith("error:") and "Traceback" not in run.stderr, run.stderr
+
+
+def test_nothing_is_left_behind_by_refused_table_requests(files: dict[str, Path]) -> None:
+    """Validation comes before writing: refused table requests create no output folder."""
+    leftovers = sorted(p.name for p in files["root"].iterdir() if p.name.startswith("t") and p.suffix == ".zarr")
+    assert not leftovers, leftovers
