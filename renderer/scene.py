@@ -236,7 +236,7 @@ def _parse_cd(d: Any, where: str, base_dir: Path | None) -> CDSpec:
         raise UserInputError("the hole must be smaller than the disc", field=f"{where}.inner_radius", expected=f"< {outer}", got=inner)
     structure = _structure_reference(d.get("structure", "cd"), f"{where}.structure", base_dir)
     normal = _normal(d.get("normal", [0.0, 1.0, 0.0]), f"{where}.normal")
-    table = _table_options(d.get("table", {"preset": "draft"}), f"{where}.table")
+    table = _table_options(d.get("table", {"preset": "draft"}), f"{where}.table", base_dir)
     return CDSpec(v.vector(v.required(d, "center", f"{where}."), f"{where}.center", 3), normal,
                   v.number(d.get("rotation_deg", 0.0), f"{where}.rotation_deg"), outer, inner, structure, table,
                   _flag(d, "top_surface", where, True), _flag(d, "dispersion", where, True))
@@ -278,9 +278,10 @@ _TABLE_CHOICES = {"preset": ("draft", "paper", "fine"), "pol": ("unpolarized", "
                   "factorization": ("auto", "li", "nv", "laurent")}
 
 
-def _table_options(value: Any, where: str) -> dict:
+def _table_options(value: Any, where: str, base_dir: Path | None = None) -> dict:
     """A CD's or grating's ``table`` options, checked here so that a mistake names the scene
-    file and field (``cd[0].table.orders``) rather than a command-line option."""
+    file and field (``cd[0].table.orders``) rather than a command-line option. ``path``
+    (relative to the scene file) names a finished table and stands alone."""
     if not isinstance(value, dict):
         raise UserInputError("must be a table of `workbench rcwa table` options", field=where,
                              expected="{ preset = \"draft\", orders = 31, ... }", got=value)
@@ -309,6 +310,12 @@ def _table_options(value: Any, where: str) -> dict:
     for key in ("theta_range", "phi_range"):
         if key in options:
             options[key] = tuple(float(x) for x in options[key])
+    if "path" in options:
+        if len(options) > 1:
+            raise UserInputError("a table named by path is used as it is; the other options do not apply",
+                                 field=where, expected='{ path = "..." } alone', got=sorted(options))
+        path = Path(options["path"]).expanduser()
+        options["path"] = str(base_dir / path if base_dir is not None else path)
     return options
 
 
@@ -321,7 +328,7 @@ def _parse_grating(d: Any, where: str, base_dir: Path | None) -> GratingSpec:
                        v.vector(v.required(d, "size", f"{where}."), f"{where}.size", 2, positive=True),
                        v.number(d.get("rotation_deg", 0.0), f"{where}.rotation_deg"),
                        _structure_reference(v.required(d, "structure", f"{where}."), f"{where}.structure", base_dir),
-                       _table_options(d.get("table", {"preset": "draft"}), f"{where}.table"))
+                       _table_options(d.get("table", {"preset": "draft"}), f"{where}.table", base_dir))
 
 
 def _parse_glass(d: Any, where: str) -> GlassSpec:
