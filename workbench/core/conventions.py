@@ -53,6 +53,27 @@ def order_kx(kx_inc: float, m: np.ndarray | int, period: float, wavelength: floa
     return kx_inc + ORDER_SIGN * np.asarray(m, dtype=float) * (wavelength / period)
 
 
+def order_kxy(
+    kx_inc: float, ky_inc: float, m: np.ndarray | int, n: np.ndarray | int, period: tuple[float, ...], wavelength: float
+) -> tuple[np.ndarray, np.ndarray]:
+    """Normalized tangential wave vectors ``(kx, ky) / k0`` of orders ``(m, n)``, vectorized.
+
+    Along each periodic axis the sign of ``order_kx`` (``ORDER_SIGN``):
+    ``kx_inc + ORDER_SIGN * m * lambda / Lambda_x`` (Lange et al. 2021, Eq. 2) and
+    ``ky_inc + ORDER_SIGN * n * lambda / Lambda_y`` (its y-counterpart, Sec. 2.2 there).
+    ``period`` is ``(Lambda_x,)`` for a 1D grating, whose orders keep ``ky = ky_inc``
+    (``n`` must be 0), or ``(Lambda_x, Lambda_y)``; it and ``wavelength`` share a unit.
+    ``m`` and ``n`` broadcast against each other.
+    """
+    m_arr, n_arr = np.broadcast_arrays(np.asarray(m), np.asarray(n))
+    kx = order_kx(kx_inc, m_arr, period[0], wavelength)
+    if len(period) == 1:
+        if np.any(n_arr != 0):
+            raise ValueError("a 1D grating (one period) has only n = 0 orders")
+        return kx, np.full(kx.shape, float(ky_inc))
+    return kx, order_kx(ky_inc, n_arr, period[1], wavelength)
+
+
 def incident_tangential_k(n_superstrate: float, theta_rad: float, phi_rad: float) -> tuple[float, float]:
     """Normalized tangential wave vector ``(kx, ky) / k0`` of the incident wave.
 
