@@ -14,6 +14,9 @@ from collections.abc import Sequence
 from pathlib import Path
 
 from workbench.catalog import KINDS
+from workbench.cli_cache import add_cache_option, apply_cache_option
+from workbench.cli_cache import add_parsers as add_cache_parsers
+from workbench.cli_cache import run as run_cache
 from workbench.core.errors import UserInputError
 
 
@@ -95,6 +98,7 @@ def _build_parser() -> argparse.ArgumentParser:
 
     parser = _Parser(prog="workbench", description=DESCRIPTION)
     parser.add_argument("--version", action="version", version=f"workbench {__version__}")
+    add_cache_option(parser, top_level=True)
     commands = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
 
     rcwa_parser = commands.add_parser("rcwa", help="rigorous coupled-wave analysis")
@@ -152,6 +156,8 @@ def _build_parser() -> argparse.ArgumentParser:
     render.add_argument("--scheduler", metavar="ADDRESS", help="render the passes on this dask.distributed scheduler")
     render.add_argument("--workers", type=int, metavar="N", help="start a local dask cluster with N worker processes")
     render.add_argument("--quiet", action="store_true", help="no progress bar")
+    render.add_argument("--force", action="store_true", help="replace a different render (its EXR, PNG and JSON) at --out")
+    add_cache_option(render)
 
     synth = commands.add_parser("synth", help="synthetic raw photographs (DNG) with known truth")
     synth.add_argument("scene", help=SCENE_HELP)
@@ -161,6 +167,7 @@ def _build_parser() -> argparse.ArgumentParser:
     synth.add_argument("--preset", choices=["draft", "full"], default="draft",
                        help="draft: 640 x 480, 2 views, 20 board views (about a minute); full: 978 x 734, 3 views (about 14 minutes)")
     synth.add_argument("--force", action="store_true", help="replace an existing dataset in DIR")
+    add_cache_option(synth)
 
     study = commands.add_parser("study", help="accuracy-versus-time studies")
     study_commands = study.add_subparsers(dest="study_command", required=True)
@@ -172,12 +179,22 @@ def _build_parser() -> argparse.ArgumentParser:
     study_render.add_argument("scene", nargs="?", default="cornell_cd", help="a built-in scene name or a TOML file; its camera must see a CD or grating")
     study_render.add_argument("--out", required=True, metavar="DIR", help="folder for the JSON, CSV and figures")
 
-    commands.add_parser("demo", help="the main job on the built-in defaults: the CD's orders, then a synthetic dataset "
+    demo = commands.add_parser("demo", help="the main job on the built-in defaults: the CD's orders, then a synthetic dataset "
                         "of cornell_cd in out/demo/", description="Solves the built-in CD at one direction, then writes "
                         "the default synthetic dataset (workbench synth cornell_cd) to out/demo/dataset.")
+    add_cache_option(demo)
+
+    plan = commands.add_parser("plan", help="what a scene needs simulated: tables, orders, angles, wavelengths, cost",
+                               description="Reads the scene and decides, before anything runs, which efficiency tables "
+                               "its render needs (R, T, which sides), which orders can reach the camera, which part of each "
+                               "table's (wavelength, theta, phi) grid the camera's rays can look up, the camera's "
+                               "wavelength range, and which glass dispersion matters; with the cost measured here.")
+    plan.add_argument("scene", help=SCENE_HELP)
+    plan.add_argument("--json", action="store_true", help="print one JSON object instead of the table")
 
     listing = commands.add_parser("list", help="the built-in structures, scenes, materials and cameras")
     listing.add_argument("kind", choices=list(KINDS), help="what to list")
+    add_cache_parsers(commands)
 
     info = rcwa_commands.add_parser("info", help="what a table holds: grid, settings, size, symmetry, integrity")
     info.add_argument("table", metavar="TABLE", help="a table folder written by `workbench rcwa table`")
@@ -236,6 +253,8 @@ def _run_rcwa_table(args: argparse.Namespace) -> int:
           f"{'x'.join(map(str, settings.keep))} kept; symmetry: {report.symmetry}")
     print(f"computed {report.chunks_computed} of {report.chunks_total} wavelength chunks ({report.chunks_reused} resumed) "
           f"in {report.seconds:.1f} s; {report.bytes_on_disk / 1e6:.2f} MB on disk")
+    for note in report.notes:  # damaged chunks computed again, a table replaced
+        print(note)
     if report.eigen_solves:
         print(f"1D eigen-solves: {report.eigen_solves}, {report.eigen_refined / report.eigen_solves:.0%} refined from a "
               f"neighbouring k_x (the rest solved afresh)")
@@ -265,6 +284,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser = _build_parser()
     args = parser.parse_args(argv)
     try:
+        apply_cache_option(args)
+        if args.command == "cache":
+            return run_cache(args)
         if args.command == "rcwa" and args.rcwa_command == "solve":
             return _run_rcwa_solve(args)
         if args.command == "rcwa" and args.rcwa_command == "table":
@@ -273,7 +295,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             from renderer.render import render as run_render
 
             kwargs = dict(preset=args.preset, spp=args.spp, resolution=args.resolution, integrator=args.integrator,
-                          mode=args.mode, seed=args.seed, progress=not args.quiet)
+                          mode=args.mode, seed=args.seed, progress=not args.quiet, force=args.force)
             if args.workers is not None and args.workers < 1:
                 raise UserInputError("must be at least 1", field="--workers", got=args.workers)
             if args.scheduler or args.workers:
@@ -283,9 +305,9 @@ def main(argv: Sequence[str] | None = None) -> int:
                     info = run_render(args.scene, args.out, executor=executor, **kwargs)
             else:
                 info = run_render(args.scene, args.out, **kwargs)
-            print(f"wrote {info['output']} (linear camera RGB), {info['preview']} and the sidecar "
-                  f"{info['output'][:-4]}.json: {info['resolution'][0]}x{info['resolution'][1]}, {info['spp']} spp, "
-                  f"{info['seconds_total']:.1f} s ({info['variant']})")
+            from renderer.render import summary as render_summary
+
+            print(render_summary(info))  # also says when it was resumed or served from a finished identical render
             return 0
         if args.command == "synth":
             from datasets_synthetic.synth import synth
@@ -307,6 +329,13 @@ def main(argv: Sequence[str] | None = None) -> int:
             print(f"wrote {args.out}/study_render.json, the CSV files and study_render.png/.svg")
             for e in data["energy"]:
                 print(f"furnace energy, {e['mode']} mode: {e['energy']:.4f}")
+            return 0
+        if args.command == "plan":
+            from renderer.planner import format_plan, plan_scene
+            from renderer.scene import load_scene
+
+            result = plan_scene(load_scene(args.scene))
+            print(json.dumps(result.to_json(), indent=2) if args.json else format_plan(result))
             return 0
         if args.command == "list":
             from workbench.catalog import format_builtins

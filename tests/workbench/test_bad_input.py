@@ -87,6 +87,9 @@ CASES: list[tuple[str, list[str], str]] = [
     ("study-rcwa-missing", ["study", "rcwa", "{root}/nosuch.toml", "--out", "{root}/s"], "not found"),
     ("study-rcwa-2d", ["study", "rcwa", "gold2d", "--out", "{root}/s"], "1D"),
     ("study-render-missing", ["study", "render", "{root}/nosuch.toml", "--out", "{root}/s"], "not found"),
+    ("plan-binary", ["plan", "{binary.toml}"], "not a text file"),
+    ("plan-missing", ["plan", "{root}/nosuch.toml"], "not found"),
+    ("plan-misspelt-table-key", ["plan", "{misspelt.toml}"], "cd[0].table.ordres"),
     ("list-unknown-kind", ["list", "gizmos"], "invalid choice"),
     ("unknown-command", ["frobnicate"], "invalid choice"),
 ]
