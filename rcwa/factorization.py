@@ -238,33 +238,70 @@ def _normal_products(layer: Layer, period: tuple[float, float], gx_max: int, gy_
 
 
 def _boundary_candidates(layer: Layer, period, points: np.ndarray):
-    """Distance to, and unit normal from, each boundary piece (edges, circles, images)."""
+    """Distance to, and unit normal from, each boundary piece (edges, circles, images).
+
+    A polygon's boundary is taken from the union of its periodic images, so an edge that
+    meets its own image (a rectangle spanning the whole period in y has its top edge on
+    its image's bottom edge) is no material boundary and does not pull the normal field:
+    in a y-invariant cell every boundary is then normal to x, and Schuster et al. 2007's
+    rule reduces to Li's 1D inverse rule (tests/rcwa/test_invariance.py). Coordinates are
+    snapped to 1e-9 of the period first, so images that should touch do touch exactly.
+    """
     lx, ly = period
     dists, normals_x, normals_y = [], [], []
     for s in layer.shapes:
-        for dx in (-lx, 0.0, lx):
-            for dy in (-ly, 0.0, ly):
-                if isinstance(s, Circle):
+        if isinstance(s, Circle):
+            for dx in (-lx, 0.0, lx):
+                for dy in (-ly, 0.0, ly):
                     rel = points - (np.array(s.center) + [dx, dy])
                     r = np.hypot(rel[:, 0], rel[:, 1])
                     safe = np.where(r == 0, 1.0, r)
                     dists.append(np.abs(r - s.radius)[:, None])
                     normals_x.append((rel[:, 0] / safe)[:, None])
                     normals_y.append((rel[:, 1] / safe)[:, None])
-                    continue
-                v = np.asarray(s.outline().exterior.coords)[:-1] + [dx, dy]
-                d = np.roll(v, -1, axis=0) - v
-                length2 = np.sum(d * d, axis=1)
-                t = np.clip(((points[:, None, :] - v[None]) * d[None]).sum(-1) / length2[None], 0.0, 1.0)
-                rel = points[:, None, :] - (v[None] + t[..., None] * d[None])
-                dist = np.hypot(rel[..., 0], rel[..., 1])
-                edge_n = np.stack([d[:, 1], -d[:, 0]], axis=1) / np.sqrt(length2)[:, None]
-                on_edge = dist < 1e-12
-                safe = np.where(on_edge, 1.0, dist)
-                dists.append(dist)
-                normals_x.append(np.where(on_edge, edge_n[None, :, 0], rel[..., 0] / safe))
-                normals_y.append(np.where(on_edge, edge_n[None, :, 1], rel[..., 1] / safe))
+            continue
+        start, step = _periodic_boundary_segments(s.outline(), period, points)
+        if not len(start):
+            continue
+        length2 = np.sum(step * step, axis=1)
+        t = np.clip(((points[:, None, :] - start[None]) * step[None]).sum(-1) / length2[None], 0.0, 1.0)
+        rel = points[:, None, :] - (start[None] + t[..., None] * step[None])
+        dist = np.hypot(rel[..., 0], rel[..., 1])
+        edge_n = np.stack([step[:, 1], -step[:, 0]], axis=1) / np.sqrt(length2)[:, None]
+        on_edge = dist < 1e-12
+        safe = np.where(on_edge, 1.0, dist)
+        dists.append(dist)
+        normals_x.append(np.where(on_edge, edge_n[None, :, 0], rel[..., 0] / safe))
+        normals_y.append(np.where(on_edge, edge_n[None, :, 1], rel[..., 1] / safe))
     return np.concatenate(dists, axis=1), np.concatenate(normals_x, axis=1), np.concatenate(normals_y, axis=1)
+
+
+def _periodic_boundary_segments(outline, period, points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Segments (start points, steps) of the boundary of the union of a polygon's periodic
+    images, within one period of the sample points (the union's outer rim, an artefact of
+    tiling only 5 x 5 images, lies further out and is cut away)."""
+    import shapely
+    from shapely import affinity
+
+    lx, ly = period
+    grid = 1e-9 * max(lx, ly)
+    images = [affinity.translate(outline, i * lx, j * ly) for i in range(-2, 3) for j in range(-2, 3)]
+    union = shapely.unary_union([shapely.set_precision(g, grid) for g in images])
+    (x0, y0), (x1, y1) = points.min(axis=0), points.max(axis=0)
+    near = union.boundary.intersection(shapely.box(x0 - lx, y0 - ly, x1 + lx, y1 + ly))
+    lines = getattr(near, "geoms", [near])
+    starts, steps = [], []
+    for line in lines:
+        if line.is_empty or line.geom_type != "LineString":
+            continue
+        c = np.asarray(line.coords)
+        starts.append(c[:-1])
+        steps.append(np.diff(c, axis=0))
+    if not starts:
+        return np.zeros((0, 2)), np.zeros((0, 2))
+    start, step = np.concatenate(starts), np.concatenate(steps)
+    keep = np.sum(step * step, axis=1) > 0
+    return start[keep], step[keep]
 
 
 def _normal_tensor(layer: Layer, period, points: np.ndarray):

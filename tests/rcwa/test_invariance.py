@@ -125,10 +125,6 @@ def test_grating_turned_by_90_degrees_with_its_incidence(name, incidence):
     assert_same_orders(one_d, turned, lambda m: (0, m))
 
 
-@pytest.mark.xfail(strict=True, reason=(
-    "normal vector method: a rectangle spanning the whole y period has top and bottom edges that touch its own "
-    "periodic image; rcwa.factorization._boundary_candidates treats them as material boundaries, so the normal "
-    "field is not x-hat everywhere and NV differs from Li by 2.5e-3 on the CD (and couples 5e-4 into n != 0)"))
 def test_normal_vector_method_on_a_y_invariant_cell_is_li():
     """In a y-invariant cell every boundary is normal to x, n = x-hat everywhere, and
     Schuster et al. 2007's Exx = E - Delta [[nx nx]] is Li's inverse rule exactly."""
