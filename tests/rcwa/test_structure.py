@@ -206,9 +206,6 @@ def test_a_bad_file_is_an_error_naming_file_and_field(good_file, case):
     assert str(error).startswith(f"{good_file}: field '{field}': ")
 
 
-@pytest.mark.xfail(strict=True, reason=(
-    "Structure.from_dict relocates every error to the structure file (UserInputError.located(file=source) "
-    "replaces the CSV's path), so 'line 2: k must be >= 0' is reported against the TOML file"))
 def test_a_bad_csv_material_names_the_csv_file(good_file):
     csv = good_file.parent / "film.csv"
     csv.write_text("wavelength_nm,n,k\n400,2.0,-0.02\n700,1.8,0.01\n")

@@ -64,14 +64,14 @@ class UserInputError(WorkbenchError, ValueError):
         return text
 
     def located(self, *, file: str | Path | None = None, field_prefix: str | None = None) -> "UserInputError":
-        """Return a copy that also names the file and/or prefixes the field path."""
+        """Return a copy that also names the file and/or prefixes the field path.
+
+        An error that already names another file (a CSV material a structure file refers
+        to) keeps that file, where the mistake is, and says which file referred to it."""
         field = self.field
         if field_prefix:
             field = field_prefix if not field else f"{field_prefix}.{field}"
-        return UserInputError(
-            self.reason,
-            file=file if file is not None else self.file,
-            field=field,
-            expected=self.expected,
-            got=self.got,
-        )
+        reason, where = self.reason, file if file is not None else self.file
+        if file is not None and self.file is not None and str(file) != self.file:
+            reason, where = f"{self.reason} (referenced from {file})", self.file
+        return UserInputError(reason, file=where, field=field, expected=self.expected, got=self.got)
