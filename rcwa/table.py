@@ -11,7 +11,14 @@ written only once its SHA-256 is in ``progress.json`` (replaced atomically after
 chunk), so a killed build resumes from its finished chunks and a truncated or altered
 table is detected (checksums) instead of read as data. The request's content hash
 (structure text, grid, settings, solver version) names what a table holds; asking again
-for a finished table returns it at once.
+for a finished table returns it at once, after checking every chunk against its checksum:
+damaged chunks are computed again.
+
+Safety: the request is validated (settings, the materials' data over the wavelengths)
+before anything is written; a build that fails before finishing a chunk removes what it
+created; ``force`` replaces only a table (a folder holding nothing but a table's files),
+never anything else. A build holds the table's file lock (workbench.core.cache), so a
+second process asking for the same table waits and then reuses it.
 
 Azimuths: mirror symmetries of the cell (rcwa.symmetry) shrink the azimuth range that is
 computed; ``Table.fold_azimuth`` maps any azimuth into it (with the order flips).
@@ -22,23 +29,28 @@ from __future__ import annotations
 import hashlib
 import json
 import math
+import shutil
 import time
+from collections.abc import Callable
 from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
 
-from workbench.core.version import __version__ as workbench_version
 from rcwa import symmetry
 from rcwa.structure import Layer, Structure
 from rcwa.sweep import default_threads, sweep_directions
+from workbench.core.cache import entry_lock
 from workbench.core.errors import UserInputError
 from workbench.core.files import atomic_write_text
 from workbench.core.timing import timed
+from workbench.core.version import __version__ as workbench_version
 
 FORMAT_VERSION = 1
 GRAZING_THETA_DEG = 89.999  # theta = 90 (no incident power) is solved at this limit
 POLARIZATIONS = ("unpolarized", "s", "p", "all")
+ARRAY_NAMES = ("R", "T", "R_below", "T_below")
+TABLE_FILES = ("zarr.json", "progress.json") + ARRAY_NAMES  # everything a table folder holds
 
 
 @dataclass(frozen=True)
@@ -174,12 +186,14 @@ class BuildReport:
     notes: list[str] = field(default_factory=list)
     eigen_solves: int = 0    # 1D layers' eigen-solves in the chunks computed now
     eigen_refined: int = 0   # of which refined from a neighbouring k_x (rcwa/cpp/sweep.hpp)
+    chunks_repaired: list[int] = field(default_factory=list)  # damaged chunks found and computed again
 
 
 def compute_chunk(structure: Structure, settings: TableSettings, wavelength_nm: float,
                   threads: int) -> tuple[dict[str, np.ndarray], tuple[int, int]]:
     """All arrays of one wavelength: R (and T; and from below), (theta, phi, order, pol);
-    and the sweeps' (eigen-solves, refined eigen-solves)."""
+    and the sweeps' (eigen-solves, refined eigen-solves).
+    """
     theta = np.array([min(t, GRAZING_THETA_DEG) for t in settings.theta_deg])
     th, ph = np.meshgrid(theta, np.array(settings.phi_deg), indexing="ij")
     out, solves, refined = {}, 0, 0
@@ -206,63 +220,167 @@ def pol_names(pol: str) -> list[str]:
     return ["s", "p", "unpolarized"] if pol == "all" else [pol]
 
 
+def check_materials(structure: Structure, settings: TableSettings) -> None:
+    """Every medium of ``structure`` has data at every wavelength of ``settings`` (checked
+    before a table is written, so a bad range leaves nothing behind).
+    """
+    wavelengths = np.asarray(settings.wavelengths_nm)
+    media = [structure.superstrate, structure.substrate]
+    for layer in structure.layers:
+        media += [layer.material] + [shape.material for shape in layer.shapes]
+    for material in media:
+        try:
+            material.epsilon(wavelengths)
+        except UserInputError as exc:
+            raise UserInputError(f"{exc.reason}; the table's wavelengths must lie inside every material's data",
+                                 file=structure.source, field=structure.field_of(material),
+                                 expected="--wavelengths inside that range") from None
+
+
 def build_table(structure: Structure, settings: TableSettings, out: str | Path, *, threads: int | None = None,
-                progress: bool = True, force: bool = False, executor=None) -> BuildReport:
-    """Build (or resume, or return the finished) table at ``out``.
+                progress: bool = True, force: bool = False, executor=None,
+                notify: Callable[[str], None] | None = None) -> BuildReport:
+    """Build (or resume, or repair, or return the finished) table at ``out``.
 
     ``executor``: an object with ``submit(fn, *args)`` returning futures (a
     dask.distributed Client); by default chunks run here on ``threads`` threads.
+    ``force`` replaces a different table at ``out`` (only a table). While building, the
+    table's lock is held; another process asking for it meanwhile waits (``notify`` says
+    so) and then gets the finished table.
     """
-    from tqdm import tqdm
-
     out = Path(out)
     key = request_key(structure, settings)
+    check_materials(structure, settings)
+    _refuse_unless_replaceable(out, key, force)  # before the lock file is written
+    with entry_lock(out, notify=notify):
+        return _build_locked(structure, settings, out, key, threads=threads, progress=progress, force=force,
+                             executor=executor)
+
+
+def _build_locked(structure: Structure, settings: TableSettings, out: Path, key: str, *, threads: int | None,
+                  progress: bool, force: bool, executor) -> BuildReport:
+    from tqdm import tqdm
+
     start = time.perf_counter()
-    store = _open_store(out, structure, settings, key, force)
+    existed = out.exists()
+    created = not existed or not any(out.iterdir())
+    notes: list[str] = []
+    store = _open_store(out, structure, settings, key, force, notes)
     done = _read_progress(out)
+    repaired = _drop_damaged_chunks(out, store, settings, done, notes)
     sym = symmetry.detect(structure) if settings.use_symmetry else symmetry.MirrorSymmetry(False, False)
-    report = BuildReport(out, key, len(settings.wavelengths_nm), 0, len(done), 0.0, symmetry=sym.describe())
+    report = BuildReport(out, key, len(settings.wavelengths_nm), 0, len(done), 0.0, symmetry=sym.describe(), notes=notes,
+                         chunks_repaired=repaired)
     todo = [i for i in range(len(settings.wavelengths_nm)) if str(i) not in done]
     if not todo and store.attrs.get("complete"):
         report.cached = True
         report.seconds = time.perf_counter() - start
         report.bytes_on_disk = _size(out)
         return report
-    threads = threads or default_threads()
-    bar = tqdm(total=len(settings.wavelengths_nm), initial=len(done), unit="wavelength", disable=not progress,
-               desc=f"table {structure.name}")
-    if executor is None:
-        results = ((i, timed(compute_chunk, structure, settings, settings.wavelengths_nm[i], threads)) for i in todo)
-    else:
-        futures = {i: executor.submit(timed, compute_chunk, structure, settings, settings.wavelengths_nm[i], 1) for i in todo}
-        results = ((i, futures[i].result()) for i in todo)
-    for i, ((arrays, (solves, refined)), seconds) in results:
-        _write_chunk(out, store, i, arrays, seconds, done)
-        report.chunks_computed += 1
-        report.eigen_solves += solves
-        report.eigen_refined += refined
-        bar.update(1)
-    bar.close()
+    try:
+        _compute_chunks(structure, settings, out, store, todo, done, report, threads, executor,
+                        tqdm(total=len(settings.wavelengths_nm), initial=len(done), unit="wavelength",
+                             disable=not progress, desc=f"table {structure.name}"))
+    except BaseException:
+        if created and not done:  # nothing worth resuming: leave nothing behind (a folder the user made stays, empty)
+            _remove_contents(out, keep_folder=existed)
+        raise
     store.attrs.update({"complete": True, "chunk_seconds": {k: v["seconds"] for k, v in done.items()}})
     report.seconds = time.perf_counter() - start
     report.bytes_on_disk = _size(out)
     return report
 
 
-def _open_store(out: Path, structure: Structure, settings: TableSettings, key: str, force: bool):
+def _remove_contents(out: Path, keep_folder: bool) -> None:
+    if not keep_folder:
+        shutil.rmtree(out, ignore_errors=True)
+        return
+    for child in out.iterdir():
+        if child.is_dir():
+            shutil.rmtree(child)
+        else:
+            child.unlink()
+
+
+def _compute_chunks(structure: Structure, settings: TableSettings, out: Path, store, todo: list[int], done: dict,
+                    report: BuildReport, threads: int | None, executor, bar) -> None:
+    threads = threads or default_threads()
+    if executor is None:
+        results = ((i, timed(compute_chunk, structure, settings, settings.wavelengths_nm[i], threads)) for i in todo)
+    else:
+        futures = {i: executor.submit(timed, compute_chunk, structure, settings, settings.wavelengths_nm[i], 1) for i in todo}
+        results = ((i, futures[i].result()) for i in todo)
+    with bar:
+        for i, ((arrays, (solves, refined)), seconds) in results:
+            _write_chunk(out, store, i, arrays, seconds, done)
+            report.chunks_computed += 1
+            report.eigen_solves += solves
+            report.eigen_refined += refined
+            bar.update(1)
+
+
+def _drop_damaged_chunks(out: Path, store, settings: TableSettings, done: dict, notes: list[str]) -> list[int]:
+    """Check every finished chunk against its checksum; forget the damaged ones (they are
+    computed again) and say which.
+    """
+    damaged = []
+    for index in sorted(done, key=int):
+        try:
+            chunk = {name: store[name][int(index)] for name in store.attrs["arrays"]}
+            intact = _chunk_hash(chunk) == done[index]["sha256"]
+        except Exception:  # a truncated or unreadable chunk file
+            intact = False
+        if not intact:
+            damaged.append(int(index))
+            del done[index]
+    if damaged:
+        store.attrs["complete"] = False
+        _atomic_write_json(out / "progress.json", done)
+        listed = ", ".join(f"{i} ({settings.wavelengths_nm[i]:g} nm)" for i in damaged)
+        notes.append(f"damaged chunk{'s' if len(damaged) > 1 else ''} {listed}: checksum mismatch, computed again")
+    return damaged
+
+
+def _foreign_entries(out: Path) -> list[str]:
+    """What ``out`` holds that is not part of a table (hidden temporary files of atomic writes aside)."""
+    return sorted(p.name for p in out.iterdir() if p.name not in TABLE_FILES and not p.name.startswith(".progress.json."))
+
+
+def _refuse_unless_replaceable(out: Path, key: str, force: bool) -> None:
+    """Raise unless ``out`` is new, empty, the same request, or (with ``force``) another table."""
+    if not out.exists():
+        return
+    if not out.is_dir():
+        raise UserInputError("is a file, not a table folder", file=out, expected="a new path or an existing table")
+    if not any(out.iterdir()):
+        return
+    foreign = _foreign_entries(out)
+    if foreign:
+        shown = ", ".join(foreign[:8]) + (f" and {len(foreign) - 8} more" if len(foreign) > 8 else "")
+        raise UserInputError(f"the folder holds files that are not part of a table ({shown}); --force replaces only a "
+                             "table, never other files", file=out, expected="a new path or an existing table")
+    meta = _read_meta(out)
+    if meta is not None and meta.get("key") == key:
+        return
+    if not force:
+        what = "a different table" if meta is not None else "a table whose zarr.json cannot be read"
+        raise UserInputError(f"the output already holds {what}", file=out,
+                             expected="a new path, the same request, or --force to replace that table")
+
+
+def _open_store(out: Path, structure: Structure, settings: TableSettings, key: str, force: bool, notes: list[str]):
     import zarr
 
-    if out.exists():
+    _refuse_unless_replaceable(out, key, force)  # again, under the lock
+    if out.exists() and any(out.iterdir()):
         meta = _read_meta(out)
         if meta is not None and meta.get("key") == key:
-            return zarr.open_group(str(out), mode="a")
-        if not force:
-            raise UserInputError(
-                "the output already holds a different table (or something else)", file=out,
-                expected="a new path, the same request, or --force to overwrite",
-            )
-        import shutil
-
+            group = _open_arrays(out, meta)
+            if group is not None:
+                return group
+            notes.append("the table's array metadata was damaged: built again from scratch")
+        else:
+            notes.append("replaced the different table that was there (--force)")
         shutil.rmtree(out)
     group = zarr.open_group(str(out), mode="w")
     sym = symmetry.detect(structure) if settings.use_symmetry else symmetry.MirrorSymmetry(False, False)
@@ -288,6 +406,19 @@ def _open_store(out: Path, structure: Structure, settings: TableSettings, key: s
     group.attrs.update(meta)
     _atomic_write_json(out / "progress.json", {})
     return group
+
+
+def _open_arrays(out: Path, meta: dict):
+    """The zarr group with every array the metadata names, or None when one cannot be opened."""
+    import zarr
+
+    try:
+        group = zarr.open_group(str(out), mode="a")
+        shapes = {tuple(group[name].shape) for name in meta["arrays"]}
+    except Exception:  # a deleted or damaged array zarr.json
+        return None
+    expected = len(meta["settings"]["wavelengths_nm"])
+    return group if all(shape[0] == expected for shape in shapes) else None
 
 
 def _transmits(structure: Structure, settings: TableSettings) -> bool:
@@ -342,7 +473,8 @@ def _read_meta(out: Path) -> dict | None:
 def read_table_metadata(path: str | Path) -> dict:
     """A table's metadata (grid, settings, symmetry, orders) without reading its data.
 
-    Raises UserInputError naming the path when it is not a table of ours."""
+    Raises UserInputError naming the path when it is not a table of ours.
+    """
     path = Path(path)
     meta = _read_meta(path) if path.is_dir() else None
     if meta is None or meta.get("format") != "workbench-efficiency-table":
@@ -406,21 +538,46 @@ def open_table(path: str | Path) -> Table:
     meta = _read_meta(path)
     if meta is None or meta.get("format") != "workbench-efficiency-table":
         raise UserInputError("not an efficiency table (no readable zarr.json with our format)", file=path)
+    repair = _repair_advice(path, meta)
     if not meta.get("complete"):
-        raise UserInputError("the table is unfinished; run the same `workbench rcwa table` command again to resume it", file=path)
+        raise UserInputError(f"the table is unfinished; {repair} to resume it", file=path)
     done = _read_progress(path)
     group = zarr.open_group(str(path), mode="r")
-    try:
-        arrays = {name: group[name][...] for name in meta["arrays"]}
-    except Exception as exc:  # a missing or truncated chunk file
-        raise UserInputError(f"the table's data cannot be read ({type(exc).__name__}: {exc})", file=path) from None
-    n = len(meta["settings"]["wavelengths_nm"])
-    for i in range(n):
+    arrays: dict[str, np.ndarray] = {}
+    for name in meta["arrays"]:
+        try:
+            arrays[name] = np.stack([_read_chunk(group, name, i) for i in range(len(meta["settings"]["wavelengths_nm"]))])
+        except _ChunkUnreadable as exc:
+            raise UserInputError(f"array {name}, {_chunk_words(meta, exc.index)} cannot be read ({exc.reason}); {repair}: "
+                                 "damaged chunks are computed again", file=path) from None
+    for i in range(len(meta["settings"]["wavelengths_nm"])):
         record = done.get(str(i))
-        chunk = {name: arrays[name][i] for name in arrays}
-        if record is None or _chunk_hash(chunk) != record["sha256"]:
-            raise UserInputError(
-                f"chunk {i} (wavelength {meta['settings']['wavelengths_nm'][i]:g} nm) is corrupted or missing: its checksum "
-                "does not match; rebuild the table (delete it, or --force)", file=path,
-            )
+        if record is None or _chunk_hash({name: arrays[name][i] for name in arrays}) != record["sha256"]:
+            raise UserInputError(f"{_chunk_words(meta, i)} is damaged or missing (its checksum does not match); {repair}: "
+                                 "damaged chunks are computed again", file=path)
     return Table(path, meta, arrays)
+
+
+class _ChunkUnreadable(Exception):
+    def __init__(self, index: int, reason: str) -> None:
+        super().__init__(reason)
+        self.index, self.reason = index, reason
+
+
+def _read_chunk(group, name: str, index: int) -> np.ndarray:
+    try:
+        return group[name][index]
+    except Exception as exc:  # a truncated chunk file, a deleted array
+        raise _ChunkUnreadable(index, f"{type(exc).__name__}: {exc}") from None
+
+
+def _chunk_words(meta: dict, index: int) -> str:
+    return f"chunk {index} (wavelength {meta['settings']['wavelengths_nm'][index]:g} nm)"
+
+
+def _repair_advice(path: Path, meta: dict) -> str:
+    """The command that rebuilds a table: the one that made it (the render of a scene, for a cached one)."""
+    source = str(meta.get("structure_source", "STRUCTURE"))
+    structure = meta.get("structure_name", source) if source.startswith("<built-in") else source
+    return (f"run `workbench rcwa table {structure} --out {path}` with the options that built it (or the render that "
+            "uses it) again")

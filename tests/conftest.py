@@ -1,0 +1,31 @@
+"""Suite-wide: the workbench's cache (tables, meshes) never goes to the user's real cache.
+
+WORKBENCH_CACHE points at ``workbench-cache`` in pytest's own temporary root (the parent
+of the numbered ``pytest-N`` folders, which pytest rotates; this folder is not rotated),
+so the whole suite shares one cache, across runs too, as it shared ``./build/tables``
+before the cache moved: the built-in scenes' tables (about 30 s for gold2d's) are built
+once. Entries are named by content and checked by checksum when reused (rcwa.table,
+renderer.build), and concurrent runs are safe (file locks). With ``--basetemp`` the cache
+lives inside that folder instead (and starts empty). Tests that need an empty cache of
+their own set WORKBENCH_CACHE to a tmp_path folder with monkeypatch.
+"""
+
+import os
+
+import pytest
+
+from workbench.core.cache import ENVIRONMENT_VARIABLE
+
+
+@pytest.fixture(scope="session", autouse=True)
+def suite_cache(tmp_path_factory, request):
+    base = tmp_path_factory.getbasetemp()
+    folder = (base if request.config.option.basetemp else base.parent) / "workbench-cache"
+    folder.mkdir(exist_ok=True)
+    previous = os.environ.get(ENVIRONMENT_VARIABLE)
+    os.environ[ENVIRONMENT_VARIABLE] = str(folder)  # also seen by subprocesses and dask workers started from tests
+    yield folder
+    if previous is None:
+        os.environ.pop(ENVIRONMENT_VARIABLE, None)
+    else:
+        os.environ[ENVIRONMENT_VARIABLE] = previous
