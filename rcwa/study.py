@@ -81,11 +81,12 @@ def truncation_study(structure: Structure, cfg: StudyConfig, bar: Any = None) ->
 def _kept(result, keep: int) -> np.ndarray:
     m = result.all_orders["m"]
     mask = np.abs(m) <= keep // 2
-    return result.all_orders["R"][mask].mean(axis=-1) + result.all_orders["T"][mask].mean(axis=-1)
+    # R and T side by side, not summed: for a lossless cell with one propagating order R + T is 1 whatever the error
+    return np.concatenate([result.all_orders["R"][mask].mean(axis=-1), result.all_orders["T"][mask].mean(axis=-1)])
 
 
 def _unpolarized(sw) -> np.ndarray:
-    return sw.R.mean(axis=-1) + sw.T.mean(axis=-1)  # (P, K)
+    return np.concatenate([sw.R.mean(axis=-1), sw.T.mean(axis=-1)], axis=-1)  # (P, 2K): R and T kept apart
 
 
 def interpolation_study(structure: Structure, cfg: StudyConfig, bar: Any = None) -> list[dict]:
@@ -100,7 +101,7 @@ def interpolation_study(structure: Structure, cfg: StudyConfig, bar: Any = None)
     for step in cfg.steps_deg:
         theta = np.append(np.arange(0.0, 90.0, step), 89.999) if 90.0 % step else np.arange(0.0, 90.0 + 1e-9, step)
         theta = np.minimum(theta, 89.999)
-        phi = np.arange(0.0, 90.0 + 1e-9, step)
+        phi = np.append(np.arange(0.0, 90.0, step), 90.0) if 90.0 % step else np.arange(0.0, 90.0 + 1e-9, step)
         th, ph = np.meshgrid(theta, phi, indexing="ij")
         start = time.perf_counter()
         grid = _unpolarized(sweep_directions(structure, wl, th.ravel(), ph.ravel(), **kw)).reshape(th.shape + (-1,))

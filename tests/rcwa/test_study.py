@@ -159,3 +159,26 @@ def test_recommended_settings_meet_their_target(cd_study):
     for p in reachable:
         assert truncation[p["orders"]] <= p["target_error"], (p, truncation)
         assert interpolation[p["grid"], p["step_deg"]] <= p["target_error"], (p, interpolation)
+
+
+def test_a_step_that_does_not_divide_90_covers_the_whole_azimuth_range():
+    """A 20 deg grid ends at 80 deg unless 90 is appended; off-grid test points up to 90
+    deg must still be interpolated (a regression: scipy refused them as out of bounds)."""
+    from rcwa.study import StudyConfig, interpolation_study
+    from tests.rcwa.helpers import lamellar
+
+    cfg = StudyConfig(wavelengths_nm=(550.0,), interpolation_orders=11, keep=3, steps_deg=(20.0,), test_points=50)
+    (row_tp, row_dc) = interpolation_study(lamellar(), cfg)
+    assert row_tp["max_error"] >= 0 and row_dc["max_error"] >= 0
+
+
+def test_a_see_through_cells_interpolation_error_is_not_hidden_by_r_plus_t():
+    """For a lossless cell where only order 0 propagates R0 + T0 = 1 everywhere, so scoring
+    their sum would report no interpolation error; R and T are scored apart."""
+    from rcwa.study import StudyConfig, interpolation_study
+    from tests.rcwa.helpers import lamellar
+
+    sub_wavelength = lamellar(period=0.3, fill=(0.0, 0.15))  # 0.3 um < 550 nm / 1.5: only the zero orders propagate
+    cfg = StudyConfig(wavelengths_nm=(550.0,), interpolation_orders=11, keep=3, steps_deg=(15.0,), test_points=50)
+    rows = interpolation_study(sub_wavelength, cfg)
+    assert all(r["max_error"] > 1e-6 for r in rows)  # Fresnel-like R varies with angle; a sum would give ~1e-16
