@@ -1,5 +1,6 @@
 # One command per job; each installs what is missing first.
 #   make demo    install, then run the main job on the built-in defaults
+#   make check   lint (ruff) and types (mypy), configured in pyproject.toml
 #   make test    the whole test suite (about a minute; `make test-fast` skips the slow marker)
 #   make bench   benchmarks against open-source peers (separate env .venv-bench)
 
@@ -9,7 +10,7 @@ BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed
 SOURCES := pyproject.toml CMakeLists.txt $(wildcard rcwa/cpp/*.cpp rcwa/cpp/*.hpp)
 
-.PHONY: install demo test test-fast bench clean
+.PHONY: install demo check test test-fast bench clean
 
 install: $(STAMP)
 
@@ -28,6 +29,10 @@ $(STAMP): $(SOURCES)
 
 demo: install
 	$(BIN)/workbench demo
+
+check: install
+	$(BIN)/ruff check .
+	$(BIN)/mypy
 
 test: install
 	$(BIN)/python -m pytest -q
