@@ -1,57 +1,45 @@
 """The BWDF: a grating's diffraction orders as a Mitsuba 3 BSDF plugin (``type = "bwdf"``).
 
-Parameters (Mitsuba properties)
--------------------------------
-filename : string
-    An efficiency table written by ``workbench rcwa table`` (rcwa.table).
-mode : string, default "improved"
-    ``"paper"`` reproduces Lange et al. 2021, Eqs. 2-5: one of the N_tot kept orders
-    chosen uniformly, one of the ray's wavelengths at random (the hero), the incident
-    direction from Eqs. 2-3, the Delta test (Eq. 4-5) for the other wavelengths, each read
-    at its own implied order, and the weight DE * N_tot / cos(theta_o) times pbrt's
-    |cos(theta_i)| (pbrt-v3's f * |cos| / pdf). ``"improved"`` is hero-wavelength MIS
-    (Wilkie et al. 2014) for delta lobes: the specular order, whose direction is the same
-    at every wavelength, is chosen with the mean of its efficiency over the ray's
-    wavelengths and keeps all of them (weight DE_i(0) / q0 each); otherwise a diffracted
-    order is chosen at the hero wavelength (by efficiency, mixed with a uniform share: see
-    ``uniform_share``) and the other wavelengths are terminated, the hero reweighted by
-    their number (pbrt-v4's TerminateSecondary, the limit of that MIS when the directions
-    differ).
-mapping : string, default "constant"
-    How the grating vector (the table's +x) lies in the surface: ``"constant"``, at
-    ``grating_angle`` degrees from the shading frame's s axis; ``"radial"``, along the
-    shape's dp/du (Mitsuba's disk: radial, so circular grooves about the centre, as on a
-    CD).
-grating_angle : float, default 0
-delta : float, default 0.05
-    The paper's Delta_x (and Delta_y): tolerance of the implied order in paper mode.
-uniform_share : float in [0, 1], default 0.5
-    Improved mode: the share of the diffracted-order choice made uniformly over the
-    orders that carry light, the rest in proportion to efficiency. 0.5 gave the lowest
-    noise on cornell_cd's CD (relative pixel noise at 128 spp: 0.75 at 0, 0.51 at 0.5,
-    0.54 at 0.8, 0.58 at 1; benchmarks/bench_render.py).
+The parameters, their defaults and a usage example are in :class:`GratingBWDF`'s
+docstring; this one states the physics.
+
+Modes. ``"paper"`` reproduces Lange et al. 2021, Eqs. 2-5: one of the N_tot kept orders
+chosen uniformly, one of the ray's wavelengths at random (the hero), the incident
+direction from Eqs. 2-3, the Delta test (Eqs. 4-5) for the other wavelengths, each read at
+its own implied order, and the weight DE * N_tot / cos(theta_o) times pbrt's
+|cos(theta_i)| (pbrt-v3's f * |cos| / pdf). ``"improved"`` is hero-wavelength MIS
+(Wilkie et al. 2014) for delta lobes: the specular order, whose direction is the same at
+every wavelength, is chosen with the mean of its efficiency over the ray's wavelengths and
+keeps all of them (weight DE_i(0) / q0 each); otherwise a diffracted order is chosen at the
+hero wavelength (by efficiency, mixed with a uniform share) and the other wavelengths are
+terminated, the hero reweighted by their number (pbrt-v4's TerminateSecondary, the limit
+of that MIS when the directions differ).
 
 Weights, and where paper mode differs. Mitsuba's ``sample`` returns f |cos| / pdf. A
-grating order maps direction cosines (times the superstrate index) by a translation,
-which preserves projected solid angle, so a radiance L_i arriving along the order's
-incident direction leaves as DE * L_i: improved mode's weight per chosen order is
-DE / p(order). The paper's
-pbrt-v3 weight carries an extra cos(theta_i)/cos(theta_o); paper mode keeps it, as
-written, so the two can be compared (the accuracy-vs-time study reports the difference).
+grating order maps direction cosines (times the medium's index) by a translation, which
+preserves projected solid angle, so a radiance L_i arriving along the order's incident
+direction leaves as DE * L_i: improved mode's weight per chosen order is DE / p(order).
+The paper's pbrt-v3 weight carries an extra cos(theta_i)/cos(theta_o); paper mode keeps
+it, as written, so the two can be compared (the accuracy-vs-time study reports the
+difference).
 
 See-through elements (tables built with ``--both-sides`` and a transmitting substrate):
-four channels, for a camera above (superstrate side) or below: reflection from the
-camera's side and transmission from the other (R, T_below above; R_below, T below). The
-grating equation keeps the tangential wave vector: n_l omega_i,t = -n_c omega_o,t -
-(m lambda / Lambda_x, n lambda / Lambda_y) with the indices of the light's and camera's
-sides, and a transmitted radiance scales by (n_c / n_l)^2 (the n^2 law of radiance).
-Improved mode samples orders of all channels by efficiency; paper mode tosses a fair
-coin between reflection and transmission (weight x2), as the paper's Sec. 2.2 does.
+two components, reflection (0) and transmission (1), for a camera above (superstrate
+side) or below: reflection from the camera's side and transmission from the other (R,
+T_below above; R_below, T below). The grating equation keeps the tangential wave vector
+across two indices, and a transmitted radiance scales by (n_c / n_l)^2 (the n^2 law of
+radiance; Veach 1997, Sec. 5.2) in radiance transport only; importance (adjoint)
+transport carries no such factor, as Mitsuba's ``dielectric``. Improved mode samples the
+orders of every enabled component by efficiency; paper mode tosses a fair coin between
+reflection and transmission (weight x2), as the paper's Sec. 2.2 does. A component that
+the BSDFContext disables is never sampled: the choice runs over the enabled ones only.
 
 Directions (Mitsuba's si.wi is the paper's omega_o, toward the camera; bs.wo is its
-omega_i, toward the light). In the grating frame, order (m, n) relates them by the
-grating equation with the order sign of workbench.core.conventions:
-    omega_i,t = -omega_o,t - (m lambda / (n1 Lambda_x), n lambda / (n1 Lambda_y)),
+omega_i, toward the light). Tangential wave vectors are divided by k0 = 2 pi / lambda. The
+camera's order travels along omega_o (tangential k_o = n_c omega_o,t); the incident wave
+travels along -omega_i (k_inc = -n_l omega_i,t). Order (m, n) links them by Eq. 2 with the
+sign of workbench.core.conventions (ORDER_SIGN, the one place it is stated):
+    k_o = k_inc + ORDER_SIGN * (m lambda / Lambda_x, n lambda / Lambda_y),
 and the table is read at the incident wave's (theta, phi): theta of omega_i and the
 azimuth of -omega_i,t.
 """
@@ -59,6 +47,7 @@ azimuth of -omega_i,t.
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
 import drjit as dr
 import mitsuba as mi
@@ -73,12 +62,144 @@ from renderer.delta_lobes import (
     select,
 )
 from renderer.efficiency import EfficiencyLookup
+from workbench.core.conventions import ORDER_SIGN
 
 MODES = ("paper", "improved")
 MAPPINGS = ("constant", "radial")
+REFLECTION, TRANSMISSION = 0, 1  # component indices (BSDFContext.component, bs.sampled_component)
+DELTA_RANGE = (0.0, 0.5)  # Delta > 0.5 would keep every wavelength: |x - round(x)| <= 0.5 always
+
+
+@dataclass(frozen=True)
+class Channel:
+    """One way light reaches the camera: the table read when the camera is above
+    (superstrate side) or below, whether the light crosses the grating, its component.
+    """
+
+    above: str
+    below: str
+    transmitted: bool
+    component: int
+
+
+CHANNELS = (Channel("R", "R_below", False, REFLECTION), Channel("T_below", "T", True, TRANSMISSION))
+
+
+def incident_k(k_out, order: float, wavelength_nm, period_um: float):
+    """Tangential k (over k0) of the incident wave that ``order`` sends to tangential
+    ``k_out``: Eq. 2 of Lange et al. 2021 solved for k_inc, with the conventions' sign.
+    """
+    return k_out - ORDER_SIGN * order * wavelength_nm / (1000.0 * period_um)
+
+
+def implied_order(k_inc, k_out, wavelength_nm, period_um: float):
+    """The (real) order that takes tangential ``k_inc`` to ``k_out`` at ``wavelength_nm``
+    (Eq. 4 of Lange et al. 2021: the order each of the ray's wavelengths implies).
+    """
+    return (k_out - k_inc) * (1000.0 * period_um) / (ORDER_SIGN * wavelength_nm)
+
+
+def _check_setting(name: str, value: float) -> float:
+    """The changeable settings' ranges (the constructor and parameters_changed)."""
+    if name == "uniform_share" and not 0.0 <= value <= 1.0:
+        raise ValueError(f"bwdf: 'uniform_share' must be within [0, 1], got {value:g}")
+    if name == "delta" and not DELTA_RANGE[0] < value <= DELTA_RANGE[1]:
+        raise ValueError(f"bwdf: 'delta' must be within (0, 0.5] (an order's distance to an integer), got {value:g}")
+    if name == "grating_angle" and not math.isfinite(value):
+        raise ValueError(f"bwdf: 'grating_angle' must be a finite angle in degrees, got {value:g}")
+    return value
 
 
 class GratingBWDF(DeltaLobesBSDF):
+    """Diffraction orders of a periodic surface, read from an RCWA efficiency table.
+
+    Delta lobes only (``eval`` and ``pdf`` are zero; integrators reach them through
+    ``sample``): reflection, and for see-through tables transmission. The physics, the two
+    modes and their weights are in the module docstring (renderer/bwdf.py).
+
+    .. list-table:: Parameters
+       :header-rows: 1
+
+       * - Name
+         - Type
+         - Meaning
+         - Default
+       * - ``filename``
+         - string
+         - An efficiency table written by ``workbench rcwa table`` (rcwa.table). A table
+           whose substrate transmits is see-through and must be built with
+           ``--both-sides``.
+         - required
+       * - ``mode``
+         - string
+         - ``"improved"`` (hero-wavelength MIS, orders by efficiency) or ``"paper"``
+           (Lange et al. 2021, Eqs. 2-5: uniform orders, the Delta test).
+         - ``"improved"``
+       * - ``mapping``
+         - string
+         - Where the grating vector (the table's +x) lies in the surface: ``"constant"``,
+           at ``grating_angle`` from the shading frame's s axis; ``"radial"``, along the
+           shape's dp/du (Mitsuba's disk: circular grooves about the centre, a CD).
+         - ``"constant"``
+       * - ``grating_angle``
+         - float, degrees
+         - The grating vector's angle from the shading frame's s axis (the groove
+           direction is 90 degrees from it). *Exposed* with the constant mapping.
+         - 0
+       * - ``uniform_share``
+         - float in [0, 1]
+         - Improved mode: the share of the diffracted-order choice made uniformly over the
+           orders that carry light, the rest in proportion to efficiency (a defensive
+           mixture). 0.5 gave the lowest noise on cornell_cd's CD (relative pixel noise
+           at 128 spp: 0.75 at 0, 0.51 at 0.5, 0.54 at 0.8, 0.58 at 1;
+           benchmarks/bench_render.py). *Exposed* in improved mode.
+         - 0.5
+       * - ``delta``
+         - float in (0, 0.5]
+         - Paper mode: the paper's Delta_x (and Delta_y), how close to an integer the
+           order a non-hero wavelength implies must be for it to be kept (Eqs. 4-5).
+           *Exposed* in paper mode.
+         - 0.05
+
+    *Exposed* parameters appear in ``mi.traverse`` under these names and may be changed
+    between renders (``parameters_changed`` checks their ranges). ``BSDFContext`` is
+    honoured: disabled components (reflection 0, transmission 1) are never sampled, and
+    the n^2 radiance factor of transmission applies in radiance transport only.
+
+    Example::
+
+        import mitsuba as mi
+        from renderer import bwdf
+        from renderer.variant import set_variant
+
+        set_variant()  # the one place that picks Mitsuba's variant
+        bwdf.register()
+        cd = mi.load_dict({"type": "bwdf", "filename": "cd.zarr", "mapping": "radial"})
+        params = mi.traverse(cd)
+        params["uniform_share"] = 0.3
+        params.update()
+        print(cd)  # every setting
+    """
+
+    # Set from _configure's dictionary (before the base class registers the instance).
+    filename: str
+    mode: str
+    mapping: str
+    see_through: bool
+    uniform_share: mi.Float
+    delta: mi.Float
+    grating_angle: mi.Float  # degrees
+    lookups: dict[str, EfficiencyLookup]
+    period: tuple[float, ...]  # micrometres, (x, y); a 1D grating's y period is a dummy 1
+    dimension: int
+    media: tuple[str, str]
+    wavelength_range: tuple[float, float, int]
+    orders: list[tuple[int, int]]
+    _specular_index: int | None
+    _n1_axis: tuple[float, float, int]
+    _n1: mi.Float
+    _n3: mi.Float
+
     def __init__(self, props: mi.Properties) -> None:
         # Read and validate everything before the base class registers this instance with
         # Dr.Jit: symbolic calls trace every registered BSDF, so a half-built one left
@@ -86,25 +207,31 @@ class GratingBWDF(DeltaLobesBSDF):
         config = self._configure(props)
         mi.BSDF.__init__(self, props)
         self.__dict__.update(config)
-        self.m_flags = mi.BSDFFlags.DeltaReflection | mi.BSDFFlags.FrontSide
         if self.see_through:
-            self.m_flags = self.m_flags | mi.BSDFFlags.DeltaTransmission | mi.BSDFFlags.BackSide
-        self.m_components = [self.m_flags]
+            both = mi.BSDFFlags.FrontSide | mi.BSDFFlags.BackSide
+            self.m_components = [mi.BSDFFlags.DeltaReflection | both,
+                                 mi.BSDFFlags.DeltaTransmission | both | mi.BSDFFlags.NonSymmetric]
+        else:
+            self.m_components = [mi.BSDFFlags.DeltaReflection | mi.BSDFFlags.FrontSide]
+        self.m_flags = self.m_components[0]
+        for flags in self.m_components[1:]:
+            self.m_flags = self.m_flags | flags
+        for name in self._exposed():
+            dr.make_opaque(getattr(self, name))
 
     @staticmethod
     def _configure(props: mi.Properties) -> dict:
-        path = props.get("filename", "")
+        path = str(props.get("filename", ""))
         if not path:
             raise ValueError("bwdf: the 'filename' property (an efficiency table) is missing")
         mode = props.get("mode", "improved")
         mapping = props.get("mapping", "constant")
         if mode not in MODES:
             raise ValueError(f"bwdf: 'mode' must be one of {MODES}, got {mode!r}")
-        uniform_share = float(props.get("uniform_share", 0.5))
-        if not 0.0 <= uniform_share <= 1.0:
-            raise ValueError(f"bwdf: 'uniform_share' must be within [0, 1], got {uniform_share}")
         if mapping not in MAPPINGS:
             raise ValueError(f"bwdf: 'mapping' must be one of {MAPPINGS}, got {mapping!r}")
+        settings = {name: _check_setting(name, float(props.get(name, default)))  # type: ignore[arg-type]
+                    for name, default in (("uniform_share", 0.5), ("delta", 0.05), ("grating_angle", 0.0))}
         table = open_table(path)  # clear errors for missing, unfinished or damaged tables
         arrays = set(table.meta["arrays"])
         see_through = "T" in arrays
@@ -117,20 +244,59 @@ class GratingBWDF(DeltaLobesBSDF):
                              f"(period {list(structure.period)}); use mapping = \"constant\"")
         wl = table.wavelengths_nm
         grid = np.linspace(wl.min(), wl.max(), max(2, int(round((wl.max() - wl.min()) / 5.0)) + 1))
+        orders = list(zip(table.meta["orders_m"], table.meta["orders_n"], strict=True))
         return {
-            "mode": mode, "mapping": mapping, "see_through": see_through,
-            "angle": math.radians(props.get("grating_angle", 0.0)), "delta": float(props.get("delta", 0.05)),
-            "uniform_share": uniform_share,
+            "filename": str(path), "mode": mode, "mapping": mapping, "see_through": see_through,
+            **{name: mi.Float(value) for name, value in settings.items()},
             "lookups": {name: EfficiencyLookup.from_table(table, name) for name in ("R", "T", "R_below", "T_below")
                         if name in arrays},
             "period": tuple(structure.period) + ((1.0,) if structure.dimension == 1 else ()),
-            "orders": list(zip(table.meta["orders_m"], table.meta["orders_n"])),
-            "_specular_index": next((k for k, mn in enumerate(zip(table.meta["orders_m"], table.meta["orders_n"]))
-                                     if tuple(mn) == (0, 0)), None),
+            "dimension": structure.dimension,
+            "media": (structure.superstrate.name, structure.substrate.name),
+            "wavelength_range": (float(wl.min()), float(wl.max()), int(wl.size)),
+            "orders": orders,
+            "_specular_index": next((k for k, mn in enumerate(orders) if tuple(mn) == (0, 0)), None),
             "_n1_axis": (float(grid[0]), float(grid[1] - grid[0]), grid.size),
             "_n1": mi.Float(np.real(structure.superstrate.refractive_index(grid)).astype(np.float32)),
             "_n3": mi.Float(np.real(structure.substrate.refractive_index(grid)).astype(np.float32)),
         }
+
+    # ---------------------------------------------------------------- parameters
+
+    def _exposed(self) -> list[str]:
+        """The settings that change this instance's output (so mi.traverse shows them)."""
+        return (["grating_angle"] if self.mapping == "constant" else []) + \
+            (["uniform_share"] if self.mode == "improved" else ["delta"])
+
+    def traverse(self, callback) -> None:
+        for name in self._exposed():
+            callback.put(name, getattr(self, name), mi.ParamFlags.NonDifferentiable)
+
+    def parameters_changed(self, keys=None) -> None:
+        for name in self._exposed():
+            value = getattr(self, name)
+            if dr.width(value) != 1:
+                raise ValueError(f"bwdf: '{name}' must be one number, got {dr.width(value)} values")
+            _check_setting(name, float(value[0]))
+            dr.make_opaque(value)
+
+    def to_string(self) -> str:
+        media = f"superstrate {self.media[0]}, substrate {self.media[1]}"
+        lo, hi, count = self.wavelength_range
+        lines = [
+            f'filename = "{self.filename}"',
+            f'mode = "{self.mode}"',
+            f'mapping = "{self.mapping}"',
+            f"grating_angle = {self.grating_angle[0]:g} deg" + (" (unused: radial mapping)" if self.mapping == "radial" else ""),
+            f"uniform_share = {self.uniform_share[0]:g}" + ("" if self.mode == "improved" else " (unused: paper mode)"),
+            f"delta = {self.delta[0]:g}" + ("" if self.mode == "paper" else " (unused: improved mode)"),
+            f"components = {'[reflection, transmission] (see-through)' if self.see_through else '[reflection]'}",
+            f"period_um = {list(self.period[:self.dimension])}",
+            f"orders = {[tuple(int(v) for v in mn) for mn in self.orders]}",
+            f"wavelengths_nm = {lo:g}-{hi:g} ({count} values)",
+            f"media = {media}",
+        ]
+        return "GratingBWDF[\n" + ",\n".join("  " + line for line in lines) + "\n]"
 
     # ---------------------------------------------------------------- helpers
 
@@ -143,20 +309,26 @@ class GratingBWDF(DeltaLobesBSDF):
 
     def _grating_axis(self, si: mi.SurfaceInteraction3f) -> tuple[mi.Float, mi.Float]:
         if self.mapping == "constant":
-            return mi.Float(math.cos(self.angle)), mi.Float(math.sin(self.angle))
+            angle = self.grating_angle * (math.pi / 180.0)
+            return mi.Float(dr.cos(angle)), mi.Float(dr.sin(angle))
         g = si.to_local(si.dp_du)
         norm = dr.sqrt(g.x * g.x + g.y * g.y)
         ok = norm > 1e-12  # the exact centre of a disk has no radial direction
         return dr.select(ok, g.x / norm, 1.0), dr.select(ok, g.y / norm, 0.0)
 
-    def _incident(self, u_o, v_o, m: float, n: float, lam, n1, n_light=None, z_sign: float = 1.0):
+    def _enabled_channels(self, ctx: mi.BSDFContext) -> list[Channel]:
+        """The channels the context lets this call sample (reflection 0, transmission 1)."""
+        wanted = [ctx.is_enabled(mi.BSDFFlags.DeltaReflection, REFLECTION),
+                  self.see_through and ctx.is_enabled(mi.BSDFFlags.DeltaTransmission, TRANSMISSION)]
+        return [c for c, on in zip(CHANNELS, wanted, strict=True) if on]
+
+    def _incident(self, u_o, v_o, m: float, n: float, lam, n_cam, n_light, z_sign: float):
         """omega_i (grating frame) for order (m, n); propagating mask; table (theta, phi) in degrees.
 
-        n1: the camera side's index; n_light: the light side's (default: the same side).
+        n_cam, n_light: the indices of the camera's and the light's sides.
         """
-        n_light = n1 if n_light is None else n_light
-        ux = (-n1 * u_o - m * lam / (1000.0 * self.period[0])) / n_light
-        uy = (-n1 * v_o - n * lam / (1000.0 * self.period[1])) / n_light
+        ux = -incident_k(n_cam * u_o, m, lam, self.period[0]) / n_light
+        uy = -incident_k(n_cam * v_o, n, lam, self.period[1]) / n_light
         s2 = ux * ux + uy * uy
         propagating = s2 < 1.0
         z = z_sign * dr.safe_sqrt(1.0 - s2)
@@ -166,21 +338,23 @@ class GratingBWDF(DeltaLobesBSDF):
 
     # ---------------------------------------------------------------- BSDF interface
 
-    def _candidates(self, u_o, v_o, lam, below, valid, specular=None):
+    def _candidates(self, u_o, v_o, lam, below, valid, channels, radiance, specular=None):
         """Every (channel, order) the camera direction can come from: directions, masks,
-        table angles, and efficiency times the radiance factor (n_c / n_l)^2.
-        ``specular``: the specular order's efficiency at ``lam`` when already known."""
+        table angles, and efficiency times the radiance factor (n_c / n_l)^2 (radiance
+        transport only). ``specular``: the specular order's efficiency at ``lam`` when
+        already known.
+        """
         n1, n3 = self._index(self._n1, lam), self._index(self._n3, lam)
         n_cam = dr.select(below, n3, n1)
         out = []
-        channels = [("R", "R_below", False)] + ([("T_below", "T", True)] if self.see_through else [])
-        for above_name, below_name, transmitted in channels:
+        for channel in channels:
+            transmitted = channel.transmitted
             n_light = dr.select(below, n1, n3) if transmitted else n_cam
-            factor = (n_cam / n_light) ** 2 if transmitted else mi.Float(1.0)
+            factor = (n_cam / n_light) ** 2 if transmitted and radiance else mi.Float(1.0)
+            look_above, look_below = self.lookups[channel.above], self.lookups.get(channel.below)
             for k, (m, n) in enumerate(self.orders):
                 ux, uy, z, prop, theta, phi = self._incident(u_o, v_o, float(m), float(n), lam, n_cam, n_light,
                                                              -1.0 if transmitted else 1.0)
-                look_above, look_below = self.lookups[above_name], self.lookups.get(below_name)
                 if specular is not None and not transmitted and k == self._specular_index:
                     de = specular
                 else:
@@ -189,11 +363,16 @@ class GratingBWDF(DeltaLobesBSDF):
                         de = dr.select(below, look_below.eval(mi.UInt32(k), lam, theta, phi, valid & prop & below), de)
                 value = dr.select(prop, de * factor, 0.0)
                 out.append({"ux": ux, "uy": uy, "z": z, "prop": prop, "theta": theta, "phi": phi, "value": value,
-                            "transmitted": transmitted, "k": k, "n_cam": n_cam, "n_light": n_light, "factor": factor})
+                            "transmitted": transmitted, "k": k, "n_cam": n_cam, "n_light": n_light})
         return out
 
     def sample(self, ctx, si, sample1, sample2, active=True):
         bs = dr.zeros(mi.BSDFSample3f)
+        channels = self._enabled_channels(ctx)
+        if not channels:
+            return bs, mi.Spectrum(0.0)
+        radiance = ctx.mode == mi.TransportMode.Radiance
+        reflection = channels[0].component == REFLECTION
         wi = si.wi
         below = mi.Frame3f.cos_theta(wi) < 0  # camera on the substrate side
         active = mi.Bool(active) & (dr.abs(mi.Frame3f.cos_theta(wi)) > 0)
@@ -208,18 +387,19 @@ class GratingBWDF(DeltaLobesBSDF):
         lam = select([wl[i] for i in range(WAVELENGTHS_PER_RAY)], hero)
 
         lanes = None
-        if self.mode == "improved" and self._specular_index is not None:
+        if self.mode == "improved" and reflection and self._specular_index is not None:
             lanes = self._specular_efficiencies(u_o, v_o, cos_o, wl, below, active)
-        cands = self._candidates(u_o, v_o, lam, below, active, select(lanes, hero) if lanes else None)
+        cands = self._candidates(u_o, v_o, lam, below, active, channels, radiance,
+                                 select(lanes, hero) if lanes else None)
         if self.mode == "improved":
-            chosen, pdf, weight_of = self._choose_improved(cands, lanes, hero, rest)
+            k0 = self._specular_index if reflection else None
+            chosen, pdf, weight_of = self._choose_improved(cands, lanes, k0, hero, rest)
         else:
             count = len(self.orders)
-            channels = 2 if self.see_through else 1
-            channel = mi.UInt32(dr.minimum(dr.floor(rest * channels), channels - 1))
-            rest2 = rest * channels - mi.Float(channel)
+            channel = mi.UInt32(dr.minimum(dr.floor(rest * len(channels)), len(channels) - 1))
+            rest2 = rest * len(channels) - mi.Float(channel)
             chosen = channel * count + mi.UInt32(dr.minimum(dr.floor(rest2 * count), count - 1))
-            pdf = mi.Float(1.0 / (count * channels))
+            pdf = mi.Float(1.0 / (count * len(channels)))
         pick = lambda key: select([c[key] for c in cands], chosen)  # noqa: E731
         ux, uy, z, theta, phi = pick("ux"), pick("uy"), pick("z"), pick("theta"), pick("phi")
         transmitted = select([mi.Bool(c["transmitted"]) for c in cands], chosen)
@@ -228,7 +408,8 @@ class GratingBWDF(DeltaLobesBSDF):
         if self.mode == "improved":
             weight = weight_of(valid)
         else:
-            weight = self._paper_weights(u_o, v_o, ux, uy, z, theta, phi, wl, cos_o, below, transmitted, chosen, valid)
+            weight = self._paper_weights(u_o, v_o, ux, uy, z, theta, phi, wl, cos_o, below, transmitted, valid,
+                                         channels, radiance)
 
         z_world = dr.select(below, -z, z)
         bs.wo = mi.Vector3f(ux * ca - uy * sa, ux * sa + uy * ca, z_world)
@@ -237,31 +418,31 @@ class GratingBWDF(DeltaLobesBSDF):
         bs.eta = dr.select(transmitted, n_light / n_cam, 1.0)
         bs.sampled_type = dr.select(transmitted, mi.UInt32(+mi.BSDFFlags.DeltaTransmission),
                                     mi.UInt32(+mi.BSDFFlags.DeltaReflection))
-        bs.sampled_component = mi.UInt32(0)
+        bs.sampled_component = dr.select(transmitted, mi.UInt32(TRANSMISSION), mi.UInt32(REFLECTION))
         return bs, dr.select(valid, weight, 0.0)
 
-    def _choose_improved(self, cands, lanes, hero, rest):
+    def _choose_improved(self, cands, lanes, k0, hero, rest):
         """Improved mode's choice: the specular order, shared by all wavelengths, or one
         diffracted (channel, order) of the hero wavelength.
 
-        The specular reflection (order (0, 0) on the camera's side) leaves in the same
-        direction at every wavelength, so it is chosen with a probability q0 that does not
-        depend on the hero: the mean of its efficiency over the ray's wavelengths. Every
-        wavelength then keeps its own weight DE_i(0) / q0 (hero-wavelength MIS, Wilkie et
-        al. 2014, Eq. 7, where all four strategies give this direction with the same
-        probability). Otherwise (1 - q0) a diffracted lobe is chosen with probability
-        (1 - a) DE / sum(DE) + a / (number of lobes with DE > 0) at the hero wavelength, a =
-        ``uniform_share``: a defensive mixture (Hesterberg 1995, Technometrics 37, 185) that
-        keeps weak orders sampled when they carry a bright source, as the CD's rainbow of
-        the ceiling light does; its direction depends on the wavelength, so the
+        The specular reflection (order (0, 0) on the camera's side, candidate ``k0``;
+        None when reflection is disabled or not kept) leaves in the same direction at every
+        wavelength, so it is chosen with a probability q0 that does not depend on the
+        hero: the mean of its efficiency over the ray's wavelengths. Every wavelength then
+        keeps its own weight DE_i(0) / q0 (hero-wavelength MIS, Wilkie et al. 2014, Eq. 7,
+        where all four strategies give this direction with the same probability).
+        Otherwise (1 - q0) a diffracted lobe is chosen with probability (1 - a) DE /
+        sum(DE) + a / (number of lobes with DE > 0) at the hero wavelength, a =
+        ``uniform_share``: a defensive mixture (Hesterberg 1995, Technometrics 37, 185)
+        that keeps weak orders sampled when they carry a bright source, as the CD's
+        rainbow of the ceiling light does; its direction depends on the wavelength, so the
         others are terminated and the hero is reweighted by their number (the delta-lobe
         limit of the same MIS; pbrt-v4's TerminateSecondary).
-        ``lanes``: the specular order's efficiency at each wavelength (None when the table
-        has no specular order). Returns (chosen candidate, its probability, a function
+        ``lanes``: the specular order's efficiency at each wavelength (None without a
+        specular candidate). Returns (chosen candidate, its probability, a function
         valid -> weight).
         """
         alpha = self.uniform_share
-        k0 = self._specular_index
         q0 = dr.clip(sum(lanes[1:], lanes[0]) / WAVELENGTHS_PER_RAY, 0.0, 1.0) if lanes else mi.Float(0.0)
         specular = rest < q0
         rest_d = dr.clip((rest - q0) / dr.maximum(1.0 - q0, 1e-12), 0.0, 0.99999994)
@@ -297,7 +478,8 @@ class GratingBWDF(DeltaLobesBSDF):
 
     def _specular_efficiencies(self, u_o, v_o, cos_o, wl, below, active):
         """Efficiency of the specular order (0, 0) on the camera's side at each of the ray's
-        wavelengths, read at the mirror direction (the same for all of them)."""
+        wavelengths, read at the mirror direction (the same for all of them).
+        """
         theta = dr.acos(dr.clip(cos_o, 0.0, 1.0)) * (180.0 / math.pi)
         phi = dr.atan2(v_o, u_o) * (180.0 / math.pi)
         k = mi.UInt32(self._specular_index)
@@ -310,12 +492,13 @@ class GratingBWDF(DeltaLobesBSDF):
             lanes.append(de)
         return lanes
 
-    def _paper_weights(self, u_o, v_o, ux, uy, z, theta, phi, wl, cos_o, below, transmitted, chosen, valid):
+    def _paper_weights(self, u_o, v_o, ux, uy, z, theta, phi, wl, cos_o, below, transmitted, valid, channels, radiance):
         """Eqs. 4-5: each wavelength at its own implied order, kept if within Delta; the
-        order was chosen uniformly (x N_tot) and, for see-through elements, the side by a
-        fair coin (x 2); weight DE * N_tot / cos(theta_o) * |cos(theta_i)| as in pbrt-v3."""
+        order was chosen uniformly (x N_tot) and, when both components are enabled, the
+        side by a fair coin (x 2); weight DE * N_tot / cos(theta_o) * |cos(theta_i)| as in
+        pbrt-v3, times (n_c / n_l)^2 for transmission in radiance transport.
+        """
         count = len(self.orders)
-        channels = 2 if self.see_through else 1
         cos_ratio = dr.abs(z) / cos_o
         weights = []
         for i in range(WAVELENGTHS_PER_RAY):
@@ -323,29 +506,24 @@ class GratingBWDF(DeltaLobesBSDF):
             n1, n3 = self._index(self._n1, lam_i), self._index(self._n3, lam_i)
             n_cam = dr.select(below, n3, n1)
             n_light = dr.select(transmitted, dr.select(below, n1, n3), n_cam)
-            nx = (-n_light * ux - n_cam * u_o) * 1000.0 * self.period[0] / lam_i
-            ny = (-n_light * uy - n_cam * v_o) * 1000.0 * self.period[1] / lam_i
+            nx = implied_order(-n_light * ux, n_cam * u_o, lam_i, self.period[0])
+            ny = implied_order(-n_light * uy, n_cam * v_o, lam_i, self.period[1])
             mx = dr.sign(nx) * dr.floor(dr.abs(nx) + 0.5)
             my = dr.sign(ny) * dr.floor(dr.abs(ny) + 0.5)
             passes = valid & (dr.abs(nx - mx) < self.delta) & (dr.abs(ny - my) < self.delta)
             de = mi.Float(0.0)
-            names = (("R", "R_below"), ("T_below", "T"))
             for k, (m, n) in enumerate(self.orders):
                 hit = passes & (mx == m) & (my == n)
-                for t_flag, (above_name, below_name) in enumerate(names[:channels]):
-                    sel = hit & (transmitted == bool(t_flag))
-                    value = self.lookups[above_name].eval(mi.UInt32(k), lam_i, theta, phi, sel & ~below)
-                    if below_name in self.lookups:
-                        value = dr.select(below, self.lookups[below_name].eval(mi.UInt32(k), lam_i, theta, phi, sel & below), value)
+                for channel in channels:
+                    sel = hit & (transmitted == channel.transmitted)
+                    value = self.lookups[channel.above].eval(mi.UInt32(k), lam_i, theta, phi, sel & ~below)
+                    if channel.below in self.lookups:
+                        value = dr.select(below, self.lookups[channel.below].eval(mi.UInt32(k), lam_i, theta, phi,
+                                                                                  sel & below), value)
                     de = dr.select(sel, value, de)
-            factor = dr.select(transmitted, (n_cam / n_light) ** 2, 1.0)
-            weights.append(de * factor * count * channels * cos_ratio)
+            factor = dr.select(transmitted, (n_cam / n_light) ** 2, 1.0) if radiance else 1.0
+            weights.append(de * factor * count * len(channels) * cos_ratio)
         return mi.Spectrum(weights)
-
-
-
-    def to_string(self):
-        return f"GratingBWDF[mode={self.mode}, mapping={self.mapping}, orders={len(self.orders)}]"
 
 
 def register() -> None:

@@ -6,8 +6,13 @@
   efficiency and half uniformly over the orders that carry light, and the specular
   order's weight per wavelength is DE_i(0) / q0 (1e-4, float32).
 * Every sampled direction satisfies the grating equation for an integer kept order,
-  computed here independently from the structure's superstrate index (tolerance 1e-4 on
-  the implied order: float32 directions).
+  computed here with workbench.core.conventions.order_kx from the structure's superstrate
+  index (tolerance 1e-4 on the implied order: float32 directions).
+* The order sign: on a blazed (asymmetric) aluminium grating, the light that reaches the
+  camera direction of RCWA's order m (its own output direction) is sampled from the
+  incident direction order_kx names for m, and carries RCWA's efficiency of order m, not
+  of -m (TOLERANCE_ORDER relative: the table node's float32 storage and the stratified
+  expectation's boundary strata; R(-1) and R(+1) differ by a factor of 6 there).
 * A table of a flat aluminium mirror reduces to the Fresnel reflectance of aluminium
   (independent Airy/Fresnel formula; tolerance 2e-4: bilinear interpolation of the
   table's 1-degree theta grid on a smooth curve).
@@ -24,8 +29,10 @@ from scipy.stats import chisquare
 import rcwa
 from rcwa.table import build_table, settings_for
 from tests.rcwa.helpers import airy_rt
+from workbench.core.conventions import incident_tangential_k, order_kx
 
 WAVELENGTHS = (450.0, 520.0, 600.0, 680.0)
+TOLERANCE_ORDER = 1e-3
 
 
 @pytest.fixture(scope="module")
@@ -60,8 +67,12 @@ def _sample(bsdf, si, u1):
 
 
 def _implied_orders(wo, wi, wavelength_nm, period_um=1.6):
+    """The real m with order_kx(k_inc, m) = k_o: the incident wave travels along -wo, the
+    order along wi (tangential k over k0, times the superstrate index)."""
     n1 = float(np.real(rcwa.structure.material_from_spec("polycarbonate").refractive_index(wavelength_nm)))
-    return (-wo[0] - wi[0]) * n1 * period_um * 1000.0 / wavelength_nm
+    k_inc, k_o = -n1 * np.asarray(wo[0]), n1 * wi[0]
+    step = order_kx(0.0, 1, period_um * 1000.0, wavelength_nm)  # the k shift of one order
+    return (k_o - k_inc) / step
 
 
 @pytest.mark.parametrize("mode", ["improved", "paper"])
@@ -78,8 +89,9 @@ def test_sampled_order_frequencies(bwdf_factory, cd_table, mode):
     orders = np.rint(_implied_orders(wo, wi, WAVELENGTHS[hero])).astype(int)
     kept = [m for m, _ in cd_table.orders]
     # The intended probabilities, from efficiencies the plugin reports via its weights.
-    from renderer.efficiency import EfficiencyLookup
     import mitsuba as mi
+
+    from renderer.efficiency import EfficiencyLookup
 
     look = EfficiencyLookup.from_table(cd_table)
     n1 = float(np.real(rcwa.structure.material_from_spec("polycarbonate").refractive_index(WAVELENGTHS[hero])))
@@ -141,6 +153,47 @@ def test_directions_obey_the_grating_equation(bwdf_factory):
             assert np.all(np.abs(implied - np.rint(implied)) < 1e-4)
             assert np.allclose(wo[1, sel], -wi[1], atol=1e-6)  # k_y is conserved by a 1D grating
             assert np.all(np.abs(np.linalg.norm(wo[:, sel], axis=0) - 1) < 1e-5)
+
+
+@pytest.mark.parametrize("m", [-1, 1])
+def test_order_sign_follows_the_conventions(mitsuba_variant, tmp_path, m):
+    import drjit as dr
+    import mitsuba as mi
+
+    from renderer.bwdf import register
+
+    register()
+    blazed = rcwa.Structure.from_dict({"period": [1.0], "superstrate": "air", "substrate": "aluminum", "layers": [
+        {"thickness": 0.08, "material": "air", "shapes": [{"material": "aluminum", "x": [0.0, 0.33]}]},
+        {"thickness": 0.08, "material": "air", "shapes": [{"material": "aluminum", "x": [0.0, 0.67]}]}]})
+    wavelength, theta, phi, orders = 500.0, 20.0, 0.0, 21  # (theta, phi) on the table's grid
+    st = settings_for(blazed, "draft", wavelengths="500:600:2", theta_step=10.0, phi_step=30.0, orders=orders, keep=5)
+    build_table(blazed, st, tmp_path / "blazed.zarr", progress=False)
+    bsdf = mi.load_dict({"type": "bwdf", "filename": str(tmp_path / "blazed.zarr")})
+    solved = rcwa.solve(blazed, wavelength, theta, phi, orders)
+    assert solved.order(-1).R > 3 * solved.order(1).R  # blazed: a flipped sign would read the other value
+    out_theta, out_phi = (math.radians(a) for a in solved.order(m).direction_R)
+    wi = (math.sin(out_theta) * math.cos(out_phi), math.sin(out_theta) * math.sin(out_phi), math.cos(out_theta))
+    n = 200_000
+    si = dr.zeros(mi.SurfaceInteraction3f, n)
+    si.wi = mi.Vector3f(*wi)
+    si.wavelengths = mi.Spectrum(*(4 * [wavelength]))
+    bs, w = bsdf.sample(mi.BSDFContext(), si, mi.Float((np.arange(n) + 0.5) / n), mi.Point2f(0.5, 0.5))
+    wo, w, valid = np.array(bs.wo), np.array(w), np.array(bs.pdf) > 0
+    # Every sampled light direction is one order_kx links to the camera's direction.
+    k_inc = -wo[0, valid]
+    kept = np.arange(-2, 3)
+    mismatch = np.abs(order_kx(k_inc[:, None], kept[None, :], 1000.0, wavelength) - wi[0])
+    assert np.all(mismatch.min(axis=1) < 1e-5) and np.allclose(wo[1, valid], -wi[1], atol=1e-6)
+    # The light of order m comes from the incidence (theta, phi) that order_kx names for m.
+    kx, ky = incident_tangential_k(1.0, math.radians(theta), math.radians(phi))
+    assert order_kx(kx, m, 1000.0, wavelength) == pytest.approx(wi[0], abs=1e-12)
+    light = np.array([-kx, -ky, math.cos(math.radians(theta))])  # omega_i: against the incident wave
+    from_light = valid & np.all(np.abs(wo - light[:, None]) < 1e-5, axis=0)
+    assert from_light.any()
+    # Its expected weight (mean over the stratified first number) is RCWA's efficiency of m.
+    expected = w[:, from_light].sum(axis=1) / n
+    np.testing.assert_allclose(expected, solved.order(m).R, rtol=TOLERANCE_ORDER)
 
 
 def test_flat_aluminium_reduces_to_fresnel(mitsuba_variant, tmp_path):

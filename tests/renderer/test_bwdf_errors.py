@@ -60,7 +60,7 @@ def test_see_through_table_needs_both_sides(mitsuba_variant, tmp_path):
         _load(mi, filename=str(tmp_path / "one_side.zarr"))
 
 
-def test_bad_mode_and_mapping(mitsuba_variant, cd_table):
+def test_bad_settings(mitsuba_variant, cd_table):
     import mitsuba as mi
 
     with pytest.raises(Exception, match="'mode' must be one of"):
@@ -69,6 +69,11 @@ def test_bad_mode_and_mapping(mitsuba_variant, cd_table):
         _load(mi, filename=str(cd_table.path), mapping="spiral")
     with pytest.raises(Exception, match="'uniform_share' must be within"):
         _load(mi, filename=str(cd_table.path), uniform_share=1.5)
+    for delta in (0.0, -0.1, 0.6):  # Delta above 0.5 would keep every wavelength, at or below 0 none
+        with pytest.raises(Exception, match="'delta' must be within"):
+            _load(mi, filename=str(cd_table.path), mode="paper", delta=delta)
+    with pytest.raises(Exception, match="'grating_angle' must be a finite angle"):
+        _load(mi, filename=str(cd_table.path), grating_angle=float("nan"))
 
 
 def test_table_must_cover_where_the_camera_sees():
