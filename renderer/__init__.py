@@ -1,5 +1,30 @@
-"""Rendering with Mitsuba 3: the BWDF plugin, scenes, camera model (issues 4-5).
+"""Rendering with Mitsuba 3: diffractive surfaces in the Cornell-box scene (docs/architecture.md).
 
-Only renderer.variant exists so far: it finds a usable libLLVM and sets Mitsuba's
-variant, once per process.
+Mitsuba's variant is chosen in one place, :mod:`renderer.variant`; no other module calls
+``mi.set_variant``. The modules:
+
+Plugins (registered with Mitsuba by ``renderer.build.register_plugins``)
+    bwdf          the BWDF: a grating's diffraction orders from an RCWA efficiency table,
+                  ``type = "bwdf"`` (paper mode, Lange et al. 2021 Eqs. 2-5, and improved mode)
+    dielectric    a dispersive smooth dielectric, ``type = "dispersive_dielectric"``
+    emitter       a power-cosine area light, ``type = "cospower_area"``
+    delta_lobes   what the two delta-lobe BSDFs share (hero wavelength, zero eval/pdf)
+    efficiency    efficiency-table lookups inside Dr.Jit kernels
+
+Scenes and rendering
+    scene         scene files (TOML) and their validation; ``scenes/`` holds the built-in ones
+    build         a scene spec to a Mitsuba scene (meshes, spectra, tables, sensor)
+    camera        the camera model shared with calibration (OpenCV pinhole with distortion)
+    response      camera response curves
+    checks        pre-render checks (table coverage of the camera's sensitivities)
+    planner       what a scene needs simulated, and its estimated cost
+    render        ``workbench render``: passes, resume, EXR, preview, sidecar
+    fit           fast in-place re-renders for calibration (the ``fit`` preset)
+    variant       Mitsuba's variant and the libLLVM it needs
+
+Accuracy
+    accuracy      error measures on a scene's diffractive elements (shared with benchmarks/)
+    study         ``workbench study render``: rendering accuracy versus time
+
+``data/`` holds the measured Cornell box (with its provenance).
 """
