@@ -18,10 +18,11 @@ import numpy as np
 
 from rcwa import _core
 from rcwa.factorization import HarmonicIndices, permittivity_matrices, resolve_rule
+from rcwa.layer_input import LayerInput, LayerKind
 from rcwa.materials import Material
 from rcwa.result import OrderResult, SolveResult
 from rcwa.structure import Structure
-from workbench.core.conventions import Polarization, incident_tangential_k
+from workbench.core.conventions import Polarization, incident_tangential_k, order_kxy
 from workbench.core.errors import UserInputError
 
 # One BLAS thread inside the core: its matrices are small (2N <= ~1000), OpenBLAS's idle
@@ -34,12 +35,19 @@ _core.set_blas_threads(1)
 # imaginary part is below this (relative) is treated as lossless.
 LOSSLESS_TOLERANCE = 1e-12
 MAX_THETA_DEG = 90.0
-STACK_METHODS = ("etm", "smatrix")
+# The stack methods by their command-line names (rcwa/cpp/stack.hpp).
+STACK_METHOD_OF = {"etm": _core.StackMethod.ENHANCED_TRANSMITTANCE, "smatrix": _core.StackMethod.SCATTERING_MATRIX}
+STACK_METHODS = tuple(STACK_METHOD_OF)
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)  # eq=False: identity, since numpy arrays have no truth value
 class PreparedStructure:
-    """Everything about a request that does not depend on the incident direction."""
+    """Everything about a request that does not depend on the incident direction.
+
+    Checked on creation (ValueError naming the field) before any of it reaches C++: N
+    harmonics, ``dkx`` and ``dky`` float64 of shape (N,), ``zero`` in [0, N), every
+    patterned layer's matrices N x N.
+    """
 
     structure: Structure
     wavelength_nm: float
@@ -51,10 +59,31 @@ class PreparedStructure:
     zero: int
     eps_sup: complex
     eps_sub: complex
-    layers: list
+    layers: tuple[LayerInput, ...]
+
+    def __post_init__(self) -> None:
+        n = int(np.prod(self.counts))
+        for name in ("dkx", "dky"):
+            value = getattr(self, name)
+            if not isinstance(value, np.ndarray) or value.dtype != np.float64 or value.shape != (n,):
+                got = (value.shape, str(value.dtype)) if isinstance(value, np.ndarray) else type(value).__name__
+                raise ValueError(f"PreparedStructure.{name}: expected float64 of shape ({n},), got {got!r}")
+        if not 0 <= self.zero < n:
+            raise ValueError(f"PreparedStructure.zero: expected an index in [0, {n}), got {self.zero!r}")
+        for i, layer in enumerate(self.layers):
+            if not isinstance(layer, LayerInput):
+                raise ValueError(f"PreparedStructure.layers[{i}]: expected a LayerInput, got {type(layer).__name__}")
+            if layer.kind != LayerKind.UNIFORM and layer.size != n:
+                raise ValueError(f"PreparedStructure.layers[{i}]: expected {n} x {n} matrices (one row per "
+                                 f"harmonic), got {layer.size} x {layer.size}")
+
+    @property
+    def core_layers(self) -> list[_core.LayerInput]:
+        return [layer.core for layer in self.layers]
 
 
-def prepare(structure: Structure, wavelength_nm: float, orders: int | Sequence[int], factorization: str = "auto") -> PreparedStructure:
+def prepare(structure: Structure, wavelength_nm: float, orders: int | Sequence[int],
+            factorization: str = "auto") -> PreparedStructure:
     """Validate the request and build every layer's Fourier matrices (direction-free)."""
     counts = _order_counts(orders, structure.dimension)
     rule = resolve_rule(factorization, structure.dimension, structure.layers)
@@ -69,15 +98,15 @@ def prepare(structure: Structure, wavelength_nm: float, orders: int | Sequence[i
     h, dkx, dky, zero = _harmonics(structure.period, counts, wl_um)
     # A zero-thickness layer is the identity in either stack; it is left out rather than
     # passed on, since at a Rayleigh point (k_z = 0) its mode matrices are singular.
-    layers = [_layer_input(layer, structure, eps_of, h, rule, 2 * math.pi / wl_um)
-              for layer in structure.layers if layer.thickness > 0]
+    layers = tuple(_layer_input(layer, structure, eps_of, h, rule, 2 * math.pi / wl_um)
+                   for layer in structure.layers if layer.thickness > 0)
     if not layers:
         # A bare interface: where an order grazes both half-spaces (k_z = 0 in each, e.g. the
         # same medium on both sides at a Rayleigh point) its reflected and transmitted
         # waves are one field and the matching system is singular. A uniform layer of the
         # superstrate's medium (one radian of phase thick) changes nothing physically and
         # gives those orders a finite layer's well-defined modes.
-        layers = [("uniform", 1.0, complex(eps_sup.real, 0.0), [])]
+        layers = (LayerInput(LayerKind.UNIFORM, 1.0, complex(eps_sup.real, 0.0)),)
     return PreparedStructure(structure, float(wavelength_nm), counts, rule, h, dkx, dky, zero,
                              complex(eps_sup.real, 0.0), eps_sub, layers)
 
@@ -114,10 +143,11 @@ def solve(
     theta, phi = _angles(theta_deg, phi_deg)
     prep = prepare(structure, wavelength_nm, orders, factorization)
     kx0, ky0 = incident_tangential_k(math.sqrt(prep.eps_sup.real), theta, phi)
-    r, t, kz_sup, kz_sub = _core.solve_stack(
-        kx0 + prep.dkx, ky0 + prep.dky, prep.zero, prep.eps_sup, prep.eps_sub, s_direction(phi), prep.layers, stack
-    )
-    return _result(prep, theta_deg, phi_deg, pol, kx0 + prep.dkx, ky0 + prep.dky, r, t, kz_sup, kz_sub)
+    kx, ky = kx0 + prep.dkx, ky0 + prep.dky
+    sol = _core.solve_stack(kx, ky, prep.zero, prep.eps_sup, prep.eps_sub, s_direction(phi), prep.core_layers,
+                            STACK_METHOD_OF[stack])
+    return _result(prep, theta_deg, phi_deg, pol, kx, ky, sol.reflected, sol.transmitted, sol.kz_superstrate,
+                   sol.kz_substrate)
 
 
 def check_stack(stack: str) -> None:
@@ -185,7 +215,8 @@ def _positive(value: float, name: str) -> float:
 
 def _angles(theta_deg: float, phi_deg: float) -> tuple[float, float]:
     if not (math.isfinite(theta_deg) and 0.0 <= theta_deg < MAX_THETA_DEG):
-        raise UserInputError("the polar angle must be in [0, 90) degrees", field="theta", expected="0 <= theta < 90", got=theta_deg)
+        raise UserInputError("the polar angle must be in [0, 90) degrees", field="theta", expected="0 <= theta < 90",
+                             got=theta_deg)
     if not math.isfinite(phi_deg):
         raise UserInputError("must be a finite number of degrees", field="phi", got=phi_deg)
     return math.radians(theta_deg), math.radians(phi_deg)
@@ -209,35 +240,37 @@ def _permittivity_lookup(structure: Structure, wavelength_nm: float):
 # ---------------------------------------------------------------- assembly
 
 
-def _harmonics(period, counts, wl_um: float):
-    """Retained harmonics and their offsets from the incident wave vector (Eq. 2 sign)."""
+def _harmonics(period: tuple[float, ...], counts: tuple[int, ...], wl_um: float):
+    """Retained harmonics and their offsets from the incident wave vector.
+
+    The offsets are the orders' ``(kx, ky) / k0`` for a zero incident wave vector, by
+    workbench.core.conventions.order_kxy (the sign of Lange et al. 2021, Eq. 2), so that
+    harmonic i of a direction has ``kx0 + dkx[i]``, ``ky0 + dky[i]``.
+    """
     ms = np.arange(counts[0]) - counts[0] // 2
     if len(period) == 1:
         h = HarmonicIndices(ms, np.zeros_like(ms))
-        dkx = -ms * wl_um / period[0]
-        dky = np.zeros(ms.shape)
     else:
         ns = np.arange(counts[1]) - counts[1] // 2
         M, N = np.meshgrid(ms, ns, indexing="ij")
         h = HarmonicIndices(M.ravel(), N.ravel())
-        dkx = -h.m * wl_um / period[0]
-        dky = -h.n * wl_um / period[1]
+    dkx, dky = order_kxy(0.0, 0.0, h.m, h.n, tuple(period), wl_um)
     zero = int(np.flatnonzero((h.m == 0) & (h.n == 0))[0])
     return h, np.ascontiguousarray(dkx, dtype=float), np.ascontiguousarray(dky, dtype=float), zero
 
 
-def _layer_input(layer, structure: Structure, eps_of, h: HarmonicIndices, rule: str, k0: float):
+def _layer_input(layer, structure: Structure, eps_of, h: HarmonicIndices, rule: str, k0: float) -> LayerInput:
     k0d = k0 * layer.thickness
     if layer.is_uniform or all(eps_of(s.material) == eps_of(layer.material) for s in layer.shapes):
         # No contrast at this wavelength: a uniform layer, solved without an eigen-solve.
-        return ("uniform", k0d, eps_of(layer.material), [])
+        return LayerInput(LayerKind.UNIFORM, k0d, eps_of(layer.material))
     pm = permittivity_matrices(layer, structure.period, eps_of, h, rule)
     if structure.dimension == 1:
-        return ("lamellar", k0d, 0j, [pm.E, pm.exx])
+        return LayerInput(LayerKind.LAMELLAR, k0d, 0j, (pm.E, pm.exx))
     zero = np.zeros_like(pm.E)
     exy = pm.exy if pm.exy is not None else zero
     eyx = pm.eyx if pm.eyx is not None else zero
-    return ("general", k0d, 0j, [pm.E, pm.exx, exy, eyx, pm.eyy])
+    return LayerInput(LayerKind.GENERAL, k0d, 0j, (pm.E, pm.exx, exy, eyx, pm.eyy))
 
 
 def _result(prep: PreparedStructure, theta_deg, phi_deg, pol, kx, ky, r, t, kz_sup, kz_sub) -> SolveResult:
@@ -254,8 +287,8 @@ def _result(prep: PreparedStructure, theta_deg, phi_deg, pol, kx, ky, r, t, kz_s
     azimuth = np.degrees(np.arctan2(ky, kx))
     orders = []
     for i in np.flatnonzero(prop_R | prop_T):
-        direction_R = (math.degrees(math.asin(min(1.0, kt[i] / math.sqrt(eps_sup.real)))), float(azimuth[i])) if prop_R[i] else None
-        direction_T = (math.degrees(math.asin(min(1.0, kt[i] / math.sqrt(eps_sub.real)))), float(azimuth[i])) if prop_T[i] else None
+        direction_R = (_polar_deg(kt[i], eps_sup), float(azimuth[i])) if prop_R[i] else None
+        direction_T = (_polar_deg(kt[i], eps_sub), float(azimuth[i])) if prop_T[i] else None
         amplitudes = {
             "r_s_from_s": complex(r[i, 0]), "r_p_from_s": complex(r[n + i, 0]),
             "r_s_from_p": complex(r[i, 1]), "r_p_from_p": complex(r[n + i, 1]),
@@ -276,5 +309,11 @@ def _result(prep: PreparedStructure, theta_deg, phi_deg, pol, kx, ky, r, t, kz_s
         structure=prep.structure.name, wavelength_nm=prep.wavelength_nm, theta_deg=float(theta_deg), phi_deg=float(phi_deg),
         pol=pol.value, orders_retained=prep.counts, factorization=prep.rule, R_total=R_total, T_total=T_total,
         absorption=1.0 - R_total - T_total, orders=orders,
-        all_orders={"m": h.m, "n": h.n, "R": R, "T": T, "T_into_substrate": T_into, "kz_superstrate": kz_sup, "kz_substrate": kz_sub},
+        all_orders={"m": h.m, "n": h.n, "R": R, "T": T, "T_into_substrate": T_into, "kz_superstrate": kz_sup,
+                    "kz_substrate": kz_sub},
     )
+
+
+def _polar_deg(kt: float, eps: complex) -> float:
+    """Polar angle (degrees from the normal) of a propagating order with tangential kt / k0 in a medium of eps."""
+    return math.degrees(math.asin(min(1.0, kt / math.sqrt(eps.real))))

@@ -18,7 +18,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from rcwa import _core
-from rcwa.solver import check_stack, efficiencies, prepare
+from rcwa.solver import STACK_METHOD_OF, check_stack, efficiencies, prepare
 from rcwa.structure import Structure
 from workbench.core.errors import UserInputError
 
@@ -87,21 +87,24 @@ def sweep_directions(
     n_sup = math.sqrt(prep.eps_sup.real)
     kx0 = n_sup * np.sin(theta) * np.cos(phi)
     ky0 = n_sup * np.sin(theta) * np.sin(phi)
-    r, t, kz_sup, kz_sub, (solves, refined) = _core.sweep(
-        prep.dkx, prep.dky, prep.zero, prep.eps_sup, prep.eps_sub, prep.layers,
-        kx0, ky0, -np.sin(phi), np.cos(phi), [int(i) for i in idx], stack, threads or default_threads(),
+    sol = _core.sweep(
+        prep.dkx, prep.dky, prep.zero, prep.eps_sup, prep.eps_sub, prep.core_layers,
+        kx0, ky0, -np.sin(phi), np.cos(phi), [int(i) for i in idx], STACK_METHOD_OF[stack], threads or default_threads(),
     )
-    kz0 = np.sqrt(prep.eps_sup.real - kx0**2 - ky0**2)
-    R, T, _ = efficiencies(r, t, kz_sup[..., 0], kz_sub[..., 0], kz0, prep.eps_sup, prep.eps_sub)
+    # The incident wave's kz is the specular order's, from the core (its outgoing branch,
+    # workbench.core.conventions.kz_branch), as in a single solve.
+    kz0 = sol.kz_superstrate[:, int(np.flatnonzero(idx == prep.zero)[0])]
+    R, T, _ = efficiencies(sol.reflected, sol.transmitted, sol.kz_superstrate, sol.kz_substrate, kz0,
+                           prep.eps_sup, prep.eps_sub)
     return DirectionSweep(float(wavelength_nm), prep.harmonics.m[idx], prep.harmonics.n[idx], kx0, ky0, R, T,
-                          solves, refined)
+                          sol.eigen_solves, sol.eigen_refined)
 
 
 def _keep_counts(keep: int | Sequence[int], counts: tuple[int, ...]) -> tuple[int, ...]:
     values = (keep,) * len(counts) if isinstance(keep, (int, np.integer)) else tuple(keep)
     if len(values) != len(counts) or any(
         isinstance(v, bool) or not isinstance(v, (int, np.integer)) or v < 1 or v % 2 == 0 or v > c
-        for v, c in zip(values, counts)
+        for v, c in zip(values, counts, strict=True)
     ):
         raise UserInputError(
             "kept orders must be odd, one count per direction, and at most the retained orders",

@@ -1,7 +1,17 @@
-// Python bindings of the RCWA core: array conversion only, no physics here.
+// Python bindings of the RCWA core: types and array conversion only, no physics here.
+//
+// What crosses the boundary is typed: layers are LayerInput objects of a LayerKind (an
+// enum: a kind that does not exist cannot be named), the stack method is a StackMethod,
+// and results are StackSolution, SweepSolution and EigenDecomposition objects whose
+// arrays are read-only numpy views of the core's own storage (no copy; each view keeps
+// its result alive). The checks live in the core (make_layer, check_problem in
+// sweep.hpp) and throw std::invalid_argument, which nanobind raises as ValueError. The
+// GIL is released while the core computes. rcwa/_core.pyi is generated from this module
+// by nanobind's stubgen (CMakeLists.txt).
 #include <nanobind/nanobind.h>
 #include <nanobind/ndarray.h>
 #include <nanobind/stl/complex.h>
+#include <nanobind/stl/optional.h>
 #include <nanobind/stl/string.h>
 #include <nanobind/stl/tuple.h>
 #include <nanobind/stl/vector.h>
@@ -18,17 +28,28 @@ using rcwa::Mat;
 
 namespace {
 
-using CArray2 = nb::ndarray<const std::complex<double>, nb::ndim<2>, nb::device::cpu>;
+using CArray2 = nb::ndarray<const cplx, nb::ndim<2>, nb::device::cpu>;
 using RArray1 = nb::ndarray<const double, nb::ndim<1>, nb::device::cpu>;
+// Read-only numpy views returned to Python.
+using CView1 = nb::ndarray<nb::numpy, const cplx, nb::ndim<1>>;
+using CView2 = nb::ndarray<nb::numpy, const cplx, nb::ndim<2>>;
+using CView3 = nb::ndarray<nb::numpy, const cplx, nb::ndim<3>>;
+using CArray2Out = nb::ndarray<nb::numpy, cplx, nb::ndim<2>>;
 
-Mat to_mat(const CArray2& a, int n, const char* what) {
-    if (static_cast<int>(a.shape(0)) != n || static_cast<int>(a.shape(1)) != n)
-        throw std::invalid_argument(std::string(what) + ": expected an N x N matrix, N = " + std::to_string(n));
-    Mat m(n, n);
+Mat to_mat(const CArray2& a) {
+    const int rows = static_cast<int>(a.shape(0)), cols = static_cast<int>(a.shape(1));
+    Mat m(rows, cols);
     auto v = a.view();
-    for (int j = 0; j < n; ++j)
-        for (int i = 0; i < n; ++i) m(i, j) = v(i, j);
+    for (int j = 0; j < cols; ++j)
+        for (int i = 0; i < rows; ++i) m(i, j) = v(i, j);
     return m;
+}
+
+Mat to_square_mat(const CArray2& a, const char* what) {
+    if (a.shape(0) != a.shape(1))
+        throw std::invalid_argument(std::string(what) + ": expected a square matrix, got " +
+                                    std::to_string(a.shape(0)) + " x " + std::to_string(a.shape(1)));
+    return to_mat(a);
 }
 
 std::vector<double> to_vec(const RArray1& a) {
@@ -38,134 +59,180 @@ std::vector<double> to_vec(const RArray1& a) {
     return v;
 }
 
-nb::ndarray<nb::numpy, std::complex<double>, nb::ndim<2>> to_numpy(const Mat& m) {
-    auto* data = new std::complex<double>[m.data.size()];
+// A C-ordered copy (for LayerInput.matrices, which hands out what it was given).
+CArray2Out copy_to_numpy(const Mat& m) {
+    auto* data = new cplx[m.data.size()];
     for (int i = 0; i < m.rows; ++i)
         for (int j = 0; j < m.cols; ++j) data[static_cast<std::size_t>(i) * m.cols + j] = m(i, j);
-    nb::capsule owner(data, [](void* p) noexcept { delete[] static_cast<std::complex<double>*>(p); });
-    return nb::ndarray<nb::numpy, std::complex<double>, nb::ndim<2>>(
-        data, {static_cast<std::size_t>(m.rows), static_cast<std::size_t>(m.cols)}, owner);
+    nb::capsule owner(data, [](void* p) noexcept { delete[] static_cast<cplx*>(p); });
+    return CArray2Out(data, {static_cast<std::size_t>(m.rows), static_cast<std::size_t>(m.cols)}, owner);
 }
 
-nb::ndarray<nb::numpy, std::complex<double>, nb::ndim<1>> to_numpy(const rcwa::CVec& v) {
-    auto* data = new std::complex<double>[v.size()];
-    std::copy(v.begin(), v.end(), data);
-    nb::capsule owner(data, [](void* p) noexcept { delete[] static_cast<std::complex<double>*>(p); });
-    return nb::ndarray<nb::numpy, std::complex<double>, nb::ndim<1>>(data, {v.size()}, owner);
+// Views without an owner: returned from a property (rv_policy::reference_internal), the
+// numpy array keeps the result object alive.
+CView2 view(const Mat& m) {
+    return CView2(m.ptr(), {static_cast<std::size_t>(m.rows), static_cast<std::size_t>(m.cols)}, nb::handle(),
+                  {1, static_cast<int64_t>(m.rows)});  // column-major
 }
+CView1 view(const rcwa::CVec& v) { return CView1(v.data(), {v.size()}, nb::handle()); }
 
-using LayerTuple = std::tuple<std::string, double, cplx, std::vector<CArray2>>;
-
-rcwa::StackMethod stack_method(const std::string& method) {
-    if (method == "etm") return rcwa::StackMethod::EnhancedTransmittance;
-    if (method == "smatrix") return rcwa::StackMethod::ScatteringMatrix;
-    throw std::invalid_argument("method must be 'etm' or 'smatrix'");
-}
-
-// The direction-independent part of a problem: harmonic offsets, media, layers.
+// The direction-independent part of a problem: harmonic offsets, media, layers. Checked
+// by the core (check_problem) before it computes.
 rcwa::SweepProblem base_problem(const RArray1& dkx, const RArray1& dky, int zero_order, cplx eps_sup,
-                                cplx eps_sub, const std::vector<LayerTuple>& layers, const std::string& method) {
+                                cplx eps_sub, std::vector<rcwa::LayerInput> layers, rcwa::StackMethod method) {
     rcwa::SweepProblem pr;
     pr.dkx = to_vec(dkx);
     pr.dky = to_vec(dky);
-    const int n = static_cast<int>(pr.dkx.size());
-    if (static_cast<int>(pr.dky.size()) != n) throw std::invalid_argument("kx and ky differ in length");
-    if (zero_order < 0 || zero_order >= n) throw std::invalid_argument("zero_order out of range");
     pr.zero_order = zero_order;
     pr.eps_superstrate = eps_sup;
     pr.eps_substrate = eps_sub;
-    pr.method = stack_method(method);
-    for (const auto& [kind, d, eps, mats] : layers) {
-        rcwa::LayerInput in{kind, d, eps, {}};
-        const std::size_t need = kind == "uniform" ? 0 : kind == "lamellar" ? 2 : kind == "general" ? 5 : 99;
-        if (need == 99) throw std::invalid_argument("unknown layer kind '" + kind + "'");
-        if (mats.size() != need) throw std::invalid_argument("layer kind '" + kind + "' needs " + std::to_string(need) + " matrices");
-        for (const auto& m : mats) in.matrices.push_back(to_mat(m, n, kind.c_str()));
-        pr.layers.push_back(std::move(in));
-    }
+    pr.method = method;
+    pr.layers = std::move(layers);
     return pr;
 }
 
 // One solve: kx, ky are the harmonics themselves (offsets from a zero incident vector).
-nb::tuple solve_stack_py(const RArray1& kx, const RArray1& ky, int zero_order, cplx eps_sup, cplx eps_sub,
-                         std::tuple<double, double> s_direction, const std::vector<LayerTuple>& layers,
-                         const std::string& method) {
-    rcwa::SweepProblem pr = base_problem(kx, ky, zero_order, eps_sup, eps_sub, layers, method);
+rcwa::StackSolution solve_stack_py(const RArray1& kx, const RArray1& ky, int zero_order, cplx eps_sup,
+                                   cplx eps_sub, std::tuple<double, double> s_direction,
+                                   std::vector<rcwa::LayerInput> layers, rcwa::StackMethod method) {
+    rcwa::SweepProblem pr = base_problem(kx, ky, zero_order, eps_sup, eps_sub, std::move(layers), method);
     pr.kx0 = {0.0};
     pr.ky0 = {0.0};
     pr.s_x = {std::get<0>(s_direction)};
     pr.s_y = {std::get<1>(s_direction)};
-    rcwa::StackSolution sol;
-    {
-        nb::gil_scoped_release release;
-        sol = rcwa::solve_point(pr, 0);
-    }
-    return nb::make_tuple(to_numpy(sol.r), to_numpy(sol.t), to_numpy(sol.kz_superstrate),
-                          to_numpy(sol.kz_substrate));
+    nb::gil_scoped_release release;
+    return rcwa::solve_point(pr, 0);
 }
 
-// Stack point-major results into one (P, rows, cols) array.
-template <class Get>
-nb::ndarray<nb::numpy, std::complex<double>> stack_points(std::size_t np, std::size_t rows, std::size_t cols, Get get) {
-    auto* data = new std::complex<double>[np * rows * cols];
-    for (std::size_t p = 0; p < np; ++p)
-        for (std::size_t i = 0; i < rows; ++i)
-            for (std::size_t j = 0; j < cols; ++j) data[(p * rows + i) * cols + j] = get(p, i, j);
-    nb::capsule owner(data, [](void* q) noexcept { delete[] static_cast<std::complex<double>*>(q); });
-    return nb::ndarray<nb::numpy, std::complex<double>>(data, {np, rows, cols}, owner);
-}
-
-nb::tuple sweep_py(const RArray1& dkx, const RArray1& dky, int zero_order, cplx eps_sup, cplx eps_sub,
-                   const std::vector<LayerTuple>& layers, const RArray1& kx0, const RArray1& ky0,
-                   const RArray1& s_x, const RArray1& s_y, const std::vector<int>& keep,
-                   const std::string& method, int threads) {
-    rcwa::SweepProblem pr = base_problem(dkx, dky, zero_order, eps_sup, eps_sub, layers, method);
+rcwa::SweepResult sweep_py(const RArray1& dkx, const RArray1& dky, int zero_order, cplx eps_sup, cplx eps_sub,
+                           std::vector<rcwa::LayerInput> layers, const RArray1& kx0, const RArray1& ky0,
+                           const RArray1& s_x, const RArray1& s_y, const std::vector<int>& keep,
+                           rcwa::StackMethod method, int threads) {
+    rcwa::SweepProblem pr = base_problem(dkx, dky, zero_order, eps_sup, eps_sub, std::move(layers), method);
     pr.kx0 = to_vec(kx0);
     pr.ky0 = to_vec(ky0);
     pr.s_x = to_vec(s_x);
     pr.s_y = to_vec(s_y);
-    const std::size_t np = pr.kx0.size();
-    if (pr.ky0.size() != np || pr.s_x.size() != np || pr.s_y.size() != np)
-        throw std::invalid_argument("kx0, ky0, s_x and s_y must have one value per point");
-    for (int k : keep)
-        if (k < 0 || k >= static_cast<int>(pr.dkx.size())) throw std::invalid_argument("keep index out of range");
     pr.keep = keep;
     pr.threads = threads;
-    rcwa::SweepResult res;
-    {
-        nb::gil_scoped_release release;
-        res = rcwa::sweep(pr);
-    }
-    const std::size_t k = keep.size();
-    auto r = stack_points(np, 2 * k, 2, [&](auto p, auto i, auto j) { return res.r[p](static_cast<int>(i), static_cast<int>(j)); });
-    auto t = stack_points(np, 2 * k, 2, [&](auto p, auto i, auto j) { return res.t[p](static_cast<int>(i), static_cast<int>(j)); });
-    auto kz1 = stack_points(np, k, 1, [&](auto p, auto i, auto) { return res.kz_superstrate[p][i]; });
-    auto kz2 = stack_points(np, k, 1, [&](auto p, auto i, auto) { return res.kz_substrate[p][i]; });
-    return nb::make_tuple(r, t, kz1, kz2, nb::make_tuple(res.eigen_solves, res.eigen_refined));
+    nb::gil_scoped_release release;
+    return rcwa::sweep(pr);
 }
 
-// eig_from_guess (linalg.hpp), for tests: (values, vectors), or None where it declines.
-nb::object eig_from_guess_py(const CArray2& A, const CArray2& guess) {
-    const int n = static_cast<int>(A.shape(0));
-    const auto result = rcwa::eig_from_guess(to_mat(A, n, "A"), to_mat(guess, n, "guess"));
-    if (!result) return nb::none();
-    return nb::make_tuple(to_numpy(result->values), to_numpy(result->vectors));
+// eig_from_guess (linalg.hpp), for tests: the decomposition, or None where it declines.
+std::optional<rcwa::Eigen> eig_from_guess_py(const CArray2& A, const CArray2& guess) {
+    const Mat a = to_square_mat(A, "A"), g = to_square_mat(guess, "guess");
+    if (a.rows != g.rows)
+        throw std::invalid_argument("guess: expected " + std::to_string(a.rows) + " x " + std::to_string(a.rows) +
+                                    " (the size of A), got " + std::to_string(g.rows) + " x " + std::to_string(g.rows));
+    nb::gil_scoped_release release;
+    return rcwa::eig_from_guess(a, g);
+}
+
+void bind_layers(nb::module_& m) {
+    nb::enum_<rcwa::LayerKind>(m, "LayerKind", "How a layer's modes are found, and so which matrices it carries.")
+        .value("UNIFORM", rcwa::LayerKind::Uniform, "Homogeneous: modes in closed form, no matrices.")
+        .value("LAMELLAR", rcwa::LayerKind::Lamellar,
+               "1D grating (harmonics along x): matrices E, Exx; two N x N eigen-solves.")
+        .value("GENERAL", rcwa::LayerKind::General,
+               "2D or anisotropic: matrices E, Exx, Exy, Eyx, Eyy; one 2N x 2N eigen-solve.");
+
+    nb::enum_<rcwa::StackMethod>(m, "StackMethod", "How the layers are combined (stack.hpp).")
+        .value("ENHANCED_TRANSMITTANCE", rcwa::StackMethod::EnhancedTransmittance,
+               "Moharam, Pommet, Grann & Gaylord 1995: one bottom-up sweep.")
+        .value("SCATTERING_MATRIX", rcwa::StackMethod::ScatteringMatrix,
+               "Redheffer star product of layer scattering matrices (Rumpf 2011).");
+
+    nb::class_<rcwa::LayerInput>(m, "LayerInput",
+                                 "One layer as the core receives it: its kind, its thickness times k0, the "
+                                 "permittivity of a uniform layer, and the N x N Fourier matrices of a patterned "
+                                 "one (lamellar: E, Exx; general: E, Exx, Exy, Eyx, Eyy). Checked on construction "
+                                 "(ValueError naming the field).")
+        .def(
+            "__init__",
+            [](rcwa::LayerInput* self, rcwa::LayerKind kind, double k0_thickness, cplx permittivity,
+               const std::vector<CArray2>& matrices) {
+                std::vector<Mat> mats;
+                mats.reserve(matrices.size());
+                for (const auto& a : matrices) mats.push_back(to_mat(a));
+                new (self) rcwa::LayerInput(rcwa::make_layer(kind, k0_thickness, permittivity, std::move(mats)));
+            },
+            "kind"_a, "k0_thickness"_a, "permittivity"_a = cplx(0.0, 0.0), "matrices"_a = std::vector<CArray2>())
+        .def_ro("kind", &rcwa::LayerInput::kind)
+        .def_ro("k0_thickness", &rcwa::LayerInput::thickness, "Thickness times k0 (radians of vacuum phase).")
+        .def_ro("permittivity", &rcwa::LayerInput::eps, "Relative permittivity of a uniform layer.")
+        .def_prop_ro("size", &rcwa::LayerInput::size, "N: the matrices are N x N (0 for a uniform layer).")
+        .def_prop_ro(
+            "matrices",
+            [](const rcwa::LayerInput& layer) {
+                std::vector<CArray2Out> out;
+                for (const Mat& mat : layer.matrices) out.push_back(copy_to_numpy(mat));
+                return out;
+            },
+            "Copies of the Fourier matrices, in the order given.")
+        .def("__repr__", [](const rcwa::LayerInput& layer) {
+            return std::string("LayerInput(") + rcwa::kind_name(layer.kind) +
+                   ", k0_thickness=" + std::to_string(layer.thickness) + ", N=" + std::to_string(layer.size()) + ")";
+        });
+}
+
+void bind_results(nb::module_& m) {
+    nb::class_<rcwa::StackSolution>(m, "StackSolution",
+                                    "Outgoing amplitudes of one solve for unit s incidence (column 0) and unit p "
+                                    "incidence (column 1). Row i is the s amplitude of harmonic i (E along s-hat), "
+                                    "row N + i its p amplitude (h = Z0 H along s-hat).")
+        .def_prop_ro("reflected", [](const rcwa::StackSolution& s) { return view(s.r); },
+                     "Reflected amplitudes into the superstrate, (2N, 2).")
+        .def_prop_ro("transmitted", [](const rcwa::StackSolution& s) { return view(s.t); },
+                     "Transmitted amplitudes into the substrate, (2N, 2).")
+        .def_prop_ro("kz_superstrate", [](const rcwa::StackSolution& s) { return view(s.kz_superstrate); },
+                     "kz / k0 of each harmonic in the superstrate, outgoing branch, (N,).")
+        .def_prop_ro("kz_substrate", [](const rcwa::StackSolution& s) { return view(s.kz_substrate); },
+                     "kz / k0 of each harmonic in the substrate, outgoing branch, (N,).");
+
+    nb::class_<rcwa::SweepResult>(m, "SweepSolution",
+                                  "Amplitudes of the K kept harmonics at P incident directions, as StackSolution "
+                                  "per point restricted to the kept rows (s rows, then p rows), and the work done.")
+        .def_prop_ro("reflected", [](const rcwa::SweepResult& s) {
+            return CView3(s.r.data(), {s.points, 2 * s.kept, 2}, nb::handle());
+        }, "Reflected amplitudes, (P, 2K, 2).")
+        .def_prop_ro("transmitted", [](const rcwa::SweepResult& s) {
+            return CView3(s.t.data(), {s.points, 2 * s.kept, 2}, nb::handle());
+        }, "Transmitted amplitudes, (P, 2K, 2).")
+        .def_prop_ro("kz_superstrate", [](const rcwa::SweepResult& s) {
+            return CView2(s.kz_superstrate.data(), {s.points, s.kept}, nb::handle());
+        }, "kz / k0 of the kept harmonics in the superstrate, (P, K).")
+        .def_prop_ro("kz_substrate", [](const rcwa::SweepResult& s) {
+            return CView2(s.kz_substrate.data(), {s.points, s.kept}, nb::handle());
+        }, "kz / k0 of the kept harmonics in the substrate, (P, K).")
+        .def_ro("eigen_solves", &rcwa::SweepResult::eigen_solves,
+                "Lamellar eigen-solves (two per 1D layer and group of points sharing kx0).")
+        .def_ro("eigen_refined", &rcwa::SweepResult::eigen_refined,
+                "Of the eigen-solves, those refined from a neighbouring kx0's eigenvectors.");
+
+    nb::class_<rcwa::Eigen>(m, "EigenDecomposition", "A V = V diag(values), right eigenvectors as columns.")
+        .def_prop_ro("values", [](const rcwa::Eigen& e) { return view(e.values); }, "Eigenvalues, (N,).")
+        .def_prop_ro("vectors", [](const rcwa::Eigen& e) { return view(e.vectors); },
+                     "Eigenvectors as columns, (N, N), each of unit norm.");
 }
 
 }  // namespace
 
 NB_MODULE(_core, m) {
     m.doc() = "RCWA core (C++17, LAPACK from scipy-openblas32). See rcwa/cpp/*.hpp.";
-    m.def("solve_stack", &solve_stack_py, "kx"_a, "ky"_a, "zero_order"_a, "eps_superstrate"_a,
-          "eps_substrate"_a, "s_direction"_a, "layers"_a, "method"_a = "etm",
-          "Outgoing s/p amplitudes (r, t: 2N x 2 for unit s and p incidence) and the half-space kz.");
-    m.def("sweep", &sweep_py, "dkx"_a, "dky"_a, "zero_order"_a, "eps_superstrate"_a, "eps_substrate"_a,
-          "layers"_a, "kx0"_a, "ky0"_a, "s_x"_a, "s_y"_a, "keep"_a, "method"_a = "etm", "threads"_a = 1,
-          "Amplitudes of the kept harmonics for many incident directions (P points): r, t of shape "
-          "(P, 2K, 2) and kz of shape (P, K, 1); points sharing kx0 share 1D eigen-solves; and "
-          "(lamellar eigen-solves, of which refined from a neighbouring kx0).");
+    bind_layers(m);
+    bind_results(m);
+    m.def("solve_stack", &solve_stack_py, "kx"_a, "ky"_a, "zero_order"_a, "eps_superstrate"_a, "eps_substrate"_a,
+          "s_direction"_a, "layers"_a, "method"_a = rcwa::StackMethod::EnhancedTransmittance,
+          "One solve. kx, ky: (N,) tangential wave vectors / k0 of the harmonics; zero_order: the index of the "
+          "incident wave's; s_direction: s-hat where kx = ky = 0; layers from the superstrate down.");
+    m.def("sweep", &sweep_py, "dkx"_a, "dky"_a, "zero_order"_a, "eps_superstrate"_a, "eps_substrate"_a, "layers"_a,
+          "kx0"_a, "ky0"_a, "s_x"_a, "s_y"_a, "keep"_a, "method"_a = rcwa::StackMethod::EnhancedTransmittance,
+          "threads"_a = 1,
+          "Many incident directions (P points) at one wavelength: harmonic i of point p has kx0[p] + dkx[i], "
+          "ky0[p] + dky[i]; the harmonics listed in keep are returned. Points sharing kx0 share 1D eigen-solves.");
     m.def("eig_from_guess", &eig_from_guess_py, "A"_a, "guess"_a,
-          "Eigenvalues and eigenvectors of A refined from approximate eigenvectors, or None.");
+          "Eigen-decomposition of A refined from approximate eigenvectors, or None where it declines.");
     m.def("set_blas_threads", &rcwa::set_blas_threads, "n"_a,
           "Number of OpenBLAS threads (1 when the core runs its own threads).");
 }

@@ -31,7 +31,11 @@ struct Harmonics {
 // regularize_kz). Outside, in the superstrate and substrate, kz = 0 is handled exactly.
 constexpr double kKzFloor = 1e-8;
 
-// sqrt with Im >= 0 (Re >= 0 when Im == 0), exact for purely real arguments.
+// sqrt with Im >= 0 (Re >= 0 when Im == 0), exact for purely real arguments: the
+// outgoing branch of workbench/core/conventions.py (kz_branch), which it must equal. The
+// half-spaces' kz are taken here only (stack.cpp, half_space_kz), never in Python;
+// tests/rcwa/test_core_boundary.py checks both agree on lossy, lossless, grazing and
+// -0.0j arguments.
 cplx outgoing_sqrt(cplx kz2);
 cplx regularize_kz(cplx kz);
 // kz of a mode of a finite layer from its eigenvalue kz^2 (see modes.cpp).

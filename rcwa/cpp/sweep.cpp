@@ -2,8 +2,11 @@
 
 #include <algorithm>
 #include <atomic>
+#include <cmath>
 #include <exception>
 #include <mutex>
+#include <stdexcept>
+#include <string>
 #include <thread>
 #include <utility>
 
@@ -46,7 +49,7 @@ using SharedEigen = std::vector<std::unique_ptr<LamellarEigen>>;
 std::vector<Mat> inverse_laurent(const SweepProblem& pr) {
     std::vector<Mat> out(pr.layers.size());
     for (std::size_t k = 0; k < pr.layers.size(); ++k)
-        if (pr.layers[k].kind == "lamellar") out[k] = LU(pr.layers[k].matrices[0]).inverse();
+        if (pr.layers[k].kind == LayerKind::Lamellar) out[k] = LU(pr.layers[k].matrices[0]).inverse();
     return out;
 }
 
@@ -55,7 +58,7 @@ std::vector<Mat> inverse_laurent(const SweepProblem& pr) {
 SharedEigen shared_eigen(const SweepProblem& pr, const std::vector<Mat>& Z, const Harmonics& h, const SharedEigen* near) {
     SharedEigen out(pr.layers.size());
     for (std::size_t k = 0; k < pr.layers.size(); ++k)
-        if (pr.layers[k].kind == "lamellar")
+        if (pr.layers[k].kind == LayerKind::Lamellar)
             out[k] = std::make_unique<LamellarEigen>(lamellar_eigen(
                 h.kx, pr.layers[k].matrices[0], pr.layers[k].matrices[1], Z[k], near ? (*near)[k].get() : nullptr));
     return out;
@@ -72,9 +75,9 @@ StackSolution solve_with(const SweepProblem& pr, std::size_t p, const SharedEige
     std::vector<std::unique_ptr<LayerModes>> modes;
     for (std::size_t k = 0; k < pr.layers.size(); ++k) {
         const LayerInput& in = pr.layers[k];
-        if (in.kind == "uniform") {
+        if (in.kind == LayerKind::Uniform) {
             modes.push_back(uniform_modes(sp.harmonics, in.eps));
-        } else if (in.kind == "lamellar") {
+        } else if (in.kind == LayerKind::Lamellar) {
             modes.push_back(lamellar_modes(sp.harmonics.kx, *eig[k], sp.harmonics.ky[0]));
         } else {
             const auto& M = in.matrices;
@@ -86,26 +89,23 @@ StackSolution solve_with(const SweepProblem& pr, std::size_t p, const SharedEige
     return solve_stack(sp, pr.method);
 }
 
+// The kept rows of point p's solution into the sweep's (P, 2K, 2) and (P, K) arrays.
 void keep_rows(const SweepProblem& pr, const StackSolution& s, SweepResult& out, std::size_t p) {
     const int n = static_cast<int>(pr.dkx.size());
-    const int k = static_cast<int>(pr.keep.size());
-    Mat r(2 * k, 2), t(2 * k, 2);
-    CVec kz1(k), kz2(k);
-    for (int j = 0; j < k; ++j) {
+    const std::size_t k = pr.keep.size();
+    cplx* r = out.r.data() + p * 4 * k;
+    cplx* t = out.t.data() + p * 4 * k;
+    for (std::size_t j = 0; j < k; ++j) {
         const int i = pr.keep[j];
         for (int c = 0; c < 2; ++c) {
-            r(j, c) = s.r(i, c);
-            r(k + j, c) = s.r(n + i, c);
-            t(j, c) = s.t(i, c);
-            t(k + j, c) = s.t(n + i, c);
+            r[2 * j + c] = s.r(i, c);
+            r[2 * (k + j) + c] = s.r(n + i, c);
+            t[2 * j + c] = s.t(i, c);
+            t[2 * (k + j) + c] = s.t(n + i, c);
         }
-        kz1[j] = s.kz_superstrate[i];
-        kz2[j] = s.kz_substrate[i];
+        out.kz_superstrate[p * k + j] = s.kz_superstrate[i];
+        out.kz_substrate[p * k + j] = s.kz_substrate[i];
     }
-    out.r[p] = std::move(r);
-    out.t[p] = std::move(t);
-    out.kz_superstrate[p] = std::move(kz1);
-    out.kz_substrate[p] = std::move(kz2);
 }
 
 // Points grouped by kx0, in increasing kx0. Values within kSameKx of the group's first
@@ -149,19 +149,86 @@ std::pair<std::size_t, std::size_t> solve_block(const SweepProblem& pr, const st
 
 }  // namespace
 
+std::size_t matrix_count(LayerKind kind) {
+    switch (kind) {
+        case LayerKind::Uniform: return 0;
+        case LayerKind::Lamellar: return 2;
+        case LayerKind::General: return 5;
+    }
+    throw std::invalid_argument("unknown layer kind");
+}
+
+const char* kind_name(LayerKind kind) {
+    switch (kind) {
+        case LayerKind::Uniform: return "uniform";
+        case LayerKind::Lamellar: return "lamellar";
+        case LayerKind::General: return "general";
+    }
+    throw std::invalid_argument("unknown layer kind");
+}
+
+LayerInput make_layer(LayerKind kind, double thickness, cplx eps, std::vector<Mat> matrices) {
+    const std::string what = std::string(kind_name(kind)) + " layer: ";
+    if (!std::isfinite(thickness) || thickness < 0.0)
+        throw std::invalid_argument(what + "k0_thickness must be finite and >= 0, got " + std::to_string(thickness));
+    if (!std::isfinite(eps.real()) || !std::isfinite(eps.imag()))
+        throw std::invalid_argument(what + "permittivity must be finite");
+    const std::size_t need = matrix_count(kind);
+    if (matrices.size() != need)
+        throw std::invalid_argument(what + "matrices: expected " + std::to_string(need) + ", got " +
+                                    std::to_string(matrices.size()));
+    for (std::size_t i = 0; i < matrices.size(); ++i) {
+        const Mat& m = matrices[i];
+        if (m.rows < 1 || m.rows != m.cols || m.rows != matrices.front().rows)
+            throw std::invalid_argument(what + "matrices[" + std::to_string(i) + "]: expected shape (N, N) with N = " +
+                                        std::to_string(matrices.front().rows) + ", got (" + std::to_string(m.rows) +
+                                        ", " + std::to_string(m.cols) + ")");
+    }
+    return LayerInput{kind, thickness, eps, std::move(matrices)};
+}
+
+void check_problem(const SweepProblem& pr) {
+    const std::size_t n = pr.dkx.size();
+    if (n == 0 || pr.dky.size() != n)
+        throw std::invalid_argument("harmonics: kx and ky must be non-empty and of one length, got " +
+                                    std::to_string(n) + " and " + std::to_string(pr.dky.size()));
+    if (pr.zero_order < 0 || static_cast<std::size_t>(pr.zero_order) >= n)
+        throw std::invalid_argument("zero_order: expected an index in [0, " + std::to_string(n) + "), got " +
+                                    std::to_string(pr.zero_order));
+    for (std::size_t k = 0; k < pr.layers.size(); ++k) {
+        const LayerInput& in = pr.layers[k];
+        if (in.kind != LayerKind::Uniform && static_cast<std::size_t>(in.size()) != n)
+            throw std::invalid_argument("layers[" + std::to_string(k) + "] (" + kind_name(in.kind) +
+                                        "): matrices are " + std::to_string(in.size()) + " x " +
+                                        std::to_string(in.size()) + ", expected " + std::to_string(n) + " x " +
+                                        std::to_string(n) + " (one row per harmonic)");
+    }
+    const std::size_t np = pr.kx0.size();
+    if (pr.ky0.size() != np || pr.s_x.size() != np || pr.s_y.size() != np)
+        throw std::invalid_argument("kx0, ky0, s_x and s_y must have one value per point");
+    for (int i : pr.keep)
+        if (i < 0 || static_cast<std::size_t>(i) >= n)
+            throw std::invalid_argument("keep: index " + std::to_string(i) + " outside [0, " + std::to_string(n) + ")");
+}
+
 StackSolution solve_point(const SweepProblem& pr, std::size_t p) {
+    check_problem(pr);
+    if (p >= pr.kx0.size()) throw std::invalid_argument("point " + std::to_string(p) + " outside the problem's points");
     keep_freed_memory();
     return solve_with(pr, p, shared_eigen(pr, inverse_laurent(pr), harmonics_at(pr, pr.kx0[p], pr.ky0[p]), nullptr));
 }
 
 SweepResult sweep(const SweepProblem& pr) {
+    check_problem(pr);
     keep_freed_memory();
     const std::size_t np = pr.kx0.size();
     SweepResult out;
-    out.r.resize(np);
-    out.t.resize(np);
-    out.kz_superstrate.resize(np);
-    out.kz_substrate.resize(np);
+    out.points = np;
+    out.kept = pr.keep.size();
+    out.r.resize(np * 4 * out.kept);
+    out.t.resize(np * 4 * out.kept);
+    out.kz_superstrate.resize(np * out.kept);
+    out.kz_substrate.resize(np * out.kept);
     const std::vector<std::vector<std::size_t>> groups = groups_by_kx(pr.kx0);
     const std::vector<Mat> Z = inverse_laurent(pr);
 

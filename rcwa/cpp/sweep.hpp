@@ -1,19 +1,38 @@
 // Many solves of one structure at one wavelength: a sweep over incident directions.
 #pragma once
 
-#include <string>
+#include <cstddef>
 
 #include "stack.hpp"
 
 namespace rcwa {
 
+// How a layer's modes are found (modes.hpp), and so which matrices it carries.
+enum class LayerKind {
+    Uniform,   // homogeneous: modes in closed form, no matrices (uses `eps`)
+    Lamellar,  // 1D grating, harmonics along x: E, Exx (two N x N eigen-solves)
+    General,   // 2D or anisotropic: E, Exx, Exy, Eyx, Eyy (one 2N x 2N eigen-solve of PQ)
+};
+
+// How many N x N Fourier matrices a layer of this kind carries (0, 2 or 5).
+std::size_t matrix_count(LayerKind kind);
+const char* kind_name(LayerKind kind);  // "uniform", "lamellar", "general" (for messages)
+
 // A layer as the sweep receives it: its Fourier matrices do not depend on the direction.
+// Built by make_layer, which checks it; the harmonic count is checked against the
+// problem's in check_problem.
 struct LayerInput {
-    std::string kind;           // "uniform" | "lamellar" | "general"
+    LayerKind kind = LayerKind::Uniform;
     double thickness = 0.0;     // k0 * d
     cplx eps = 0.0;             // uniform layers
     std::vector<Mat> matrices;  // lamellar: E, Exx; general: E, Exx, Exy, Eyx, Eyy
+    int size() const { return matrices.empty() ? 0 : matrices.front().rows; }
 };
+
+// A checked LayerInput: throws std::invalid_argument (naming what is wrong) for a
+// negative or non-finite thickness, a non-finite permittivity, the wrong number of
+// matrices for the kind, or matrices that are not square and of one size.
+LayerInput make_layer(LayerKind kind, double thickness, cplx eps, std::vector<Mat> matrices);
 
 struct SweepProblem {
     std::vector<double> dkx, dky;   // harmonic offsets: kx_i = kx0 + dkx_i, ky_i = ky0 + dky_i
@@ -27,11 +46,18 @@ struct SweepProblem {
     int threads = 1;
 };
 
-// Amplitudes of the kept harmonics, point-major: r[p] is (2K x 2) as in StackSolution
-// restricted to the kept rows (s rows first, then p rows); kz likewise (K per point).
+// Throws std::invalid_argument unless the arrays of `problem` agree: dkx and dky of one
+// length N, zero_order in [0, N), every layer's matrices N x N, one kx0, ky0, s_x, s_y
+// per point, keep indices in [0, N).
+void check_problem(const SweepProblem& problem);
+
+// Amplitudes of the kept harmonics (K = keep.size()) at P points, point-major and
+// row-major: r is (P, 2K, 2), the point's StackSolution r restricted to the kept rows (s
+// rows first, then p rows), r[(p * 2K + row) * 2 + column]; t likewise; kz (P, K).
 struct SweepResult {
-    std::vector<Mat> r, t;
-    std::vector<CVec> kz_superstrate, kz_substrate;
+    std::size_t points = 0, kept = 0;
+    CVec r, t;
+    CVec kz_superstrate, kz_substrate;
     std::size_t eigen_solves = 0;    // lamellar eigen-solves (two per layer and kx0 group)
     std::size_t eigen_refined = 0;   // of which refined from a neighbour's eigenvectors
 };
@@ -45,6 +71,7 @@ struct SweepResult {
 SweepResult sweep(const SweepProblem& problem);
 
 // One point, the sweep's code path with full eigen-solves (used by single solves).
+// Both check the problem first (check_problem).
 StackSolution solve_point(const SweepProblem& problem, std::size_t point);
 
 }  // namespace rcwa
