@@ -1,0 +1,145 @@
+"""RCWA core (C++17, LAPACK from scipy-openblas32). See rcwa/cpp/*.hpp."""
+
+from collections.abc import Sequence
+import enum
+from typing import Annotated
+
+import numpy
+from numpy.typing import NDArray
+
+
+class LayerKind(enum.Enum):
+    """How a layer's modes are found, and so which matrices it carries."""
+
+    UNIFORM = 0
+    """Homogeneous: modes in closed form, no matrices."""
+
+    LAMELLAR = 1
+    """
+    1D grating (harmonics along x): matrices E, Exx; two N x N eigen-solves.
+    """
+
+    GENERAL = 2
+    """
+    2D or anisotropic: matrices E, Exx, Exy, Eyx, Eyy; one 2N x 2N eigen-solve.
+    """
+
+class StackMethod(enum.Enum):
+    """How the layers are combined (stack.hpp)."""
+
+    ENHANCED_TRANSMITTANCE = 1
+    """Moharam, Pommet, Grann & Gaylord 1995: one bottom-up sweep."""
+
+    SCATTERING_MATRIX = 0
+    """Redheffer star product of layer scattering matrices (Rumpf 2011)."""
+
+class LayerInput:
+    """
+    One layer as the core receives it: its kind, its thickness times k0, the permittivity of a uniform layer, and the N x N Fourier matrices of a patterned one (lamellar: E, Exx; general: E, Exx, Exy, Eyx, Eyy). Checked on construction (ValueError naming the field).
+    """
+
+    def __init__(self, kind: LayerKind, k0_thickness: float, permittivity: complex = ..., matrices: Sequence[Annotated[NDArray[numpy.complex128], dict(shape=(None, None), device='cpu', writable=False)]] = []) -> None: ...
+
+    @property
+    def kind(self) -> LayerKind: ...
+
+    @property
+    def k0_thickness(self) -> float:
+        """Thickness times k0 (radians of vacuum phase)."""
+
+    @property
+    def permittivity(self) -> complex:
+        """Relative permittivity of a uniform layer."""
+
+    @property
+    def size(self) -> int:
+        """N: the matrices are N x N (0 for a uniform layer)."""
+
+    @property
+    def matrices(self) -> list[Annotated[NDArray[numpy.complex128], dict(shape=(None, None))]]:
+        """Copies of the Fourier matrices, in the order given."""
+
+    def __repr__(self) -> str: ...
+
+class StackSolution:
+    """
+    Outgoing amplitudes of one solve for unit s incidence (column 0) and unit p incidence (column 1). Row i is the s amplitude of harmonic i (E along s-hat), row N + i its p amplitude (h = Z0 H along s-hat).
+    """
+
+    @property
+    def reflected(self) -> Annotated[NDArray[numpy.complex128], dict(shape=(None, None), writable=False)]:
+        """Reflected amplitudes into the superstrate, (2N, 2)."""
+
+    @property
+    def transmitted(self) -> Annotated[NDArray[numpy.complex128], dict(shape=(None, None), writable=False)]:
+        """Transmitted amplitudes into the substrate, (2N, 2)."""
+
+    @property
+    def kz_superstrate(self) -> Annotated[NDArray[numpy.complex128], dict(shape=(None,), writable=False)]:
+        """kz / k0 of each harmonic in the superstrate, outgoing branch, (N,)."""
+
+    @property
+    def kz_substrate(self) -> Annotated[NDArray[numpy.complex128], dict(shape=(None,), writable=False)]:
+        """kz / k0 of each harmonic in the substrate, outgoing branch, (N,)."""
+
+class SweepSolution:
+    """
+    Amplitudes of the K kept harmonics at P incident directions, as StackSolution per point restricted to the kept rows (s rows, then p rows), and the work done.
+    """
+
+    @property
+    def reflected(self) -> Annotated[NDArray[numpy.complex128], dict(shape=(None, None, None), writable=False)]:
+        """Reflected amplitudes, (P, 2K, 2)."""
+
+    @property
+    def transmitted(self) -> Annotated[NDArray[numpy.complex128], dict(shape=(None, None, None), writable=False)]:
+        """Transmitted amplitudes, (P, 2K, 2)."""
+
+    @property
+    def kz_superstrate(self) -> Annotated[NDArray[numpy.complex128], dict(shape=(None, None), writable=False)]:
+        """kz / k0 of the kept harmonics in the superstrate, (P, K)."""
+
+    @property
+    def kz_substrate(self) -> Annotated[NDArray[numpy.complex128], dict(shape=(None, None), writable=False)]:
+        """kz / k0 of the kept harmonics in the substrate, (P, K)."""
+
+    @property
+    def eigen_solves(self) -> int:
+        """
+        Lamellar eigen-solves (two per 1D layer and group of points sharing kx0).
+        """
+
+    @property
+    def eigen_refined(self) -> int:
+        """
+        Of the eigen-solves, those refined from a neighbouring kx0's eigenvectors.
+        """
+
+class EigenDecomposition:
+    """A V = V diag(values), right eigenvectors as columns."""
+
+    @property
+    def values(self) -> Annotated[NDArray[numpy.complex128], dict(shape=(None,), writable=False)]:
+        """Eigenvalues, (N,)."""
+
+    @property
+    def vectors(self) -> Annotated[NDArray[numpy.complex128], dict(shape=(None, None), writable=False)]:
+        """Eigenvectors as columns, (N, N), each of unit norm."""
+
+def solve_stack(kx: Annotated[NDArray[numpy.float64], dict(shape=(None,), device='cpu', writable=False)], ky: Annotated[NDArray[numpy.float64], dict(shape=(None,), device='cpu', writable=False)], zero_order: int, eps_superstrate: complex, eps_substrate: complex, s_direction: tuple[float, float], layers: Sequence[LayerInput], method: StackMethod = StackMethod.ENHANCED_TRANSMITTANCE) -> StackSolution:
+    """
+    One solve. kx, ky: (N,) tangential wave vectors / k0 of the harmonics; zero_order: the index of the incident wave's; s_direction: s-hat where kx = ky = 0; layers from the superstrate down.
+    """
+
+def sweep(dkx: Annotated[NDArray[numpy.float64], dict(shape=(None,), device='cpu', writable=False)], dky: Annotated[NDArray[numpy.float64], dict(shape=(None,), device='cpu', writable=False)], zero_order: int, eps_superstrate: complex, eps_substrate: complex, layers: Sequence[LayerInput], kx0: Annotated[NDArray[numpy.float64], dict(shape=(None,), device='cpu', writable=False)], ky0: Annotated[NDArray[numpy.float64], dict(shape=(None,), device='cpu', writable=False)], s_x: Annotated[NDArray[numpy.float64], dict(shape=(None,), device='cpu', writable=False)], s_y: Annotated[NDArray[numpy.float64], dict(shape=(None,), device='cpu', writable=False)], keep: Sequence[int], method: StackMethod = StackMethod.ENHANCED_TRANSMITTANCE, threads: int = 1) -> SweepSolution:
+    """
+    Many incident directions (P points) at one wavelength: harmonic i of point p has kx0[p] + dkx[i], ky0[p] + dky[i]; the harmonics listed in keep are returned. Points sharing kx0 share 1D eigen-solves.
+    """
+
+def eig_from_guess(A: Annotated[NDArray[numpy.complex128], dict(shape=(None, None), device='cpu', writable=False)], guess: Annotated[NDArray[numpy.complex128], dict(shape=(None, None), device='cpu', writable=False)]) -> EigenDecomposition | None:
+    """
+    Eigen-decomposition of A refined from approximate eigenvectors, or None where it declines.
+    """
+
+def set_blas_threads(n: int) -> None:
+    """Number of OpenBLAS threads (1 when the core runs its own threads)."""
