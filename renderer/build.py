@@ -2,23 +2,30 @@
 
 Spectra are Mitsuba ``irregular`` spectra over 360-830 nm; data that stop inside that
 range (the Cornell reflectances, 400-700 nm) are held constant beyond their ends.
-Meshes (box quads, CD annuli) are written as PLY files into a cache folder named by
-their content, atomically. A CD's efficiency table is built through the table cache
-(rcwa.table) when missing, and checked to cover where the camera sees.
+Meshes (box quads, CD annuli) are PLY files in the user's cache (workbench.core.cache,
+``meshes/``) named by the hash of their text, written atomically under the entry's lock
+and checked against their name when reused. A CD's or grating's efficiency table is the
+one its ``table = { path = ... }`` names (checked: finished, intact, built for the
+element's structure), or else built through the table cache (``tables/``, named by the
+request's content hash) when missing; either is checked to cover where the camera sees.
 """
 
 from __future__ import annotations
 
 import hashlib
 import math
+import tomllib
+from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
-from workbench.core.files import atomic_write_text
 from renderer.scene import CD_TOP_THICKNESS_M, MM, SPECTRAL_RANGE_NM, SceneSpec, box_scale, cornell_data
+from workbench.core.cache import entry_lock, entry_path
+from workbench.core.errors import UserInputError
+from workbench.core.files import atomic_write_text
 
-CACHE = Path("build")
 CD_SEGMENTS = 256
 GRID_NM = np.arange(SPECTRAL_RANGE_NM[0], SPECTRAL_RANGE_NM[1] + 1e-9, 5.0)
 
@@ -60,10 +67,21 @@ def _write_ply(vertices: np.ndarray, faces: np.ndarray, uv: np.ndarray | None = 
     rows = [" ".join(f"{c:.9g}" for c in (list(p) + (list(uv[i]) if uv is not None else []))) for i, p in enumerate(vertices)]
     rows += [f"3 {a} {b} {c}" for a, b, c in faces]
     text = "\n".join(lines + rows) + "\n"
-    path = CACHE / "meshes" / (hashlib.sha256(text.encode()).hexdigest()[:20] + ".ply")
-    if not path.exists():
-        atomic_write_text(path, text)
+    digest = hashlib.sha256(text.encode()).hexdigest()[:20]
+    path = entry_path("meshes", digest + ".ply")
+    if not _mesh_intact(path, digest):
+        with entry_lock(path):
+            if not _mesh_intact(path, digest):  # another process may have written it meanwhile
+                atomic_write_text(path, text)
     return path
+
+
+def _mesh_intact(path: Path, digest: str) -> bool:
+    """A cached mesh is reused only when its bytes still hash to its name."""
+    try:
+        return hashlib.sha256(path.read_bytes()).hexdigest()[:20] == digest
+    except OSError:
+        return False
 
 
 def quad_mesh(points_mm, scale=(1.0, 1.0, 1.0)) -> Path:
@@ -108,25 +126,87 @@ def transform(translation, rotation: np.ndarray, scale=(1.0, 1.0, 1.0)) -> np.nd
     return T
 
 
-def element_table(element, camera_sens) -> Path:
-    """The efficiency table of a CD or grating element, built through the table cache."""
+@dataclass(frozen=True)
+class TablePlan:
+    """An element's efficiency table: where it is, the request it holds (rcwa.table's key),
+    and the settings to build it with (None for a table the scene names by ``path``).
+    """
+
+    path: Path
+    key: str
+    structure: Any
+    settings: Any
+
+
+def table_plan(element, where: str = "element", scene_file: str | None = None) -> TablePlan:
+    """Where a CD's or grating's table is and what it holds, without building it."""
     import rcwa
-    from rcwa.table import build_table, request_key, settings_for
-    from renderer.checks import require_table_covers_camera
+    from rcwa.table import read_table_metadata, request_key, settings_for
 
     structure = rcwa.load_structure(element.structure)
     options = dict(element.table)
+    if "path" in options:  # alone (renderer.scene checks), relative paths already resolved against the scene file
+        path = Path(options["path"])
+        try:
+            meta = read_table_metadata(path)
+        except UserInputError as exc:
+            raise UserInputError(f"{path}: {exc.reason}", file=scene_file, field=f"{where}.table.path",
+                                 expected=exc.expected) from None
+        return TablePlan(path, meta["key"], structure, None)
     preset = options.pop("preset", "draft")
     eps = np.asarray(structure.substrate.epsilon(np.array([550.0])))
     if np.all((eps.imag == 0) & (eps.real > 0)):
         options.setdefault("both_sides", True)  # see-through: light from below too
     settings = settings_for(structure, preset, **options)
-    path = CACHE / "tables" / f"{structure.name}-{request_key(structure, settings)[:16]}.zarr"
-    build_table(structure, settings, path, progress=True)
+    key = request_key(structure, settings)
+    return TablePlan(entry_path("tables", f"{structure.name}-{key[:16]}.zarr"), key, structure, settings)
+
+
+def table_keys(spec: SceneSpec) -> list[str]:
+    """The request keys of a scene's tables (their content, wherever the cache is), in order."""
+    elements = [(f"cd[{i}]", cd) for i, cd in enumerate(spec.cds)] + [(f"grating[{i}]", g) for i, g in enumerate(spec.gratings)]
+    return [table_plan(element, where, spec.source).key for where, element in elements]
+
+
+def element_table(element, camera_sens, where: str = "element", scene_file: str | None = None) -> Path:
+    """The efficiency table of a CD or grating: the one its scene names (checked), or built
+    through the table cache. ``where`` (``cd[0]``) and ``scene_file`` locate errors.
+    """
+    from rcwa.table import build_table
+    from renderer.checks import require_table_covers_camera
+
+    plan = table_plan(element, where, scene_file)
+    if plan.settings is None:
+        wavelengths = _check_named_table(plan, where, scene_file)
+    else:
+        build_table(plan.structure, plan.settings, plan.path, progress=True, force=True)  # the cache owns the path
+        wavelengths = np.asarray(plan.settings.wavelengths_nm)
     wl = np.unique(np.concatenate([w for w, _ in camera_sens]))
     curves = np.stack([np.interp(wl, w, s, left=0, right=0) for w, s in camera_sens])
-    require_table_covers_camera(str(path), np.asarray(settings.wavelengths_nm), wl, curves)
-    return path
+    require_table_covers_camera(str(plan.path), wavelengths, wl, curves)
+    return plan.path
+
+
+def _check_named_table(plan: TablePlan, where: str, scene_file: str | None) -> np.ndarray:
+    """A table a scene names must be finished, intact, built for the element's structure,
+    and hold light from below when the element is see-through; its wavelengths.
+    """
+    from rcwa.table import open_table
+
+    field = f"{where}.table.path"
+    try:
+        table = open_table(plan.path)  # finished, every chunk's checksum
+    except UserInputError as exc:
+        raise UserInputError(f"{plan.path}: {exc.reason}", file=scene_file, field=field) from None
+    if tomllib.loads(table.meta["structure_text"]) != tomllib.loads(plan.structure.text):
+        raise UserInputError(f"{plan.path} was built for another structure ({table.meta['structure_source']}), not the "
+                             f"element's ({plan.structure.source})", file=scene_file, field=field,
+                             expected=f"a table built with `workbench rcwa table {plan.structure.source} ...`")
+    arrays = set(table.meta["arrays"])
+    if "T" in arrays and not {"R_below", "T_below"} <= arrays:
+        raise UserInputError(f"{plan.path}: the element is see-through (its substrate transmits) and needs light from "
+                             "both sides", file=scene_file, field=field, expected="a table built with --both-sides")
+    return table.wavelengths_nm
 
 
 def register_plugins() -> None:
@@ -141,7 +221,8 @@ def light_dict(mi, light) -> dict:
     """The ceiling light (renderer.scene.LightSpec): a rectangle facing down whose emitter
     has total radiant power ``power_w``. Lambertian: Mitsuba's ``area``, radiance
     P / (pi A) times the normalised spectrum; ``cos_power`` n: renderer.emitter's
-    ``cospower_area`` with radiance along the normal P / (A 2 pi / (n + 2))."""
+    ``cospower_area`` with radiance along the normal P / (A 2 pi / (n + 2)).
+    """
     wl, s = light_spectrum(light.spectrum)
     area = light.size[0] * light.size[1]
     projected_solid_angle = math.pi if light.cos_power is None else 2 * math.pi / (light.cos_power + 2)
@@ -181,7 +262,7 @@ def scene_dict(mi, spec: SceneSpec, *, spp: int, integrator: str = "path", mode:
 
     polycarbonate = material_from_spec("polycarbonate")
     for i, cd in enumerate(spec.cds):
-        table = element_table(cd, sens)
+        table = element_table(cd, sens, f"cd[{i}]", spec.source)
         built["tables"].append(str(table))
         R = frame_to(cd.normal, cd.rotation_deg)
         mesh = str(annulus_mesh(cd.inner_radius, cd.outer_radius))
@@ -192,7 +273,7 @@ def scene_dict(mi, spec: SceneSpec, *, spp: int, integrator: str = "path", mode:
             scene[f"cd{i}_top"] = {"type": "ply", "filename": mesh, "to_world": mi.ScalarTransform4f(transform(top, R).tolist()),
                                    "bsdf": bsdf_dict(polycarbonate, dispersion=cd.dispersion)}
     for i, g in enumerate(spec.gratings):
-        table = element_table(g, sens)
+        table = element_table(g, sens, f"grating[{i}]", spec.source)
         built["tables"].append(str(table))
         R = frame_to(g.normal, g.rotation_deg)
         scene[f"grating{i}"] = {"type": "rectangle", "to_world": mi.ScalarTransform4f(transform(g.center, R, (g.size[0] / 2, g.size[1] / 2, 1.0)).tolist()),
@@ -212,7 +293,8 @@ def scene_dict(mi, spec: SceneSpec, *, spp: int, integrator: str = "path", mode:
 
 def sensor_dict(mi, camera, spp: int):
     """Mitsuba's sensor for a scene camera: the ideal pinhole plan (renderer.camera) with a
-    spectral film whose three channels are the camera's sensitivities (camera RGB)."""
+    spectral film whose three channels are the camera's sensitivities (camera RGB).
+    """
     plan = camera.model.pinhole_plan()
     film = {f"channel_{c}": irregular(w, v) for c, (w, v) in zip("rgb", camera_sensitivities(camera.sensitivities))}
     sensor = plan.sensor_dict(mi, spp)

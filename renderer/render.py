@@ -2,8 +2,10 @@
 
 Rendering runs in passes (different seeds, averaged: unbiased); after each pass the
 running sum is saved atomically beside the output, so an interrupted render resumes from
-its finished passes when the same command runs again. The sidecar records the settings,
-versions, timings and the efficiency tables used (with their content keys).
+its finished passes when the same command runs again. The sidecar records the request's
+key, the EXR's SHA-256, the settings, versions, timings and the efficiency tables used.
+As with tables, the same request on a finished render is served at once, and a different
+one at the same path needs ``force``.
 """
 
 from __future__ import annotations
@@ -23,8 +25,10 @@ from renderer.scene import SceneSpec, load_scene
 from workbench.core.errors import UserInputError
 from workbench.core.files import atomic_write as _atomic
 from workbench.core.timing import timed
+from workbench.core.version import __version__ as workbench_version
 
 PRESETS = {"draft": {"spp": 256, "pass_spp": 64}, "paper": {"spp": 2045, "pass_spp": 128, "resolution": (978, 734)}}
+SIDECAR_FORMAT = "workbench-render"
 
 
 def with_resolution(spec: SceneSpec, resolution: tuple[int, int] | None) -> SceneSpec:
@@ -53,41 +57,36 @@ def render_pass(spec: SceneSpec, pass_spp: int, integrator: str, mode: str, pass
 
 def render(scene: str | Path, out: str | Path, *, preset: str = "draft", spp: int | None = None,
            resolution: tuple[int, int] | None = None, integrator: str = "path", mode: str = "improved",
-           seed: int = 0, progress: bool = True, executor=None) -> dict:
+           seed: int = 0, progress: bool = True, executor=None, force: bool = False) -> dict:
     """Render ``scene``; with ``executor`` (workbench.core.executor.DaskExecutor) the passes run on a
     dask.distributed cluster, each with its own seed, averaged here: the result is the
-    same as a local render with the same seed."""
+    same as a local render with the same seed.
+
+    Like ``workbench rcwa table``: when ``out`` holds the finished render of the same
+    request (scene, tables, settings, seed, version; the EXR unchanged since), it is
+    served at once (``info["served"]``); a different render or other files at ``out``
+    (the EXR, its PNG preview or JSON sidecar) are replaced only with ``force``; an
+    interrupted render of the same request resumes (``info["resumed_passes"]``).
+    """
     from tqdm import tqdm
 
     from renderer.variant import set_variant
 
-    if preset not in PRESETS:
-        raise UserInputError("unknown preset", field="--preset", expected=f"one of {sorted(PRESETS)}", got=preset)
-    if integrator not in ("path", "direct"):
-        raise UserInputError("unknown integrator", field="--integrator", expected="path or direct", got=integrator)
-    if mode not in ("paper", "improved"):
-        raise UserInputError("unknown mode", field="--mode", expected="paper or improved", got=mode)
-    settings = dict(PRESETS[preset])
-    spp = int(settings["spp"] if spp is None else spp)
-    if spp < 1:
-        raise UserInputError("must be at least 1", field="--spp", got=spp)
-    spec = with_resolution(load_scene(scene), resolution or settings.get("resolution"))
-    out = Path(out)
-    if out.suffix.lower() != ".exr":
-        raise UserInputError("the output must be an OpenEXR file", field="--out", expected="a path ending in .exr", got=str(out))
+    spp, pass_spp, spec, out = _checked_request(scene, out, preset, spp, resolution, integrator, mode, seed)
+    passes = math.ceil(spp / pass_spp)
+    key = _request_key(spec, spp, pass_spp, integrator, mode, seed)
+    partial = out.with_name(out.name + ".partial.npz")
+    finished = _finished_render(out, key)
+    if finished is not None:
+        return finished
+    _refuse_to_overwrite(out, partial, key, force)
     variant = set_variant()
     import mitsuba as mi
 
     from renderer.build import scene_dict
 
     started = time.perf_counter()
-    pass_spp = min(spp, settings["pass_spp"])
-    passes = math.ceil(spp / pass_spp)
     scene_d, built = scene_dict(mi, spec, spp=pass_spp, integrator=integrator, mode=mode)
-    key = hashlib.sha256(json.dumps({"scene": spec.text, "w": spec.camera.model.width, "h": spec.camera.model.height,
-                                     "spp": spp, "pass": pass_spp, "integrator": integrator, "mode": mode, "seed": seed,
-                                     "tables": built["tables"]}, sort_keys=True).encode()).hexdigest()
-    partial = out.with_name(out.name + ".partial.npz")
     total, done = _resume(partial, key)
     bar = tqdm(total=passes, initial=done, unit="pass", disable=not progress, desc=f"render {spec.name}")
     pass_seconds = []
@@ -113,12 +112,14 @@ def render(scene: str | Path, out: str | Path, *, preset: str = "draft", spp: in
     _atomic(preview, lambda tmp: _write_preview(rgb, tmp))
     sidecar = out.with_suffix(".json")
     info = {
+        "format": SIDECAR_FORMAT, "request_key": key, "output_sha256": _file_sha256(out),
         "scene": spec.name, "scene_source": spec.source, "scene_sha256": hashlib.sha256(spec.text.encode()).hexdigest(),
         "output": str(out), "preview": str(preview), "preset": preset, "spp": passes * pass_spp, "passes": passes,
         "resolution": [spec.camera.model.width, spec.camera.model.height], "integrator": integrator, "mode": mode,
         "seed": seed, "variant": variant, "tables": built["tables"], "seconds_total": time.perf_counter() - started,
         "seconds_per_pass": pass_seconds, "resumed_passes": done,
-        "versions": {"mitsuba": mi.__version__, "python": platform.python_version(), "numpy": np.__version__},
+        "versions": {"workbench": workbench_version, "mitsuba": mi.__version__, "python": platform.python_version(),
+                     "numpy": np.__version__},
         "units": "linear camera RGB (integral of radiance x camera sensitivity, times exposure)",
         "camera": {"width": spec.camera.model.width, "height": spec.camera.model.height, "fx": spec.camera.model.fx,
                    "fy": spec.camera.model.fy, "cx": spec.camera.model.cx, "cy": spec.camera.model.cy,
@@ -128,7 +129,109 @@ def render(scene: str | Path, out: str | Path, *, preset: str = "draft", spp: in
     }
     _atomic(sidecar, lambda tmp: tmp.write_text(json.dumps(info, indent=2)))
     partial.unlink(missing_ok=True)
-    return info
+    return info | {"served": False}
+
+
+def summary(info: dict) -> str:
+    """One line for the command line: what was written, or that a finished render was served."""
+    size = f"{info['resolution'][0]}x{info['resolution'][1]}, {info['spp']} spp"
+    if info.get("served"):
+        return (f"{info['output']}: up to date (request {info['request_key'][:12]}): the finished identical render "
+                f"({size}, {info['seconds_total']:.1f} s when it was made) is served; nothing rendered")
+    resumed = (f"; resumed after {info['resumed_passes']} of {info['passes']} passes finished earlier"
+               if info.get("resumed_passes") else "")
+    return (f"wrote {info['output']} (linear camera RGB), {info['preview']} and the sidecar "
+            f"{info['output'][:-4]}.json: {size}, {info['seconds_total']:.1f} s ({info['variant']}){resumed}")
+
+
+def _checked_request(scene: str | Path, out: str | Path, preset: str, spp: int | None,
+                     resolution: tuple[int, int] | None, integrator: str, mode: str,
+                     seed: int) -> tuple[int, int, SceneSpec, Path]:
+    """Every argument checked before anything is built or written: (spp, spp per pass, scene, out)."""
+    if preset not in PRESETS:
+        raise UserInputError("unknown preset", field="--preset", expected=f"one of {sorted(PRESETS)}", got=preset)
+    if integrator not in ("path", "direct"):
+        raise UserInputError("unknown integrator", field="--integrator", expected="path or direct", got=integrator)
+    if mode not in ("paper", "improved"):
+        raise UserInputError("unknown mode", field="--mode", expected="paper or improved", got=mode)
+    if isinstance(seed, bool) or not isinstance(seed, int) or seed < 0:
+        raise UserInputError("must be a non-negative integer", field="--seed", got=seed)
+    settings = dict(PRESETS[preset])
+    spp = int(settings["spp"] if spp is None else spp)
+    if spp < 1:
+        raise UserInputError("must be at least 1", field="--spp", got=spp)
+    out = Path(out)
+    if out.suffix.lower() != ".exr":
+        raise UserInputError("the output must be an OpenEXR file", field="--out", expected="a path ending in .exr", got=str(out))
+    if out.is_dir():
+        raise UserInputError("is a folder, not a file", field="--out", expected="a path ending in .exr", got=str(out))
+    spec = with_resolution(load_scene(scene), resolution or settings.get("resolution"))
+    return spp, min(spp, settings["pass_spp"]), spec, out
+
+
+def _request_key(spec: SceneSpec, spp: int, pass_spp: int, integrator: str, mode: str, seed: int) -> str:
+    """What a render is of: scene text, image size, sampling, seed, the tables' own request
+    keys (their content, wherever the cache is) and the workbench version.
+    """
+    from renderer.build import table_keys
+
+    request = {"scene": spec.text, "w": spec.camera.model.width, "h": spec.camera.model.height, "spp": spp,
+               "pass": pass_spp, "integrator": integrator, "mode": mode, "seed": seed, "tables": table_keys(spec),
+               "version": workbench_version}
+    return hashlib.sha256(json.dumps(request, sort_keys=True).encode()).hexdigest()
+
+
+def _outputs(out: Path) -> list[Path]:
+    return [out, out.with_suffix(".png"), out.with_suffix(".json")]
+
+
+def _read_sidecar(out: Path) -> dict | None:
+    try:
+        info = json.loads(out.with_suffix(".json").read_text())
+    except (OSError, ValueError):
+        return None
+    return info if isinstance(info, dict) and info.get("format") == SIDECAR_FORMAT else None
+
+
+def _finished_render(out: Path, key: str) -> dict | None:
+    """The sidecar of the finished render of this very request at ``out``, if its images are
+    all there and the EXR is the one it describes.
+    """
+    info = _read_sidecar(out)
+    if info is None or info.get("request_key") != key or not all(p.is_file() for p in _outputs(out)):
+        return None
+    if _file_sha256(out) != info.get("output_sha256"):
+        return None
+    return info | {"served": True}
+
+
+def _refuse_to_overwrite(out: Path, partial: Path, key: str, force: bool) -> None:
+    """A different render (or other files) at ``out`` is replaced only with ``force``; an
+    interrupted render of this request may carry on.
+    """
+    present = [p for p in _outputs(out) if p.exists()]
+    if not present or force or _resume(partial, key)[1] > 0:
+        return
+    info = _read_sidecar(out)
+    if info is None:
+        what = "files that no render of this workbench described: " + ", ".join(p.name for p in present)
+    elif out.is_file() and _file_sha256(out) != info.get("output_sha256"):
+        what = "a render whose EXR was changed since it was written"
+    elif info.get("request_key") == key:
+        return  # this request, with a part missing (a deleted preview): rendered again
+    else:
+        what = (f"a different render (of {info.get('scene_source', 'another scene')}, {info.get('spp')} spp, "
+                f"seed {info.get('seed')})")
+    raise UserInputError(f"the output already holds {what}", file=out,
+                         expected="a new path, the same request, or --force to replace it")
+
+
+def _file_sha256(path: Path) -> str:
+    digest = hashlib.sha256()
+    with open(path, "rb") as f:
+        for block in iter(lambda: f.read(1 << 20), b""):
+            digest.update(block)
+    return digest.hexdigest()
 
 
 def _write_preview(rgb: np.ndarray, path: Path) -> None:

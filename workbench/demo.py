@@ -32,12 +32,11 @@ def run_demo() -> int:
         result = rcwa.solve(structure, wavelength, DEMO_THETA_DEG, 0.0, DEMO_ORDERS, "unpolarized")
         print(solve_table(result))
         print(f"({(time.perf_counter() - start) * 1e3:.1f} ms)\n")
-    from renderer.render import render
+    from renderer.render import render, summary
 
     print("Rendering the built-in scene cornell_cd (draft preset) ...")
-    info = render("cornell_cd", DEMO_RENDER, preset="draft")
-    print(f"\nImages: {info['output']} (linear camera RGB, OpenEXR), {info['preview']} (preview), "
-          f"{DEMO_RENDER[:-4]}.json (settings, versions, timings); {info['spp']} spp in {info['seconds_total']:.1f} s.")
+    info = render("cornell_cd", DEMO_RENDER, preset="draft", force=True)  # out/demo is the demo's own folder
+    print(f"\n{summary(info)}")
     from datasets_synthetic.synth import synth
 
     print(f"\nGenerating the default synthetic dataset (seed {DEMO_SEED}, draft preset) ...")

@@ -1,0 +1,144 @@
+"""`workbench render` treats its outputs as `rcwa table` treats tables: the finished
+identical request is served at once, a different one needs --force, an interrupted one
+resumes and says so; and a scene may name a table built with `workbench rcwa table`.
+
+Renders are tiny (48 x 36, a few spp): these tests are about files, not images. A served
+or resumed render must equal the uninterrupted one exactly (same passes, same seeds).
+"""
+
+import json
+
+import numpy as np
+import pytest
+
+from renderer.render import render, summary
+from workbench.cli import main
+from workbench.core.errors import UserInputError
+
+TINY = dict(spp=4, resolution=(48, 36), progress=False)
+
+
+def _exr(path):
+    import mitsuba as mi
+
+    return np.array(mi.Bitmap(str(path)))
+
+
+def test_identical_request_is_served_and_a_different_one_needs_force(mitsuba_variant, tmp_path):
+    out = tmp_path / "r.exr"
+    first = render("cornell_cd", out, **TINY)
+    stamp = out.stat().st_mtime_ns
+    again = render("cornell_cd", out, **TINY)
+    assert again["served"] and not first["served"] and out.stat().st_mtime_ns == stamp  # nothing rewritten
+    assert "up to date" in summary(again) and "nothing rendered" in summary(again)
+    with pytest.raises(UserInputError, match="different render.*--force"):
+        render("cornell_cd", out, **(TINY | {"spp": 8}))
+    assert out.stat().st_mtime_ns == stamp  # refused before anything was written
+    replaced = render("cornell_cd", out, force=True, **(TINY | {"spp": 8}))
+    assert replaced["spp"] == 8 and json.loads(out.with_suffix(".json").read_text())["spp"] == 8
+
+
+def test_a_changed_or_foreign_output_is_not_overwritten_without_force(mitsuba_variant, tmp_path):
+    out = tmp_path / "mine.exr"
+    out.write_bytes(b"my own file")
+    with pytest.raises(UserInputError, match="no render of this workbench described: mine.exr"):
+        render("cornell_cd", out, **TINY)
+    assert out.read_bytes() == b"my own file"
+    render("cornell_cd", out, force=True, **TINY)
+    with open(out, "ab") as f:  # edited after the render: no longer the finished request
+        f.write(b"\0")
+    with pytest.raises(UserInputError, match="EXR was changed"):
+        render("cornell_cd", out, **TINY)
+
+
+def test_an_interrupted_render_resumes_and_says_so(mitsuba_variant, tmp_path, monkeypatch):
+    """Two passes of 64 spp; the run stops after saving the first. The same command then
+    renders only the second and gives the uninterrupted image exactly."""
+    import renderer.render as module
+
+    settings = TINY | {"spp": 128}
+    clean = render("cornell_cd", tmp_path / "clean.exr", **settings)
+    assert clean["passes"] == 2
+    save = module._atomic_npz
+    calls = []
+
+    def save_then_stop(*args, **kwargs):
+        save(*args, **kwargs)
+        calls.append(1)
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(module, "_atomic_npz", save_then_stop)
+    with pytest.raises(KeyboardInterrupt):
+        render("cornell_cd", tmp_path / "r.exr", **settings)
+    monkeypatch.setattr(module, "_atomic_npz", save)
+    assert not (tmp_path / "r.exr").exists() and (tmp_path / "r.exr.partial.npz").exists()
+    info = render("cornell_cd", tmp_path / "r.exr", **settings)
+    assert info["resumed_passes"] == 1 and "resumed after 1 of 2 passes" in summary(info)
+    assert np.array_equal(_exr(tmp_path / "r.exr"), _exr(tmp_path / "clean.exr"))
+    assert not (tmp_path / "r.exr.partial.npz").exists()
+
+
+def test_the_command_line_has_force_and_reports_a_served_render(mitsuba_variant, tmp_path, capsys):
+    args = ["render", "cornell_cd", "--out", str(tmp_path / "c.exr"), "--spp", "4", "--resolution", "48x36", "--quiet"]
+    assert main(args) == 0
+    capsys.readouterr()
+    assert main(args) == 0 and "up to date" in capsys.readouterr().out
+    assert main([*args[:-1], "--spp", "8", "--quiet"]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("error: ") and "--force" in err and "Traceback" not in err
+    assert main([*args, "--spp", "8", "--force"]) == 0
+
+
+def _scene_with_table(tmp_path, table_line: str):
+    from renderer.scene import load_scene
+
+    text = load_scene("cornell_cd").text
+    assert 'table = { preset = "draft" }' in text
+    path = tmp_path / "scene.toml"
+    path.write_text(text.replace('table = { preset = "draft" }', table_line))
+    return path
+
+
+def test_a_scene_can_name_a_table_built_with_rcwa_table(mitsuba_variant, tmp_path, cd_table):
+    """The CD's table is the one the scene names (relative to the scene file): no cache
+    table is built or looked up for it, and the render uses it."""
+    import shutil
+
+    import mitsuba as mi
+
+    from renderer.build import scene_dict
+    from renderer.scene import load_scene
+
+    shutil.copytree(cd_table.path, tmp_path / "mine.zarr")
+    spec = load_scene(_scene_with_table(tmp_path, 'table = { path = "mine.zarr" }'))
+    _, built = scene_dict(mi, spec, spp=1)
+    assert built["tables"] == [str(tmp_path / "mine.zarr")]
+    info = render(str(tmp_path / "scene.toml"), tmp_path / "r.exr", **TINY)
+    assert info["tables"] == [str(tmp_path / "mine.zarr")]
+
+
+def test_a_named_table_must_exist_be_intact_and_match_the_structure(mitsuba_variant, tmp_path, cd_table):
+    import shutil
+
+    import mitsuba as mi
+
+    import rcwa
+    from rcwa.table import build_table, settings_for
+    from renderer.build import scene_dict
+    from renderer.scene import load_scene
+
+    with pytest.raises(UserInputError, match=r"scene.toml: field 'cd\[0\].table.path'.*nope.zarr.*not an efficiency table"):
+        scene_dict(mi, load_scene(_scene_with_table(tmp_path, 'table = { path = "nope.zarr" }')), spp=1)
+
+    thicker = rcwa.load_structure("cd").text.replace("thickness = 0.11", "thickness = 0.12")
+    other = rcwa.Structure.from_toml_string(thicker, source="thicker.toml")
+    assert other.text != rcwa.load_structure("cd").text
+    build_table(other, settings_for(other, "draft", wavelengths="380:780:3", theta_step=45.0, phi_step=45.0, orders=11,
+                                    keep=5), tmp_path / "other.zarr", progress=False)
+    with pytest.raises(UserInputError, match=r"cd\[0\].table.path.*another structure \(thicker.toml\)"):
+        scene_dict(mi, load_scene(_scene_with_table(tmp_path, 'table = { path = "other.zarr" }')), spp=1)
+
+    shutil.copytree(cd_table.path, tmp_path / "damaged.zarr")
+    sorted(p for p in (tmp_path / "damaged.zarr" / "R" / "c").rglob("*") if p.is_file())[2].unlink()
+    with pytest.raises(UserInputError, match=r"cd\[0\].table.path.*chunk 2 .*damaged or missing"):
+        scene_dict(mi, load_scene(_scene_with_table(tmp_path, 'table = { path = "damaged.zarr" }')), spp=1)
