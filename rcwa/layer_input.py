@@ -35,21 +35,16 @@ def _fail(field_name: str, expected: str, got: Any) -> ValueError:
     return ValueError(f"LayerInput.{field_name}: expected {expected}, got {got!r}")
 
 
-def layer_kind(kind: _core.LayerKind | str) -> _core.LayerKind:
-    """The kind itself, or the kind of that name (``"lamellar"``, any case)."""
-    if isinstance(kind, LayerKind):
-        return kind
-    if isinstance(kind, str) and kind.upper() in LayerKind.__members__:
-        return LayerKind.__members__[kind.upper()]
-    raise _fail("kind", f"one of {[k.name.lower() for k in LayerKind]}", kind)
+def _check_kind(kind: object) -> None:
+    if not isinstance(kind, LayerKind):
+        raise _fail("kind", f"a LayerKind, one of {[k.name for k in LayerKind]}", kind)
 
 
 @dataclass(frozen=True, eq=False)  # eq=False: identity, since numpy arrays have no truth value
 class LayerInput:
     """One layer of a stack, from the superstrate down, as the core receives it.
 
-    kind: ``LayerKind`` (or its name): UNIFORM (no matrices), LAMELLAR (``E``, ``Exx``)
-        or GENERAL (``E``, ``Exx``, ``Exy``, ``Eyx``, ``Eyy``).
+    kind: ``LayerKind``: UNIFORM (no matrices), LAMELLAR (``E``, ``Exx``) or GENERAL (``E``, ``Exx``, ``Exy``, ``Eyx``, ``Eyy``).
     k0_thickness: thickness times ``k0 = 2 pi / lambda`` (radians), finite and >= 0.
     permittivity: relative permittivity of a uniform layer (unused otherwise).
     matrices: the kind's N x N complex128 Fourier matrices (rcwa.factorization).
@@ -62,8 +57,8 @@ class LayerInput:
     core: _core.LayerInput = field(init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
-        kind = layer_kind(self.kind)
-        object.__setattr__(self, "kind", kind)
+        _check_kind(self.kind)
+        kind = self.kind
         if isinstance(self.k0_thickness, bool) or not isinstance(self.k0_thickness, (int, float, np.floating)) \
                 or not (math.isfinite(self.k0_thickness) and self.k0_thickness >= 0):
             raise _fail("k0_thickness", "a finite number >= 0", self.k0_thickness)

@@ -169,6 +169,7 @@ void bind_layers(nb::module_& m) {
                 for (const Mat& mat : layer.matrices) out.push_back(copy_to_numpy(mat));
                 return out;
             },
+            nb::rv_policy::automatic,  // owned copies, not views of the layer (reference_internal)
             "Copies of the Fourier matrices, in the order given.")
         .def("__repr__", [](const rcwa::LayerInput& layer) {
             return std::string("LayerInput(") + rcwa::kind_name(layer.kind) +

@@ -57,14 +57,18 @@ def _uniform(eps: complex, k0d: float = 0.3) -> _core.LayerInput:
 # ---------------------------------------------------------------- layers: checked where they enter
 
 
-def test_layer_kind_by_name_and_by_enum():
-    assert LayerInput("lamellar", 1.0, 0j, (_matrix(3), _matrix(3, 1))).kind is LayerKind.LAMELLAR
-    assert LayerInput(LayerKind.UNIFORM, 1.0, 2.25).size == 0
+def test_a_valid_layer_reaches_the_core_unchanged():
+    E, Exx = _matrix(3), _matrix(3, 1)
+    layer = LayerInput(LayerKind.LAMELLAR, 1.25, 0j, (E, Exx))
+    assert layer.size == 3 and layer.core.kind is LayerKind.LAMELLAR and layer.core.k0_thickness == 1.25
+    np.testing.assert_array_equal(layer.core.matrices[0], E)
+    np.testing.assert_array_equal(layer.core.matrices[1], Exx)
+    assert LayerInput(LayerKind.UNIFORM, 1.0, 2.25).core.permittivity == 2.25
 
 
-@pytest.mark.parametrize("kind", ["bogus", 99, None])
+@pytest.mark.parametrize("kind", ["lamellar", 1, None])
 def test_unknown_kind_is_refused_naming_the_field(kind):
-    with pytest.raises(ValueError, match=r"LayerInput\.kind: expected one of \['uniform', 'lamellar', 'general'\]"):
+    with pytest.raises(ValueError, match=r"LayerInput\.kind: expected a LayerKind, one of \['UNIFORM', 'LAMELLAR', 'GENERAL'\]"):
         LayerInput(kind, 1.0, 2.25)
 
 
@@ -74,7 +78,7 @@ def test_the_core_has_no_unknown_kind():
     with pytest.raises(ValueError):
         _core.LayerKind(99)
     with pytest.raises(TypeError):
-        _core.LayerInput("lamellar", 1.0, 0j, [_matrix(3), _matrix(3)])
+        _core.LayerInput("lamellar", 1.0, 0j, [_matrix(3), _matrix(3)])  # type: ignore[arg-type]
 
 
 @pytest.mark.parametrize(
@@ -199,7 +203,7 @@ def test_sweep_solution_is_the_single_solutions_kept_rows():
 
 
 def test_eig_from_guess_names_values_and_vectors():
-    A = np.diag([1.0, 2.0, 4.0]).astype(complex) + 0.01
+    A = (np.diag([1.0, 2.0, 4.0]) + 0.01).astype(np.complex128)
     decomposition = _core.eig_from_guess(A, np.eye(3, dtype=complex))
     assert isinstance(decomposition, _core.EigenDecomposition)
     np.testing.assert_allclose(A @ decomposition.vectors, decomposition.vectors * decomposition.values, atol=1e-13)
