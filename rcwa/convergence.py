@@ -40,7 +40,9 @@ def metal_grating() -> Structure:
     return Structure.from_dict(METAL_GRATING, source="<Granet & Guizal 1996 grating>")
 
 
-def lamellar_tm_study(orders=LAMELLAR_ORDERS, rules=("li", "laurent"), reference_orders=LAMELLAR_REFERENCE_ORDERS) -> list[ConvergencePoint]:
+def lamellar_tm_study(
+    orders=LAMELLAR_ORDERS, rules=("li", "laurent"), reference_orders=LAMELLAR_REFERENCE_ORDERS
+) -> list[ConvergencePoint]:
     """Error of the Littrow order's TM efficiency against a Li-rule reference."""
     s = metal_grating()
     reference = rcwa.solve(s, 1000.0, 30.0, 0.0, reference_orders, "p", "li").order(1).R

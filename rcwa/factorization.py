@@ -62,7 +62,9 @@ def resolve_rule(rule: str, dimension: int, layers: tuple[Layer, ...] = ()) -> s
     if rule not in FACTORIZATION_RULES:
         from workbench.core.errors import UserInputError
 
-        raise UserInputError("unknown factorization rule", field="factorization", expected=f"one of {FACTORIZATION_RULES}", got=rule)
+        raise UserInputError(
+            "unknown factorization rule", field="factorization", expected=f"one of {FACTORIZATION_RULES}", got=rule
+        )
     if rule == "auto":
         only_rectangles = all(isinstance(s, (Rect, Stripe)) for layer in layers for s in layer.shapes)
         return "li" if dimension == 1 or only_rectangles else "nv"
@@ -93,9 +95,9 @@ def _lamellar(layer: Layer, period: float, eps_of: Callable, m: np.ndarray, rule
     g = np.arange(-2 * int(np.max(np.abs(m))), 2 * int(np.max(np.abs(m))) + 1)
 
     def matrix(f: Callable[[complex], complex]) -> np.ndarray:
-        segments = fourier.paint_intervals(period, f(eps_bg), [(s.x0, s.x1, f(e)) for s, e in zip(stripes, eps_s)])
-        c = fourier.profile_coefficients(segments, period, g)
-        return fourier.toeplitz(lambda d: c[d + g.size // 2], m)
+        intervals = [(s.x0, s.x1, f(e)) for s, e in zip(stripes, eps_s, strict=True)]
+        segments = fourier.paint_intervals(period, f(eps_bg), intervals)
+        return _toeplitz_centred(fourier.profile_coefficients(segments, period, g), m)
 
     E = matrix(lambda e: e)
     if rule == "laurent":
@@ -104,10 +106,17 @@ def _lamellar(layer: Layer, period: float, eps_of: Callable, m: np.ndarray, rule
     return PermittivityMatrices(E, exx, E)
 
 
+def _toeplitz_centred(c: np.ndarray, m: np.ndarray) -> np.ndarray:
+    """The convolution matrix of coefficients ``c`` listed for ``g = -G..G`` (``g = 0`` at the centre)."""
+    return fourier.toeplitz(lambda d: c[d + c.size // 2], m)
+
+
 # ---------------------------------------------------------------- 2D
 
 
-def cell_coefficients(layer: Layer, period: tuple[float, float], value_of: Callable, gx: np.ndarray, gy: np.ndarray) -> np.ndarray:
+def cell_coefficients(
+    layer: Layer, period: tuple[float, float], value_of: Callable, gx: np.ndarray, gy: np.ndarray
+) -> np.ndarray:
     """Exact Fourier coefficients ``c(gx, gy)`` of ``value_of(material)`` over the cell.
 
     Shapes that overlap nothing add ``(v_shape - v_background) * FT(shape) / area``;
@@ -119,12 +128,12 @@ def cell_coefficients(layer: Layer, period: tuple[float, float], value_of: Calla
     area = lx * ly
     v_bg = complex(value_of(layer.material))
     c = np.where((qx == 0) & (qy == 0), v_bg, 0.0).astype(complex)
-    shapes = list(layer.shapes)
+    shapes = list(layer.shapes_2d)
     if not overlapping_pairs(shapes, period):
         for s in shapes:
             c += (complex(value_of(s.material)) - v_bg) * s.transform(qx, qy) / area
         return c
-    for s, regions in zip(shapes, visible_regions(shapes, period)):
+    for s, regions in zip(shapes, visible_regions(shapes, period), strict=True):
         for region in regions:
             c += (complex(value_of(s.material)) - v_bg) * fourier.region_transform(region, qx, qy) / area
     return c
@@ -144,7 +153,8 @@ def _crossed(layer: Layer, period, eps_of: Callable, h: HarmonicIndices, rule: s
     if rule == "laurent":
         return PermittivityMatrices(E, E, E)
     if rule == "li":
-        return PermittivityMatrices(E, _li_slabbed(layer, period, eps_of, h, axis=0), _li_slabbed(layer, period, eps_of, h, axis=1))
+        exx = _li_slabbed(layer, period, eps_of, h, axis=0)
+        return PermittivityMatrices(E, exx, _li_slabbed(layer, period, eps_of, h, axis=1))
     c_inv = cell_coefficients(layer, period, lambda mat: 1.0 / eps_of(mat), gx, gy)
     delta = E - np.linalg.inv(_convolution(c_inv, 2 * mx, 2 * my, h))
     nxx, nxy, nyy = _normal_products(layer, tuple(period), 2 * mx, 2 * my)
@@ -159,9 +169,9 @@ def _crossed(layer: Layer, period, eps_of: Callable, h: HarmonicIndices, rule: s
 def _slab_edges(layer: Layer, length: float, axis: int) -> np.ndarray:
     """Boundaries of slabs along ``axis`` inside which every cut is the same (or a staircase)."""
     edges = {0.0, length}
-    for s in layer.shapes:
+    for s in layer.shapes_2d:
         edges.update(float(e) % length for e in s.edges_along(axis))
-    if any(not isinstance(s, Rect) for s in layer.shapes):
+    if any(not isinstance(s, Rect) for s in layer.shapes_2d):
         edges.update(np.linspace(0.0, length, LI_STAIRCASE_SLABS + 1).tolist())
     return np.array(sorted(edges))
 
@@ -182,18 +192,17 @@ def _li_slabbed(layer: Layer, period, eps_of: Callable, h: HarmonicIndices, axis
     # total[i, j, g]: coefficient g (across) of the slab-wise inverse-rule matrix entry (i, j).
     total = np.zeros((m_along.size, m_along.size, g_across.size), dtype=complex)
     q_across = 2 * np.pi * g_across / across
-    for a, b in zip(edges[:-1], edges[1:]):
+    for a, b in zip(edges[:-1], edges[1:], strict=True):
         if b - a <= 1e-15:
             continue
         cut = 0.5 * (a + b)
         intervals = []
-        for s in layer.shapes:
+        for s in layer.shapes_2d:
             for shift in (-across, 0.0, across):
                 for x0, x1 in s.chords(cut + shift, 1 - axis):
                     intervals.append((x0, x1, 1.0 / complex(eps_of(s.material))))
         segments = fourier.paint_intervals(along, 1.0 / eps_bg, _clip_intervals(intervals, along))
-        c = fourier.profile_coefficients(segments, along, ga)
-        inv = np.linalg.inv(fourier.toeplitz(lambda d: c[d + ga.size // 2], m_along))
+        inv = np.linalg.inv(_toeplitz_centred(fourier.profile_coefficients(segments, along, ga), m_along))
         total += inv[:, :, None] * fourier.interval_transform(q_across, a, b)[None, None, :] / across
     i = idx_along - m_along[0]
     d_across = idx_across[None, :] - idx_across[:, None] + g_across.size // 2
@@ -249,7 +258,7 @@ def _boundary_candidates(layer: Layer, period, points: np.ndarray):
     """
     lx, ly = period
     dists, normals_x, normals_y = [], [], []
-    for s in layer.shapes:
+    for s in layer.shapes_2d:
         if isinstance(s, Circle):
             for dx in (-lx, 0.0, lx):
                 for dy in (-ly, 0.0, ly):

@@ -19,24 +19,29 @@ Shape transforms are exact (closed forms), never a raster:
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import TypeVar
 
 import numpy as np
 from scipy.special import j1
 
 Segment = tuple[float, float, complex]  # (x0, x1, value) on [0, period)
+Value = TypeVar("Value")  # what a profile holds: a permittivity, or a material (rcwa.symmetry)
 
 
 # ---------------------------------------------------------------- 1D profiles
 
 
-def paint_intervals(period: float, background: complex, intervals: list[Segment]) -> list[Segment]:
+def paint_intervals(
+    period: float, background: Value, intervals: Sequence[tuple[float, float, Value]]
+) -> list[tuple[float, float, Value]]:
     """Piecewise-constant profile on ``[0, period)``; later intervals overwrite earlier ones.
 
     Intervals may cross the cell edge (they wrap periodically); each must be no wider
     than the period.
     """
-    pieces: list[Segment] = []
+    pieces: list[tuple[float, float, Value]] = []
     for x0, x1, value in intervals:
         shift = np.floor(x0 / period) * period
         a, b = x0 - shift, x1 - shift
@@ -46,8 +51,8 @@ def paint_intervals(period: float, background: complex, intervals: list[Segment]
             pieces.append((a, period, value))
             pieces.append((0.0, b - period, value))
     cuts = sorted({0.0, period, *(p[0] for p in pieces), *(p[1] for p in pieces)})
-    segments: list[Segment] = []
-    for a, b in zip(cuts[:-1], cuts[1:]):
+    segments: list[tuple[float, float, Value]] = []
+    for a, b in zip(cuts[:-1], cuts[1:], strict=True):
         if b - a <= 0.0:
             continue
         mid = 0.5 * (a + b)

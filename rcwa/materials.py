@@ -158,7 +158,7 @@ class Sellmeier:
 
     def __call__(self, wavelength_nm: np.ndarray) -> np.ndarray:
         lam2 = (np.asarray(wavelength_nm, dtype=float) * 1e-3) ** 2
-        n2 = 1.0 + sum(b * lam2 / (lam2 - c) for b, c in zip(self.B, self.C_um2))
+        n2 = 1.0 + sum(b * lam2 / (lam2 - c) for b, c in zip(self.B, self.C_um2, strict=True))
         return np.sqrt(n2).astype(complex)
 
 
@@ -188,7 +188,7 @@ class LorentzDrude:
         w = HC_EV_NM / np.asarray(wavelength_nm, dtype=float)
         wp2 = self.plasma_ev**2
         eps = 1.0 - self.f0 * wp2 / (w * (w + 1j * self.gamma0_ev))
-        for fj, wj, gj in zip(self.f, self.omega_ev, self.gamma_ev):
+        for fj, wj, gj in zip(self.f, self.omega_ev, self.gamma_ev, strict=True):
             eps = eps + fj * wp2 / (wj**2 - w**2 - 1j * w * gj)
         return eps
 
@@ -390,18 +390,18 @@ def _validated_table(
         (lambda w, n, k: n > 0.0, "n must be > 0"),
         (lambda w, n, k: k >= 0.0, "k must be >= 0 (absorption; exp(-i omega t) convention)"),
     )
-    for row, number in zip(rows, line_numbers):
+    for row, number in zip(rows, line_numbers, strict=True):
         for ok, rule in checks:
             if not ok(*row):
                 raise UserInputError(f"line {number}: {rule}", file=path, got=row)
-    for (previous, _, _), (current, _, _), number in zip(rows, rows[1:], line_numbers[1:]):
+    for (previous, _, _), (current, _, _), number in zip(rows[:-1], rows[1:], line_numbers[1:], strict=True):
         if current <= previous:
             raise UserInputError(
                 f"line {number}: wavelengths must increase strictly ({current:g} nm after {previous:g} nm)",
                 file=path,
                 expected="rows sorted by increasing wavelength_nm without repeats",
             )
-    wavelength, n, k = zip(*rows)
+    wavelength, n, k = zip(*rows, strict=True)
     return wavelength, n, k
 
 

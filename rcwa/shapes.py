@@ -99,13 +99,13 @@ class Polygon:
         a, b = v, np.roll(v, -1, axis=0)
         other = 1 - axis
         crossings = []
-        for p, q in zip(a, b):
+        for p, q in zip(a, b, strict=True):
             lo, hi = sorted((p[axis], q[axis]))
             if lo <= coordinate < hi:  # half-open: a vertex is counted once
                 t = (coordinate - p[axis]) / (q[axis] - p[axis])
                 crossings.append(p[other] + t * (q[other] - p[other]))
         crossings.sort()
-        return list(zip(crossings[0::2], crossings[1::2]))
+        return list(zip(crossings[0::2], crossings[1::2], strict=True))  # a closed outline is crossed an even number of times
 
     def edges_along(self, axis: int) -> list[float]:
         return [float(p[axis]) for p in self.vertices]

@@ -16,7 +16,7 @@ from pathlib import Path
 from typing import Any
 
 from rcwa.materials import Material, material_from_spec
-from rcwa.shapes import Circle, Polygon, Rect, Shape, Stripe
+from rcwa.shapes import Circle, Polygon, Rect, Shape, Shape2D, Stripe
 from workbench.core import validation
 from workbench.core.errors import UserInputError
 
@@ -36,6 +36,14 @@ class Layer:
     @property
     def is_uniform(self) -> bool:
         return not self.shapes
+
+    @property
+    def shapes_2d(self) -> tuple[Shape2D, ...]:
+        """The shapes of a layer in a 2D cell (the parser admits no stripes there)."""
+        shapes = tuple(s for s in self.shapes if not isinstance(s, Stripe))
+        if len(shapes) != len(self.shapes):
+            raise ValueError("a layer of a 2D cell holds a 1D stripe")
+        return shapes
 
 
 @dataclass(frozen=True)
@@ -190,13 +198,18 @@ def _parse_shape(item: Any, where: str, period: tuple[float, ...], material) -> 
     _reject_unknown(item, {"material", "x", "rect", "circle", "polygon", "name"}, f"{where}.")
     if len(kinds) != 1:
         raise UserInputError(
-            "must have exactly one geometry", field=where, expected="one of x (1D stripe), rect, circle, polygon", got=sorted(item)
+            "must have exactly one geometry",
+            field=where,
+            expected="one of x (1D stripe), rect, circle, polygon",
+            got=sorted(item),
         )
     kind = kinds[0]
     mat = material(_required(item, "material", f"{where}."), f"{where}.material")
     if len(period) == 1:
         if kind != "x":
-            raise UserInputError(f"a 1D structure (period = [Lx]) takes stripes only", field=f"{where}.{kind}", expected="x = [x0, x1]")
+            raise UserInputError(
+                "a 1D structure (period = [Lx]) takes stripes only", field=f"{where}.{kind}", expected="x = [x0, x1]"
+            )
         return _parse_stripe(item["x"], f"{where}.x", period[0], mat)
     if kind == "x":
         raise UserInputError("a 2D structure (period = [Lx, Ly]) takes rect, circle or polygon", field=f"{where}.x")
@@ -205,7 +218,7 @@ def _parse_shape(item: Any, where: str, period: tuple[float, ...], material) -> 
     return shape
 
 
-def _check_fits_period(shape: Shape, period: tuple[float, ...], where: str) -> None:
+def _check_fits_period(shape: Shape2D, period: tuple[float, ...], where: str) -> None:
     """A 2D shape wider than the cell would overlap its own periodic image."""
     minx, miny, maxx, maxy = shape.outline().bounds
     if maxx - minx > period[0] * (1 + 1e-12) or maxy - miny > period[1] * (1 + 1e-12):
@@ -225,7 +238,7 @@ def _parse_stripe(value: Any, where: str, period: float, mat: Material) -> Strip
     return Stripe(mat, x0, x1)
 
 
-def _parse_2d(kind: str, value: Any, where: str, mat: Material) -> Shape:
+def _parse_2d(kind: str, value: Any, where: str, mat: Material) -> Shape2D:
     if kind == "polygon":
         if not isinstance(value, list) or len(value) < 3:
             raise UserInputError("must list at least 3 vertices", field=where, expected="[[x, y], ...]", got=value)

@@ -95,8 +95,11 @@ def interpolation_study(structure: Structure, cfg: StudyConfig, bar: Any = None)
     wl = cfg.wavelengths_nm[len(cfg.wavelengths_nm) // 2]
     theta_t = np.degrees(np.arcsin(np.sqrt(rng.uniform(0, math.sin(math.radians(85.0)) ** 2, cfg.test_points))))
     phi_t = rng.uniform(0.0, 90.0, cfg.test_points)
-    kw = dict(orders=cfg.interpolation_orders, keep=cfg.keep)
-    truth = _unpolarized(sweep_directions(structure, wl, theta_t, phi_t, **kw))
+
+    def unpolarized(theta_deg: np.ndarray, phi_deg: np.ndarray) -> np.ndarray:
+        return _unpolarized(sweep_directions(structure, wl, theta_deg, phi_deg, orders=cfg.interpolation_orders, keep=cfg.keep))
+
+    truth = unpolarized(theta_t, phi_t)
     rows = []
     for step in cfg.steps_deg:
         theta = np.append(np.arange(0.0, 90.0, step), 89.999) if 90.0 % step else np.arange(0.0, 90.0 + 1e-9, step)
@@ -104,7 +107,7 @@ def interpolation_study(structure: Structure, cfg: StudyConfig, bar: Any = None)
         phi = np.append(np.arange(0.0, 90.0, step), 90.0) if 90.0 % step else np.arange(0.0, 90.0 + 1e-9, step)
         th, ph = np.meshgrid(theta, phi, indexing="ij")
         start = time.perf_counter()
-        grid = _unpolarized(sweep_directions(structure, wl, th.ravel(), ph.ravel(), **kw)).reshape(th.shape + (-1,))
+        grid = unpolarized(th.ravel(), ph.ravel()).reshape(th.shape + (-1,))
         seconds = time.perf_counter() - start
         guess = RegularGridInterpolator((theta, phi), grid)(np.stack([theta_t, phi_t], axis=1))
         rows.append(_row("theta-phi", step, th.size, seconds, guess - truth, cfg))
@@ -116,7 +119,7 @@ def interpolation_study(structure: Structure, cfg: StudyConfig, bar: Any = None)
         th_c = np.degrees(np.arcsin(np.minimum(radius * scale, 1.0)))
         ph_c = np.degrees(np.arctan2(V, U))
         start = time.perf_counter()
-        grid_c = _unpolarized(sweep_directions(structure, wl, th_c.ravel(), ph_c.ravel(), **kw)).reshape(U.shape + (-1,))
+        grid_c = unpolarized(th_c.ravel(), ph_c.ravel()).reshape(U.shape + (-1,))
         seconds_c = time.perf_counter() - start
         st = np.sin(np.radians(theta_t))
         points = np.stack([st * np.cos(np.radians(phi_t)), st * np.sin(np.radians(phi_t))], axis=1)
@@ -142,7 +145,8 @@ def recommend(truncation: list[dict], interpolation: list[dict], cfg: StudyConfi
     solve time at those orders."""
     out = []
     li = sorted((r for r in truncation if r["rule"] == "li"), key=lambda r: r["orders"])
-    base = next(r for r in li if r["orders"] == cfg.interpolation_orders) if any(r["orders"] == cfg.interpolation_orders for r in li) else li[-1]
+    at_table_orders = [r for r in li if r["orders"] == cfg.interpolation_orders]
+    base = at_table_orders[0] if at_table_orders else li[-1]
     for target in cfg.targets:
         orders = next((r for r in li if r["max_error"] <= target / 2), None)
         grids = sorted((r for r in interpolation if r["rms_error"] <= target / 2), key=lambda r: r["table_seconds"])

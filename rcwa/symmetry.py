@@ -76,21 +76,24 @@ def _profile_mirrors(segments, period: float, c: float) -> bool:
             return False
     edges = sorted(a for a, _, _ in segments)
     mirrored = sorted((2 * c - e) % period for e in edges)
-    return all(min(abs(e - m), period - abs(e - m)) < TOLERANCE_GEOMETRY for e, m in zip(sorted(edges), mirrored))
+    return all(
+        min(abs(e - m), period - abs(e - m)) < TOLERANCE_GEOMETRY for e, m in zip(sorted(edges), mirrored, strict=True)
+    )
 
 
 def _crossed_mirror(structure: Structure, axis: int) -> bool:
-    length = structure.period[axis]
+    lx, ly = structure.period
+    length = (lx, ly)[axis]
     layers = [layer for layer in structure.layers if layer.shapes]
     if not layers:
         return True
-    if any(overlapping_pairs(list(layer.shapes), structure.period) for layer in layers):
+    if any(overlapping_pairs(list(layer.shapes_2d), (lx, ly)) for layer in layers):
         return False
-    first = layers[0].shapes[0]
-    candidates = {round(((_center(first)[axis] + _center(s)[axis]) / 2) % (length / 2), 12) for s in layers[0].shapes}
+    first = layers[0].shapes_2d[0]
+    candidates = {round(((_center(first)[axis] + _center(s)[axis]) / 2) % (length / 2), 12) for s in layers[0].shapes_2d}
     for c in candidates:
         for shift in (0.0, length / 2):
-            if all(_layer_mirrors(layer.shapes, c + shift, axis, structure.period) for layer in layers):
+            if all(_layer_mirrors(layer.shapes_2d, c + shift, axis, structure.period) for layer in layers):
                 return True
     return False
 
@@ -115,11 +118,19 @@ def _reflect(shape, c: float, axis: int):
     return Polygon(shape.material, tuple(point(v) for v in shape.vertices))
 
 
+def _periodic_gap(p: float, q: float, length: float) -> float:
+    """The distance between ``p`` and ``q`` on a circle of circumference ``length``."""
+    gap = abs(p - q) % length
+    return min(gap, length - gap)
+
+
 def _same_shape(a, b, period) -> bool:
     if type(a) is not type(b) or a.material != b.material:
         return False
+
     def close(p, q):
-        return all(min(abs(pi - qi) % L, L - abs(pi - qi) % L) < TOLERANCE_GEOMETRY for pi, qi, L in zip(p, q, period))
+        return all(_periodic_gap(pi, qi, L) < TOLERANCE_GEOMETRY for pi, qi, L in zip(p, q, period, strict=True))
+
     if isinstance(a, Rect):
         return close(a.center, b.center) and np.allclose(a.size, b.size, atol=TOLERANCE_GEOMETRY)
     if isinstance(a, Circle):
