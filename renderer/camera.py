@@ -58,8 +58,9 @@ class CameraModel:
     def from_fov(cls, width: int, height: int, fov_x_deg: float, world_to_camera: np.ndarray,
                  dist=(0.0, 0.0, 0.0, 0.0, 0.0), principal_offset_px=(0.0, 0.0)) -> "CameraModel":
         f = 0.5 * width / math.tan(math.radians(fov_x_deg) / 2)
+        k1, k2, p1, p2, k3 = (float(d) for d in dist)
         return cls(width, height, f, f, (width - 1) / 2 + principal_offset_px[0], (height - 1) / 2 + principal_offset_px[1],
-                   tuple(float(d) for d in dist), np.asarray(world_to_camera, dtype=float))
+                   (k1, k2, p1, p2, k3), np.asarray(world_to_camera, dtype=float))
 
     @property
     def K(self) -> np.ndarray:

@@ -13,7 +13,9 @@ from workbench.core.errors import UserInputError
 SENSITIVITY_THRESHOLD = 0.01
 
 
-def visible_range(wavelengths_nm: np.ndarray, sensitivities: np.ndarray, threshold: float = SENSITIVITY_THRESHOLD) -> tuple[float, float]:
+def visible_range(
+    wavelengths_nm: np.ndarray, sensitivities: np.ndarray, threshold: float = SENSITIVITY_THRESHOLD
+) -> tuple[float, float]:
     """The wavelength range where any channel (rows of ``sensitivities``) is >= threshold * peak."""
     s = np.atleast_2d(np.asarray(sensitivities, dtype=float))
     seen = np.any(s >= threshold * s.max(), axis=0)

@@ -66,6 +66,15 @@ INDEX_STEP_NM = 1.0
 
 
 class DispersiveDielectric(DeltaLobesBSDF):
+    # Set in __init__ from _configure's dict (validated before Dr.Jit registers the instance).
+    lo: float  # nm, the first wavelength of the index table
+    step: float  # nm between table entries
+    count: int  # table entries
+    ext: float  # the index outside
+    mean_index: float  # of the inside material, for to_string
+    _eta_np: np.ndarray  # the relative index table n_int / n_ext
+    _eta_jit: mi.Float | None  # the same table for gathers in JIT variants; None in scalar ones
+
     def __init__(self, props: mi.Properties) -> None:
         # Validate before the base class registers the instance with Dr.Jit (as bwdf.py).
         config = self._configure(props)
@@ -82,12 +91,12 @@ class DispersiveDielectric(DeltaLobesBSDF):
         for key in ("wavelength_min", "wavelength_max", "index"):
             if key not in props:
                 raise ValueError(f"dispersive_dielectric: the '{key}' property is missing")
-        lo, hi = float(props.get("wavelength_min")), float(props.get("wavelength_max"))
+        lo, hi = _number(props, "wavelength_min"), _number(props, "wavelength_max")
         try:
             values = np.array([float(x) for x in str(props.get("index")).split(",")])
         except ValueError:
             raise ValueError("dispersive_dielectric: 'index' must be comma-separated numbers") from None
-        ext = float(props.get("ext_ior", 1.0))
+        ext = _number(props, "ext_ior", 1.0)
         if values.size < 2 or not hi > lo:
             raise ValueError("dispersive_dielectric: 'index' needs at least two values over wavelength_min < wavelength_max")
         if not (np.all(np.isfinite(values)) and np.all(values > 0) and ext > 0):
@@ -133,6 +142,7 @@ class DispersiveDielectric(DeltaLobesBSDF):
         factor = eta_ti_h * eta_ti_h if radiance else 1.0
 
         r_mean = sum(r[1:], r[0]) * (1.0 / n)
+        weight_r: list  # per wavelength: Dr.Jit Floats, or plain 0.0 where nothing reflects
         if has_r and has_t:
             reflect = rest <= r_h
             weight_r = [dr.select(r_mean > 0, r[j] / r_mean, 0.0) for j in range(n)]
@@ -149,9 +159,11 @@ class DispersiveDielectric(DeltaLobesBSDF):
         bs.wo = dr.select(reflect, mi.reflect(si.wi), mi.refract(si.wi, cos_t_h, eta_ti_h))
         bs.eta = dr.select(reflect, 1.0, eta_it_h)
         bs.pdf = pdf
-        bs.sampled_type = dr.select(reflect, mi.UInt32(+mi.BSDFFlags.DeltaReflection),
+        # Mitsuba's stubs type mi.UInt32 apart from the drjit.auto.ad.UInt of BSDFSample3f's fields;
+        # at run time both are the variant's one UInt32 class.
+        bs.sampled_type = dr.select(reflect, mi.UInt32(+mi.BSDFFlags.DeltaReflection),  # type: ignore[assignment]
                                     mi.UInt32(+mi.BSDFFlags.DeltaTransmission))
-        bs.sampled_component = dr.select(reflect, mi.UInt32(0), mi.UInt32(1))
+        bs.sampled_component = dr.select(reflect, mi.UInt32(0), mi.UInt32(1))  # type: ignore[assignment]
         valid = active & (pdf > 0)
         bs.pdf = dr.select(valid, bs.pdf, 0.0)
         return bs, dr.select(valid, weight, 0.0)
@@ -159,6 +171,14 @@ class DispersiveDielectric(DeltaLobesBSDF):
 
     def to_string(self):
         return f"DispersiveDielectric[mean index {self.mean_index:.5f}, ext_ior {self.ext}]"
+
+
+def _number(props: mi.Properties, key: str, default: float | None = None) -> float:
+    """A numeric property (``mi.Properties.get`` is typed ``object``; numbers and numeric strings pass)."""
+    value = props.get(key, default)
+    if not isinstance(value, (int, float, str)):
+        raise ValueError(f"dispersive_dielectric: '{key}' must be a number, got {value!r}")
+    return float(value)
 
 
 def index_curve(material, step_nm: float = INDEX_STEP_NM) -> tuple[np.ndarray, np.ndarray]:

@@ -99,7 +99,7 @@ class EfficiencyLookup:
         return mi.UInt32(i_m * n_count + i_n)
 
     def eval(self, k: mi.UInt32, wavelength_nm: mi.Float, theta_deg: mi.Float, phi_deg: mi.Float,
-             active: mi.Bool = True) -> mi.Float:
+             active: mi.Bool | bool = True) -> mi.Float:
         """Efficiency of kept order ``k`` (index into orders_m/n) at the given incidence."""
         phi, flip_m, flip_n = self.fold(phi_deg)
         k = self._flipped_index(k, flip_m, flip_n)

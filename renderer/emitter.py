@@ -42,6 +42,10 @@ import mitsuba as mi
 
 
 class CosPowerAreaEmitter(mi.Emitter):
+    # Set in __init__ from _configure's dict (validated before Dr.Jit registers the instance).
+    radiance: mi.Texture  # L0(lambda)
+    n: float  # the cosine power
+
     def __init__(self, props: mi.Properties) -> None:
         # Validate before the base class registers the instance with Dr.Jit (as bwdf.py).
         config = self._configure(props)
@@ -55,7 +59,10 @@ class CosPowerAreaEmitter(mi.Emitter):
     def _configure(props: mi.Properties) -> dict:
         if "radiance" not in props:
             raise ValueError("cospower_area: the 'radiance' property (a spectrum) is missing")
-        n = float(props.get("cos_power", 0.0))
+        cos_power = props.get("cos_power", 0.0)
+        if not isinstance(cos_power, (int, float, str)):  # mi.Properties.get is typed object
+            raise ValueError(f"cospower_area: 'cos_power' must be a finite number >= 0, got {cos_power!r}")
+        n = float(cos_power)
         if not (math.isfinite(n) and n >= 0.0):
             raise ValueError(f"cospower_area: 'cos_power' must be a finite number >= 0, got {n}")
         return {"radiance": props.get("radiance"), "n": n}
@@ -80,7 +87,8 @@ class CosPowerAreaEmitter(mi.Emitter):
 
     def sample_direction(self, it, sample, active=True):
         ds = self.get_shape().sample_direction(it, sample, active)
-        cos_e = -dr.dot(ds.d, ds.n)
+        # drjit's stub wants both arguments of dot() of one type; a Vector3f and a Normal3f are valid.
+        cos_e = -dr.dot(ds.d, ds.n)  # type: ignore[misc]
         active = mi.Bool(active) & (cos_e > 0.0) & (ds.pdf != 0.0)
         si = mi.SurfaceInteraction3f(ds, it.wavelengths)
         value = self.radiance.eval(si, active) * self._profile(cos_e) / ds.pdf

@@ -84,7 +84,8 @@ class FitRenderer:
         need = self.camera.pinhole_plan()  # the pinhole image this camera needs, at its own focal length
         if need.width > self.wide_size[0] or need.height > self.wide_size[1]:
             raise ValueError(f"the camera needs a {need.width} x {need.height} pinhole render, more than the "
-                             f"{self.wide_size[0]} x {self.wide_size[1]} this fit renderer was built with; build it for this camera")
+                             f"{self.wide_size[0]} x {self.wide_size[1]} this fit renderer was built with; "
+                             "build it for this camera")
         self.params["sensor.x_fov"] = 2 * math.degrees(math.atan(0.5 * self.wide_size[0] / self.focal))
         self.params["sensor.to_world"] = self.mi.ScalarTransform4f(self.camera.mitsuba_to_world().tolist())
         self.params.update()
@@ -92,6 +93,7 @@ class FitRenderer:
     def render(self, seed: int = 0) -> np.ndarray:
         from renderer.camera import PinholePlan
 
-        wide = np.array(self.mi.render(self.scene, self.params, seed=seed))
+        # Mitsuba's stub types seed as mi.UInt32, yet mi.render takes a Python int (its own default is 0).
+        wide = np.array(self.mi.render(self.scene, self.params, seed=seed))  # type: ignore[arg-type]
         plan = PinholePlan(self.wide_size[0], self.wide_size[1], self.focal, 0.0, self.camera.mitsuba_to_world())
         return self.camera.warp(wide, plan) * self.exposure

@@ -316,7 +316,7 @@ def plan_element(spec: SceneSpec, hit: dict[str, Any], origin: np.ndarray, camer
     union = np.zeros_like(masks["R"])
     for name in used:
         union |= masks[name]
-    seen = union.any(axis=0)
+    seen = np.any(union, axis=0)  # (theta, phi) nodes some wavelength needs
     theta_range = (float(grid_theta[seen.any(axis=1)].min()), float(grid_theta[seen.any(axis=1)].max())) if seen.any() else None
     phi_range = (float(grid_phi[seen.any(axis=0)].min()), float(grid_phi[seen.any(axis=0)].max())) if seen.any() else None
     nodes_whole = len(grid_theta) * len(grid_phi) * len(table_wl)

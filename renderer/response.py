@@ -32,7 +32,8 @@ class ResponseCurve:
         if spec in (None, "linear"):
             return cls()
         if not isinstance(spec, dict) or len(spec) != 1 or next(iter(spec)) not in ("gamma", "points"):
-            raise UserInputError("unknown response curve", field=where, expected='"linear", { gamma = G } or { points = [[x, y], ...] }', got=spec)
+            expected = '"linear", { gamma = G } or { points = [[x, y], ...] }'
+            raise UserInputError("unknown response curve", field=where, expected=expected, got=spec)
         if "gamma" in spec:
             g = spec["gamma"]
             if isinstance(g, bool) or not isinstance(g, (int, float)) or not g > 0:
@@ -42,7 +43,9 @@ class ResponseCurve:
         if pts.ndim != 2 or pts.shape[1] != 2 or len(pts) < 2:
             raise UserInputError("must list at least two [x, y] pairs", field=f"{where}.points", got=spec["points"])
         if np.any(np.diff(pts[:, 0]) <= 0) or np.any(np.diff(pts[:, 1]) < 0):
-            raise UserInputError("the curve must increase (x strictly, y monotonically)", field=f"{where}.points", got=spec["points"])
+            raise UserInputError(
+                "the curve must increase (x strictly, y monotonically)", field=f"{where}.points", got=spec["points"]
+            )
         if pts[0, 0] > 0 or pts[-1, 0] < 1:
             raise UserInputError("the samples must span x from 0 to 1", field=f"{where}.points", got=spec["points"])
         return cls("points", 1.0, tuple(map(tuple, pts)))

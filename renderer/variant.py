@@ -14,6 +14,7 @@ import glob
 import logging
 import os
 import re
+from collections.abc import Mapping
 from pathlib import Path
 
 LOG = logging.getLogger("workbench.renderer")
@@ -44,12 +45,12 @@ def llvm_major(path: str | Path) -> int | None:
     return int(match.group(1)) if match else None
 
 
-def find_libllvm(search_globs: tuple[str, ...] | None = None, environ: dict | None = None) -> str | None:
+def find_libllvm(search_globs: tuple[str, ...] | None = None, environ: Mapping[str, str] | None = None) -> str | None:
     """The libLLVM to use: ``DRJIT_LIBLLVM_PATH`` if it names an existing file, else the
     newest LLVM >= MIN_LLVM_MAJOR found by ``search_globs`` (default SEARCH_GLOBS), else None."""
-    environ = os.environ if environ is None else environ
+    env = os.environ if environ is None else environ
     search_globs = SEARCH_GLOBS if search_globs is None else search_globs
-    given = environ.get("DRJIT_LIBLLVM_PATH")
+    given = env.get("DRJIT_LIBLLVM_PATH")
     if given and Path(given).is_file():
         return given
     candidates = []
