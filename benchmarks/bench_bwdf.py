@@ -50,7 +50,7 @@ def samples_per_second(mi, table: Path, resolution: int, spp: int, repeats: int 
         ("bwdf", {"type": "bwdf", "filename": str(table), "mapping": "radial"}),
         ("conductor", {"type": "conductor", "material": "Al"}))}
     best = {name: math.inf for name in scenes}
-    for name, sc in scenes.items():
+    for sc in scenes.values():
         timed_render(mi, sc, seed=0)  # compile
     for r in range(repeats):
         for name, sc in scenes.items():

@@ -54,9 +54,10 @@ def noise_at_equal_time(scene: str = "cornell_cd", resolution=(640, 480), budget
     ref_scene = load_cropped(mi, spec, "improved", crop)
     ref_a, ref_seconds = timed_render(mi, ref_scene, seed=1001, spp=reference_spp)
     ref_b, _ = timed_render(mi, ref_scene, seed=1002, spp=reference_spp)
+    per_mode: dict[str, dict] = {}
     out = {"variant": variant, "scene": spec.name, "resolution": list(resolution), "crop_offset": crop[0],
            "crop_size": crop[1], "cd_pixels": int(mask.sum()), "budget_s": budget_s, "reference_spp": reference_spp,
-           "reference_seconds": ref_seconds, "modes": {}}
+           "reference_seconds": ref_seconds, "modes": per_mode}
     for mode in modes:
         sc = load_cropped(mi, spec, mode, crop)
         spp = _spp_for(mi, sc, budget_s)
@@ -64,7 +65,7 @@ def noise_at_equal_time(scene: str = "cornell_cd", resolution=(640, 480), budget
         e = errors(image, ref_a, ref_b, mask)
         at_budget = {"relative_rms_error": e["relative_rms_error"] * np.sqrt(seconds / budget_s),
                      "relative_mse": e["relative_mse"] * seconds / budget_s}
-        out["modes"][mode] = {"spp": spp, "seconds": seconds, **e, "at_budget": at_budget}
+        per_mode[mode] = {"spp": spp, "seconds": seconds, **e, "at_budget": at_budget}
     return out
 
 

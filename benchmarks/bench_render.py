@@ -50,7 +50,8 @@ def noise_per_mode(spp: int = NOISE_SPP, resolution=NOISE_RESOLUTION) -> dict:
         d, _ = scene_dict(mi, spec, spp=spp, mode=mode)
         mask = element_mask(mi, d)
         sc = mi.load_dict(d)
-        a, b = (np.array(mi.render(sc, seed=s)) for s in (1, 2))
+        # Mitsuba's stub types seed as mi.UInt32, yet mi.render takes a Python int (its own default is 0).
+        a, b = (np.array(mi.render(sc, seed=s)) for s in (1, 2))  # type: ignore[arg-type]
         out[mode] = {"frame": relative_noise(a, b), "cd": relative_noise(a, b, mask)}
     return out
 

@@ -378,8 +378,8 @@ def run_case(cid: str, rcwa, peers: list[str], args) -> dict:
         structure = rcwa.Structure.from_dict(case["structure"], source=f"<bench case {case['name']}>")
         t_build = time.perf_counter() - t0
     factorizations = OUR_FACTORIZATIONS[kind] if rcwa is not None else ()
-    ours_rounds = {f: [] for f in factorizations}
-    peer_rounds = {p: [] for p in peers}
+    ours_rounds: dict[str, list[dict]] = {f: [] for f in factorizations}
+    peer_rounds: dict[str, list[dict]] = {p: [] for p in peers}
     # Rounds interleave our solver and the peers, so a burst of background load hits both;
     # each side keeps the best (min) of its per-round medians.
     for _ in range(args.rounds):
@@ -387,7 +387,7 @@ def run_case(cid: str, rcwa, peers: list[str], args) -> dict:
             ours_rounds[f].append(time_ours(rcwa, structure, case, f, args.repeats))
         for p in peers:
             peer_rounds[p].append(run_peer(case, p, args.repeats))
-    ours = []
+    ours: list[dict] = []
     for f in factorizations:
         o = summarize_ours(case, f, ours_rounds[f], t_build)
         o["requested"] = f

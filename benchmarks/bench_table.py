@@ -44,8 +44,9 @@ def main() -> None:
     sample = rng.integers(0, directions, 20)
     start = time.perf_counter()
     for d in sample:
-        rcwa.solve(structure, 550.0, settings.theta_deg[d // len(settings.phi_deg)] if d // len(settings.phi_deg) < len(settings.theta_deg) - 1 else 89.0,
-                   settings.phi_deg[d % len(settings.phi_deg)], settings.orders[0], "unpolarized")
+        i_theta, i_phi = divmod(d, len(settings.phi_deg))
+        theta = settings.theta_deg[i_theta] if i_theta < len(settings.theta_deg) - 1 else 89.0
+        rcwa.solve(structure, 550.0, theta, settings.phi_deg[i_phi], settings.orders[0], "unpolarized")
     one_at_a_time = (time.perf_counter() - start) / sample.size * directions * len(settings.wavelengths_nm)
     print(f"table built in {report.seconds:.1f} s (goal: < 120 s; paper: {PAPER_HOURS:g} h on 4 cores), "
           f"{report.bytes_on_disk / 1e6:.2f} MB on disk (goal: < 12 MB; paper: {PAPER_BYTES / 1e9:g} GB in RAM)")

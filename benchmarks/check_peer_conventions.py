@@ -34,11 +34,13 @@ from __future__ import annotations
 
 import os
 import sys
+from typing import Any
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 
 import peer_runner as pr  # noqa: E402  (sets the single-thread environment first)
 
+# isort: split
 import numpy as np  # noqa: E402
 
 TOL_UNIFORM = 1e-9  # uniform stacks: both peers are exact up to round-off
@@ -88,16 +90,17 @@ def stack_reflectance(indices, thicknesses_over_lambda, kt):
     eps = [n * n for n in indices]
     kz = [kz_branch(e - kt * kt) for e in eps]
     out = {}
-    for pol in ("s", "p"):
-        def r_if(i, j):
-            if pol == "s":
-                return (kz[i] - kz[j]) / (kz[i] + kz[j])
-            return (eps[j] * kz[i] - eps[i] * kz[j]) / (eps[j] * kz[i] + eps[i] * kz[j])
 
-        r = r_if(len(eps) - 2, len(eps) - 1)
+    def r_if(i, j, pol):
+        if pol == "s":
+            return (kz[i] - kz[j]) / (kz[i] + kz[j])
+        return (eps[j] * kz[i] - eps[i] * kz[j]) / (eps[j] * kz[i] + eps[i] * kz[j])
+
+    for pol in ("s", "p"):
+        r = r_if(len(eps) - 2, len(eps) - 1, pol)
         for j in range(len(eps) - 2, 0, -1):  # film j, from the bottom up
             ph2 = np.exp(4j * np.pi * kz[j] * thicknesses_over_lambda[j - 1])
-            r = (r_if(j - 1, j) + r * ph2) / (1 + r_if(j - 1, j) * r * ph2)
+            r = (r_if(j - 1, j, pol) + r * ph2) / (1 + r_if(j - 1, j, pol) * r * ph2)
         out["R_" + pol] = float(abs(r) ** 2)
     return out
 
@@ -179,7 +182,7 @@ def solve(peer: str, data: dict) -> tuple[pr.Case, dict]:
 def check_uniform(peer: str) -> None:
     theta, phi, wl = 50.0, 30.0, 600.0
     kt = np.sin(np.radians(theta))
-    film = {"name": "film", "wavelength_nm": wl, "theta_deg": theta, "phi_deg": phi, "orders": [3],
+    film: dict[str, Any] = {"name": "film", "wavelength_nm": wl, "theta_deg": theta, "phi_deg": phi, "orders": [3],
             "structure": {"period": [1.0], "superstrate": {"n": 1.0, "k": 0}, "substrate": {"n": 1.5, "k": 0},
                           "layers": [{"thickness": 0.03, "material": METAL, "shapes": []}]}}
     _, eff = solve(peer, film)

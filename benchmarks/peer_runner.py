@@ -98,6 +98,13 @@ class Shape:
     x: tuple[float, float]  # [x0, x1) in micrometres
     y: tuple[float, float] | None = None  # None for 1D
 
+    def extent(self, axis: int) -> tuple[float, float]:
+        """``[lo, hi)`` along x (axis 0) or y (axis 1, which only a 2D shape has)."""
+        span = self.x if axis == 0 else self.y
+        if span is None:
+            raise CaseError("a 1D shape has no extent along y")
+        return span
+
 
 @dataclass
 class Layer:
@@ -197,7 +204,7 @@ def _axis_cells(case: Case, axis: int, max_cells: int, fallback: int) -> tuple[i
     fr = []
     for lay in case.layers:
         for sh in lay.shapes:
-            lo_hi = sh.x if axis == 0 else sh.y
+            lo_hi = sh.extent(axis)
             fr += [(v / case.period[axis]) % 1.0 for v in lo_hi]
     n = _cells_for_exact_grid(fr, max_cells) if fr else 1
     if n is None:
@@ -225,7 +232,7 @@ def rasterize(case: Case, nx: int, ny: int) -> np.ndarray:
         for sh in lay.shapes:
             mx = _cover(sh.x[0], sh.x[1], case.period[0], nx)
             if case.is_2d:
-                my = _cover(sh.y[0], sh.y[1], case.period[1], ny)
+                my = _cover(*sh.extent(1), case.period[1], ny)
             else:
                 my = np.ones(ny, dtype=bool)
             out[li][np.outer(my, mx)] = sh.index
@@ -241,11 +248,10 @@ def tangential_k(case: Case, m: np.ndarray, n: np.ndarray) -> tuple[np.ndarray, 
     """(k_x, k_y) / k0 of orders (m, n) in the project's convention."""
     s = case.n_sup.real * math.sin(case.theta_rad)
     kx = s * math.cos(case.phi_rad) - m * case.wavelength_um / case.period[0]
-    ky = s * math.sin(case.phi_rad)
     if case.is_2d:
-        ky = ky - n * case.wavelength_um / case.period[1]
+        ky = s * math.sin(case.phi_rad) - n * case.wavelength_um / case.period[1]
     else:
-        ky = ky + 0 * n
+        ky = s * math.sin(case.phi_rad) + 0 * n
     return kx, ky
 
 
@@ -261,7 +267,7 @@ def build_output(case: Case, eff: dict[str, np.ndarray]) -> tuple[list[dict], di
     kt2 = kx * kx + ky * ky
     keep = propagating(case.n_sup, kt2) | propagating(case.n_sub, kt2)
     orders = []
-    for iy, ix in zip(*np.nonzero(keep)):
+    for iy, ix in zip(*np.nonzero(keep), strict=True):
         orders.append({
             "m": int(mm[iy, ix]),
             "n": int(nn[iy, ix]),
