@@ -30,8 +30,10 @@ angles in degrees, wavelengths in nm.
           ``rotation_deg`` (about y), ``material`` (built-in name or index), ``dispersion``
           (true, default: n(lambda) from the material, renderer.dielectric; false:
           Mitsuba's dielectric at the mean of n over 360-830 nm).
-[camera]  ``resolution`` [w, h], ``look_at`` {origin, target, up}, ``fov_deg`` (horizontal)
-          or ``focal_mm`` with ``sensor_mm`` [w, h], ``principal_offset_px``, ``dist``
+[camera]  ``resolution`` [w, h], ``look_at`` {origin, target, up} or ``world_to_camera``
+          (4 x 4, OpenCV axes, metres: what calibration writes), ``fov_deg`` (horizontal)
+          or ``focal_mm`` with ``sensor_mm`` [w, h] or ``focal_px`` [fx, fy] (pixels),
+          ``principal_offset_px`` (from the image centre, (w - 1) / 2, (h - 1) / 2), ``dist``
           [k1, k2, p1, p2, k3] (OpenCV), ``exposure`` (a scale on camera RGB),
           ``sensitivities`` (a colour-science camera, default "Nikon 5100 (NPL)"),
           ``response`` ("linear", { gamma = G } or { points = [[x, y], ...] }; used only
@@ -43,7 +45,7 @@ from __future__ import annotations
 import json
 import math
 import tomllib
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from importlib import resources
 from pathlib import Path
 from typing import Any
@@ -354,16 +356,21 @@ def _parse_glass(d: Any, where: str) -> GlassSpec:
 def _parse_camera(d: Any) -> CameraSpec:
     if not isinstance(d, dict):
         raise UserInputError("must be a table", field="camera", got=d)
-    v.reject_unknown(d, {"resolution", "look_at", "fov_deg", "focal_mm", "sensor_mm", "principal_offset_px", "dist",
-                         "exposure", "sensitivities", "response"}, "camera.")
+    v.reject_unknown(d, {"resolution", "look_at", "world_to_camera", "fov_deg", "focal_mm", "focal_px", "sensor_mm",
+                         "principal_offset_px", "dist", "exposure", "sensitivities", "response"}, "camera.")
     w, h = (int(x) for x in v.vector(v.required(d, "resolution", "camera."), "camera.resolution", 2, positive=True))
-    la = v.required(d, "look_at", "camera.")
-    if not isinstance(la, dict):
-        raise UserInputError("must be a table {origin, target, up}", field="camera.look_at", got=la)
-    origin = v.vector(v.required(la, "origin", "camera.look_at."), "camera.look_at.origin", 3)
-    target = v.vector(v.required(la, "target", "camera.look_at."), "camera.look_at.target", 3)
-    up = v.vector(la.get("up", [0.0, 1.0, 0.0]), "camera.look_at.up", 3)
-    if "fov_deg" in d:
+    focal_px = v.vector(d["focal_px"], "camera.focal_px", 2, positive=True) if "focal_px" in d else None
+    if focal_px is not None and ("fov_deg" in d or "focal_mm" in d):
+        raise UserInputError("give one of fov_deg, focal_mm or focal_px", field="camera.focal_px")
+    if "world_to_camera" in d:  # an explicit pose, as calibration writes it (fitted_scene.toml)
+        if "look_at" in d:
+            raise UserInputError("give look_at or world_to_camera, not both", field="camera.world_to_camera")
+        pose = _rigid_transform(d["world_to_camera"], "camera.world_to_camera")
+    else:
+        pose = _look_at_pose(v.required(d, "look_at", "camera."))
+    if focal_px is not None:
+        fov = 2 * math.degrees(math.atan(0.5 * w / focal_px[0]))
+    elif "fov_deg" in d:
         fov = v.number(d["fov_deg"], "camera.fov_deg", positive=True)
     elif "focal_mm" in d:
         focal = v.number(d["focal_mm"], "camera.focal_mm", positive=True)
@@ -381,13 +388,36 @@ def _parse_camera(d: Any) -> CameraSpec:
     if sens not in colour.MSDS_CAMERA_SENSITIVITIES:
         raise UserInputError("unknown camera sensitivities", field="camera.sensitivities",
                              expected=f"one of {sorted(colour.MSDS_CAMERA_SENSITIVITIES)}", got=sens)
-    try:
-        pose = look_at(origin, target, up)
-    except ValueError as exc:
-        raise UserInputError(str(exc), field="camera.look_at") from None
     model = CameraModel.from_fov(w, h, fov, pose, dist, offset)
+    if focal_px is not None:
+        model = replace(model, fx=focal_px[0], fy=focal_px[1])
     return CameraSpec(model, v.number(d.get("exposure", 1.0), "camera.exposure", positive=True), sens,
                       ResponseCurve.from_spec(d.get("response", "linear")))
+
+
+def _look_at_pose(la: Any) -> np.ndarray:
+    if not isinstance(la, dict):
+        raise UserInputError("must be a table {origin, target, up}", field="camera.look_at", got=la)
+    origin = v.vector(v.required(la, "origin", "camera.look_at."), "camera.look_at.origin", 3)
+    target = v.vector(v.required(la, "target", "camera.look_at."), "camera.look_at.target", 3)
+    up = v.vector(la.get("up", [0.0, 1.0, 0.0]), "camera.look_at.up", 3)
+    try:
+        return look_at(origin, target, up)
+    except ValueError as exc:
+        raise UserInputError(str(exc), field="camera.look_at") from None
+
+
+def _rigid_transform(value: Any, where: str) -> np.ndarray:
+    """A 4 x 4 world-to-camera matrix (OpenCV axes, metres): a rotation (orthonormal to 1e-6,
+    determinant +1), a translation, and the last row 0, 0, 0, 1."""
+    if not isinstance(value, list) or len(value) != 4:
+        raise UserInputError("must be 4 rows of 4 numbers", field=where, got=value)
+    T = np.array([v.vector(row, f"{where}[{i}]", 4) for i, row in enumerate(value)])
+    R = T[:3, :3]
+    if not (np.allclose(R @ R.T, np.eye(3), atol=1e-6) and np.linalg.det(R) > 0 and np.allclose(T[3], [0, 0, 0, 1])):
+        raise UserInputError("is not a rigid transform", field=where,
+                             expected="a rotation (orthonormal, determinant +1), a translation, last row [0, 0, 0, 1]")
+    return T
 
 
 def _measured_bounds() -> tuple[np.ndarray, np.ndarray]:
