@@ -11,6 +11,7 @@ workbench.core.conventions.
 from __future__ import annotations
 
 import math
+import os
 from collections.abc import Sequence
 from dataclasses import dataclass
 
@@ -191,8 +192,17 @@ def _polarization(pol: str | Polarization) -> Polarization:
         raise UserInputError("unknown polarization", field="pol", expected="s, p or unpolarized", got=pol) from None
 
 
+MEMORY_FRACTION = 0.5  # a solve may take at most this share of the machine's memory
+
+
 def _order_counts(orders: int | Sequence[int], dimension: int) -> tuple[int, ...]:
-    values = (orders,) * dimension if isinstance(orders, (int, np.integer)) else tuple(orders)
+    if isinstance(orders, (int, np.integer)):
+        values: tuple = (orders,) * dimension
+    elif isinstance(orders, (list, tuple, np.ndarray)):
+        values = tuple(orders)
+    else:
+        raise UserInputError("the number of retained harmonics must be a positive odd integer (or one per direction)",
+                             field="orders", expected="1, 3, 5, ... or (NX, NY)", got=orders)
     if len(values) != dimension:
         raise UserInputError(
             f"a {dimension}D structure needs {dimension} order count(s)", field="orders",
@@ -204,7 +214,29 @@ def _order_counts(orders: int | Sequence[int], dimension: int) -> tuple[int, ...
                 "the number of retained harmonics must be a positive odd integer (symmetric about order 0)",
                 field="orders", expected="1, 3, 5, ...", got=orders,
             )
-    return tuple(int(v) for v in values)
+    counts = tuple(int(v) for v in values)
+    _check_memory(counts)
+    return counts
+
+
+def _check_memory(counts: tuple[int, ...]) -> None:
+    """Refuse a truncation whose matrices would not fit: the core holds about a dozen
+    complex 2N x 2N matrices per layer at once (N = the product of the counts)."""
+    harmonics = math.prod(counts)
+    need = 12 * (2 * harmonics) ** 2 * 16
+    try:
+        total = os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")
+    except (ValueError, OSError, AttributeError):
+        return
+    if need > MEMORY_FRACTION * total:
+        raise UserInputError(
+            f"{harmonics} harmonics need about {need / 2**30:.0f} GiB for the solver's matrices, more than half of "
+            f"this machine's {total / 2**30:.0f} GiB", field="orders",
+            expected=f"fewer harmonics (at most about {_max_harmonics(total)} in all)", got=counts if len(counts) > 1 else counts[0])
+
+
+def _max_harmonics(total_bytes: int) -> int:
+    return int(math.sqrt(MEMORY_FRACTION * total_bytes / (12 * 16)) / 2)
 
 
 def _positive(value: float, name: str) -> float:
@@ -214,6 +246,9 @@ def _positive(value: float, name: str) -> float:
 
 
 def _angles(theta_deg: float, phi_deg: float) -> tuple[float, float]:
+    for value, name in ((theta_deg, "theta"), (phi_deg, "phi")):
+        if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
+            raise UserInputError("must be a number of degrees", field=name, got=value)
     if not (math.isfinite(theta_deg) and 0.0 <= theta_deg < MAX_THETA_DEG):
         raise UserInputError("the polar angle must be in [0, 90) degrees", field="theta", expected="0 <= theta < 90",
                              got=theta_deg)

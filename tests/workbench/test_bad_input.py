@@ -35,7 +35,8 @@ def files(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
         (root / name).write_bytes(data)
         out[name] = root / name
     scene = (Path(__file__).resolve().parents[2] / "renderer" / "scenes" / "cornell_cd.toml").read_text()
-    for name, table in (("misspelt.toml", '{ preset = "draft", ordres = 31 }'), ("even.toml", '{ preset = "draft", orders = 20 }'),
+    for name, table in (("misspelt.toml", '{ preset = "draft", ordres = 31 }'),
+                        ("even.toml", '{ preset = "draft", orders = 20 }'),
                         ("badpreset.toml", '{ preset = "huge" }')):
         (root / name).write_text(scene.replace('table = { preset = "draft" }', f"table = {table}"))
         out[name] = root / name
@@ -57,6 +58,11 @@ CASES: list[tuple[str, list[str], str]] = [
     ("solve-folder", ["rcwa", "solve", "{a_folder}/", "--wavelength", "500", "--orders", "5"], "folder"),
     ("solve-unknown-builtin", ["rcwa", "solve", "nosuch", "--wavelength", "500", "--orders", "5"], "no such structure"),
     ("solve-even-orders", ["rcwa", "solve", "cd", "--wavelength", "500", "--orders", "4"], "odd"),
+    ("solve-orders-beyond-memory", ["rcwa", "solve", "cd", "--wavelength", "500", "--orders", "100001"], "GiB"),
+    ("table-orders-beyond-memory", ["rcwa", "table", "cd", "--out", "{root}/t7.zarr", "--orders", "100001",
+                                    "--wavelengths", "500", "--theta-step", "45", "--phi-step", "45"], "GiB"),
+    ("table-wavelength-outside-data", ["rcwa", "table", "cd", "--out", "{root}/t6.zarr", "--wavelengths", "100:700:11"],
+     "polycarbonate"),
     ("solve-orders-not-int", ["rcwa", "solve", "cd", "--wavelength", "500", "--orders", "many"], "expected N"),
     ("solve-wavelength-outside-data", ["rcwa", "solve", "cd", "--wavelength", "100", "--orders", "5"], "superstrate"),
     ("solve-negative-wavelength", ["rcwa", "solve", "cd", "--wavelength", "-5", "--orders", "5"], "wavelength"),
