@@ -17,13 +17,19 @@ def structure(period, superstrate, substrate, layers) -> "rcwa.Structure":
     )
 
 
-def lamellar(period=1.0, depth=0.5, n_ridge=nk(1.5), n_groove=nk(1.0), fill=(0.0, 0.5), sup=nk(1.0), sub=nk(1.5)):
+AIR = nk(1.0)
+GLASS = nk(1.5)
+
+
+def lamellar(period=1.0, depth=0.5, n_ridge=GLASS, n_groove=AIR, fill=(0.0, 0.5), sup=AIR, sub=GLASS):
     return structure(
         [period], sup, sub, [{"thickness": depth, "material": n_groove, "shapes": [{"material": n_ridge, "x": list(fill)}]}]
     )
 
 
-def airy_rt(n_list: list[complex], d_list_um: list[float], wavelength_nm: float, theta_deg: float, pol: str) -> tuple[float, float]:
+def airy_rt(
+    n_list: list[complex], d_list_um: list[float], wavelength_nm: float, theta_deg: float, pol: str
+) -> tuple[float, float]:
     """R and T of a thin-film stack by the recursive Airy formula (Born & Wolf, 7th ed., Sec. 1.6.4).
 
     n_list: superstrate, layers..., substrate (complex indices, Im >= 0); d_list: layer
@@ -36,7 +42,7 @@ def airy_rt(n_list: list[complex], d_list_um: list[float], wavelength_nm: float,
     for n in n_list:
         root = np.sqrt(complex(n) ** 2 - s**2)
         kz.append(-root if root.imag < 0 or (root.imag == 0 and root.real < 0) else root)
-    Y = [k if pol == "s" else k / complex(n) ** 2 for k, n in zip(kz, n_list)]
+    Y = [k if pol == "s" else k / complex(n) ** 2 for k, n in zip(kz, n_list, strict=True)]
     r_ij = lambda i, j: (Y[i] - Y[j]) / (Y[i] + Y[j])  # noqa: E731
     t_ij = lambda i, j: 2 * Y[i] / (Y[i] + Y[j])  # noqa: E731
     last = len(n_list) - 1

@@ -159,13 +159,16 @@ def test_bare_interface_at_a_rayleigh_point(layers, stack):
 
 
 def test_layer_without_contrast_is_uniform():
-    same = structure([1.0], nk(1.0), nk(1.5), [{"thickness": 0.3, "material": "gold", "shapes": [{"material": "gold", "x": [0.2, 0.7]}]}])
+    same = structure(
+        [1.0], nk(1.0), nk(1.5), [{"thickness": 0.3, "material": "gold", "shapes": [{"material": "gold", "x": [0.2, 0.7]}]}]
+    )
     uniform = structure([1.0], nk(1.0), nk(1.5), [{"thickness": 0.3, "material": "gold"}])
     for pol in ("s", "p"):
         a, b = rcwa.solve(same, 600.0, 30.0, 45.0, 21, pol), rcwa.solve(uniform, 600.0, 30.0, 45.0, 21, pol)
         assert a.R_total == pytest.approx(b.R_total, abs=TOLERANCE_EXACT)
     # The eigen-solve path itself agrees too (a shape of a material with the same index).
-    twin = structure([1.0], nk(1.0), nk(1.5), [{"thickness": 0.3, "material": nk(1.7, 0.1), "shapes": [{"material": nk(1.7, 0.1 + 1e-13), "x": [0.2, 0.7]}]}])
+    twin_shape = {"material": nk(1.7, 0.1 + 1e-13), "x": [0.2, 0.7]}
+    twin = structure([1.0], nk(1.0), nk(1.5), [{"thickness": 0.3, "material": nk(1.7, 0.1), "shapes": [twin_shape]}])
     one = structure([1.0], nk(1.0), nk(1.5), [{"thickness": 0.3, "material": nk(1.7, 0.1)}])
     assert rcwa.solve(twin, 600.0, 30.0, 45.0, 21, "p").R_total == pytest.approx(
         rcwa.solve(one, 600.0, 30.0, 45.0, 21, "p").R_total, abs=1e-9)

@@ -258,7 +258,7 @@ def test_csv_round_trip(tmp_path: Path) -> None:
     silicon = material_from_spec("silicon")  # write a built-in out and read it back
     grid = np.arange(360.0, 831.0, 10.0)
     values = silicon.refractive_index(grid)
-    rows = "".join(f"{float(w)!r},{v.real!r},{v.imag!r}\n" for w, v in zip(grid, values.tolist()))
+    rows = "".join(f"{float(w)!r},{v.real!r},{v.imag!r}\n" for w, v in zip(grid, values.tolist(), strict=True))
     (tmp_path / "si.csv").write_text("# Green 2008 resampled\nwavelength_nm,n,k\n" + rows)
     copy = material_from_spec({"file": str(tmp_path / "si.csv")})  # absolute path, no base_dir
     assert np.array_equal(copy.refractive_index(grid), values)

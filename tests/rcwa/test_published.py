@@ -423,6 +423,7 @@ def test_goray_schmidt_grating_matches_gdcalc_listing():
                 (*ours, h_zero[side][m], e_zero[side][m]),
                 (s, p, h, e),
                 ("s", "p", "H_y = 0", "E_y = 0"),
+                strict=True,
             )
             for got, printed, state in pairs:
                 # half a unit in the fifth significant figure: 10^(leading digit - 4) / 2

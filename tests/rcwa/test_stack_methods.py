@@ -19,7 +19,8 @@ CASES = {
     "cd at its Rayleigh point": (rcwa.load_structure("cd"), 400.0, 0.0, 0.0, 61),
     "thick lossy multilayer": (structure([1.0], nk(1.0), nk(1.5), [
         {"thickness": 100.0, "material": nk(1.6, 0.05), "shapes": [{"material": nk(1.0, 0.05), "x": [0, 0.5]}]},
-        {"thickness": 0.2, "material": nk(2.0)}, {"thickness": 0.1, "material": nk(1.0), "shapes": [{"material": nk(2.5), "x": [0.1, 0.4]}]}]),
+        {"thickness": 0.2, "material": nk(2.0)},
+        {"thickness": 0.1, "material": nk(1.0), "shapes": [{"material": nk(2.5), "x": [0.1, 0.4]}]}]),
         600.0, 20.0, 30.0, 41),
     "gold2d": (rcwa.load_structure("gold2d"), 550.0, 10.0, 20.0, (7, 7)),
     "no layers": (structure([1.0], nk(1.0), nk(1.5), []), 500.0, 40.0, 0.0, 11),
@@ -34,6 +35,6 @@ def test_etm_and_smatrix_agree(name, pol):
     b = rcwa.solve(s, wl, theta, phi, orders, pol, stack="smatrix")
     assert np.allclose(a.all_orders["R"], b.all_orders["R"], atol=TOLERANCE_STACKS, rtol=0)
     assert np.allclose(a.all_orders["T_into_substrate"], b.all_orders["T_into_substrate"], atol=TOLERANCE_STACKS, rtol=0)
-    for x, y in zip(a.orders, b.orders):
+    for x, y in zip(a.orders, b.orders, strict=True):
         for key, value in x.amplitudes.items():
             assert abs(value - y.amplitudes[key]) < TOLERANCE_STACKS * max(1.0, abs(value))

@@ -41,8 +41,8 @@ def test_sweep_equals_single_solves(name):
         for c, pol in enumerate("sp"):
             single = rcwa.solve(s, 550.0, theta[p], phi[p], orders, pol)
             by_order = {(int(m), int(n)): (R[c], T[c]) for m, n, R, T in zip(
-                single.all_orders["m"], single.all_orders["n"], single.all_orders["R"], single.all_orders["T"])}
-            for k, (m, n) in enumerate(zip(sw.m, sw.n)):
+                single.all_orders["m"], single.all_orders["n"], single.all_orders["R"], single.all_orders["T"], strict=True)}
+            for k, (m, n) in enumerate(zip(sw.m, sw.n, strict=True)):
                 R, T = by_order[(int(m), int(n))]
                 assert sw.R[p, k, c] == pytest.approx(R, abs=TOLERANCE_SWEEP)
                 assert sw.T[p, k, c] == pytest.approx(T, abs=TOLERANCE_SWEEP)
@@ -58,7 +58,7 @@ def test_refined_sweep_equals_single_solves():
     for p in range(0, theta.size, 9):
         for c, pol in enumerate("sp"):
             single = rcwa.solve(s, 480.0, theta[p], phi[p], 31, pol)
-            by_order = dict(zip(single.all_orders["m"].astype(int), single.all_orders["R"][:, c]))
+            by_order = dict(zip(single.all_orders["m"].astype(int), single.all_orders["R"][:, c], strict=True))
             for k, m in enumerate(sw.m):
                 assert sw.R[p, k, c] == pytest.approx(by_order[int(m)], abs=TOLERANCE_SWEEP)
 

@@ -37,7 +37,7 @@ def test_table_equals_direct_solves(tmp_path):
         for j, th in enumerate(st.theta_deg[:-1]):  # the last row is the grazing limit
             for k, ph in enumerate(st.phi_deg):
                 direct = {pol: rcwa.solve(s, wl, th, ph, 21, pol) for pol in ("s", "p")}
-                for q, (m, n) in enumerate(t.orders):
+                for q, (m, _) in enumerate(t.orders):
                     by_pol = [direct[p].all_orders["R"][list(direct[p].all_orders["m"]).index(m), "sp".index(p)] for p in "sp"]
                     assert t.arrays["R"][i, j, k, q, :2] == pytest.approx(by_pol, abs=TOLERANCE_FLOAT32)
                     assert t.arrays["R"][i, j, k, q, 2] == pytest.approx(np.mean(by_pol), abs=TOLERANCE_FLOAT32)

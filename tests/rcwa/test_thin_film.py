@@ -22,7 +22,7 @@ CASES = {
 
 
 def _stack(ns, ds):
-    return structure([1.0], ns[0], ns[-1], [{"thickness": d, "material": n} for n, d in zip(ns[1:-1], ds)])
+    return structure([1.0], ns[0], ns[-1], [{"thickness": d, "material": n} for n, d in zip(ns[1:-1], ds, strict=True)])
 
 
 @pytest.mark.parametrize("name", CASES)
@@ -48,7 +48,7 @@ def test_bare_interface_is_fresnel(pol):
 
 def test_2d_uniform_stack_matches_airy():
     ns, ds = CASES["lossy multilayer"]
-    s = structure([1.0, 0.8], ns[0], ns[-1], [{"thickness": d, "material": n} for n, d in zip(ns[1:-1], ds)])
+    s = structure([1.0, 0.8], ns[0], ns[-1], [{"thickness": d, "material": n} for n, d in zip(ns[1:-1], ds, strict=True)])
     for pol in ("s", "p"):
         result = rcwa.solve(s, 500.0, 25.0, 60.0, (3, 3), pol)
         R, T = airy_rt([complex(n["n"], n["k"]) for n in ns], ds, 500.0, 25.0, pol)
