@@ -91,18 +91,36 @@ def _read_raw(path: Path) -> Photo:
     normalised = (mosaic - level) / np.maximum(white - level, 1.0)
     rgb = demosaic_bilinear(normalised, channel[index])
     saturated = cv2.dilate(saturated_raw.astype(np.uint8), np.ones((3, 3), np.uint8)) > 0
-    return Photo(str(path), rgb, saturated, True, _raw_exposure_time(path), pattern)
+    return Photo(str(path), rgb, saturated, True, exposure_time_s(path), pattern)
 
 
-def _raw_exposure_time(path: Path) -> float | None:
+def exposure_time_s(path: Path) -> float | None:
+    """EXIF ExposureTime (tag 33434) in seconds: in IFD 0 or the EXIF IFD of a TIFF-based
+    file (DNG, NEF, CR2, ...; tifffile), or a JPEG's EXIF (Pillow); None when absent."""
+    value = None
     try:
-        from PIL import Image
+        import tifffile
 
-        with Image.open(path) as image:
-            value = image.getexif().get(33434) or image.getexif().get_ifd(0x8769).get(33434)
-        return float(value) if value else None
-    except Exception:  # noqa: BLE001 - EXIF is optional; a raw without it has no exposure time
+        with tifffile.TiffFile(path) as tiff:
+            tags = tiff.pages[0].tags
+            tag = tags.get(33434)
+            exif = tags.get(34665)
+            value = tag.value if tag is not None else (exif.value.get("ExposureTime") if exif is not None else None)
+    except Exception:  # noqa: BLE001 - not a TIFF container: try Pillow
+        try:
+            from PIL import Image
+
+            with Image.open(path) as image:
+                value = image.getexif().get_ifd(0x8769).get(33434)
+        except Exception:  # noqa: BLE001 - no readable EXIF: no exposure time
+            value = None
+    if isinstance(value, tuple) and len(value) == 2:
+        value = value[0] / value[1] if value[1] else None
+    try:
+        seconds = float(value) if value is not None else None
+    except (TypeError, ValueError):
         return None
+    return seconds if seconds is not None and seconds > 0 else None
 
 
 def _read_image(path: Path, inverse_response) -> Photo:
@@ -119,4 +137,4 @@ def _read_image(path: Path, inverse_response) -> Photo:
     saturated = np.any(data[..., :3] >= full, axis=2) if data.ndim == 3 else data >= full
     if inverse_response is not None:
         rgb = np.asarray(inverse_response(rgb), np.float32)
-    return Photo(str(path), rgb, saturated, inverse_response is not None, None, None)
+    return Photo(str(path), rgb, saturated, inverse_response is not None, exposure_time_s(path), None)

@@ -618,7 +618,7 @@ def result_json(result: PoseResult) -> dict:
 
 def calibrate_pose(photo_path: str | Path, scene: str | Path, out: str | Path | None = None, *,
                    intrinsics: str | Path | None = None, response: str | Path | None = None,
-                   settings: PoseSettings = PoseSettings(), progress: bool = True) -> dict:
+                   settings: PoseSettings | None = None, progress: bool = True) -> dict:
     """``workbench calibrate pose``: fit one photo; write OUT/pose.json and OUT/fitted_scene.toml.
 
     Without ``intrinsics`` the focal length (fx, fy with the scene's ratio), the principal
@@ -629,6 +629,7 @@ def calibrate_pose(photo_path: str | Path, scene: str | Path, out: str | Path | 
     from renderer.scene import load_scene
 
     started = time.perf_counter()
+    settings = settings or PoseSettings()
     spec = load_scene(scene)
     known = load_intrinsics(intrinsics) if intrinsics is not None else None
     inverse = load_inverse_response(response) if response is not None else None

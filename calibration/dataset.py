@@ -1,0 +1,221 @@
+"""``workbench calibrate DATASET --scene SCENE --out DIR``: every calibration step on a folder.
+
+DATASET is the layout ``workbench synth`` writes, which a folder of real photographs can
+follow as well::
+
+    DATASET/photos/*        photos of the scene (raw: DNG, NEF, CR2, ...; or JPEG/PNG/TIFF)
+    DATASET/brackets/*      optional: an exposure bracket (raw files and/or JPEG, PNG, TIFF)
+    DATASET/calibration/*   optional: checkerboard views (--board COLSxROWS, --square-mm)
+
+Steps, in order: the intrinsics from calibration/ (calibration.intrinsics, Zhang's method),
+the response from brackets/ (calibration.response: the curve from the non-raw files, the
+linearity check from the raw ones), then the pose of every photo with the intrinsics held
+fixed (calibration.pose). Without board views the first photo's fit frees the focal
+length, principal point and k1, k2, and the others hold them. Nothing but these three
+folders is read: a dataset's truth.json never is.
+
+DIR gets, each written atomically once everything has succeeded:
+
+* ``calibration.json``: ``camera`` (width, height, fx, fy, cx, cy, dist, and
+  ``world_to_camera`` by photo file name, 4 x 4, OpenCV axes, metres), ``std`` for each
+  estimate, ``exposure_scale`` by photo (photo / render of the scene file, 1 = the white
+  level; exposure x light power, which one photo cannot tell apart, so
+  ``light_power_scale`` is held at 1), ``exposure_scale_per_second`` (divided by each
+  photo's EXIF exposure time: what is left is the light and the sensor's gain, the same
+  for every photo of one scene), ``response`` (``points``: pairs of normalised irradiance
+  and value), residuals, settings, versions and timings;
+* ``intrinsics.json`` (when board views were used) and ``response.json`` (when a
+  bracket was), as their own commands write them;
+* ``fitted_scene.toml``: the scene with the first photo's fitted camera and exposure, and
+  ``scenes/NAME.toml`` the same for every photo (``workbench render`` loads them).
+"""
+
+from __future__ import annotations
+
+import json
+import time
+from pathlib import Path
+
+from calibration.photo import RAW_SUFFIXES, read_photo
+from calibration.pose import PHOTOMETRY_NOTE, PoseSettings, Unknowns, fit_photo, fit_renderer, result_json, start_camera, versions
+from calibration.scene_model import scene_model
+from workbench.core.errors import UserInputError
+from workbench.core.files import atomic_write_text
+
+DATASET_FORMAT = "workbench-calibration"
+IMAGE_SUFFIXES = {".jpg", ".jpeg", ".png", ".tif", ".tiff"}
+DEFAULT_BOARD = (9, 6)
+DEFAULT_SQUARE_MM = 20.0
+
+
+def _files(folder: Path) -> list[Path]:
+    if not folder.is_dir():
+        return []
+    return sorted(p for p in folder.iterdir() if p.is_file() and p.suffix.lower() in RAW_SUFFIXES | IMAGE_SUFFIXES)
+
+
+def dataset_files(dataset: str | Path) -> dict[str, list[Path]]:
+    """The photos, bracket files and board views of a dataset folder (checked: photos exist)."""
+    root = Path(dataset)
+    if not root.is_dir():
+        raise UserInputError("no such dataset folder", file=root,
+                             expected="a folder with photos/ (and optionally brackets/ and calibration/)")
+    photos = _files(root / "photos")
+    if not photos:
+        raise UserInputError("the dataset has no photos", file=root / "photos",
+                             expected="raw files (DNG, NEF, CR2, ...) or JPEG/PNG/TIFF images in photos/")
+    names = [p.name for p in photos]
+    if len(set(names)) != len(names):
+        raise UserInputError("photo file names must be unique", file=root / "photos")
+    return {"photos": photos, "brackets": _files(root / "brackets"), "boards": _files(root / "calibration")}
+
+
+def _intrinsics(boards: list[Path], board: tuple[int, int], square_mm: float, progress: bool) -> dict | None:
+    if not boards:
+        return None
+    from calibration.intrinsics import calibrate_board_views
+
+    calibration = calibrate_board_views(boards, board, square_mm / 1000.0, progress=progress)
+    record = calibration.to_json()
+    return record | {"source": f"{boards[0].parent} ({len(boards)} views)", "timings": calibration.timings,
+                     "settings": {"board": list(board), "square_mm": square_mm}}
+
+
+def _response(brackets: list[Path], progress: bool) -> dict | None:
+    """The response curve from the bracket's non-raw files, the linearity of its raw ones."""
+    if not brackets:
+        return None
+    from calibration.response import calibrate_response
+
+    images = [p for p in brackets if p.suffix.lower() in IMAGE_SUFFIXES]
+    raws = [p for p in brackets if p.suffix.lower() in RAW_SUFFIXES]
+    result: dict = {}
+    if images:
+        result = calibrate_response(images, progress=progress)
+    if raws:
+        linearity = calibrate_response(raws)
+        result = result or linearity
+        result["raw_linearity"] = linearity.get("linearity", linearity)
+    return result
+
+
+def calibrate_dataset(dataset: str | Path, scene: str | Path, out: str | Path, *, board: tuple[int, int] = DEFAULT_BOARD,
+                      square_mm: float = DEFAULT_SQUARE_MM, settings: PoseSettings | None = None,
+                      progress: bool = True) -> dict:
+    """Run every step on ``dataset`` and write DIR's files (module docstring); returns calibration.json's content."""
+    from tqdm import tqdm
+
+    from renderer.scene import load_scene
+
+    started = time.perf_counter()
+    settings = settings or PoseSettings()
+    out = Path(out)
+    if out.exists() and not out.is_dir():
+        raise UserInputError("is a file, not a folder", field="--out", expected="a folder for the results", got=str(out))
+    spec = load_scene(scene)
+    files = dataset_files(dataset)
+    bar = tqdm(total=2 + 3 * len(files["photos"]), desc="calibrate dataset", unit="step", disable=not progress)
+    timings: dict = {}
+    tick = time.perf_counter()
+    intrinsics = _intrinsics(files["boards"], board, square_mm, progress=False)
+    timings["intrinsics_s"] = time.perf_counter() - tick
+    bar.update()
+    tick = time.perf_counter()
+    response = _response(files["brackets"], progress=False)
+    timings["response_s"] = time.perf_counter() - tick
+    bar.update()
+    results = _fit_photos(files["photos"], spec, intrinsics, response, settings, bar, timings)
+    bar.close()
+    timings["total_s"] = time.perf_counter() - started
+    record = _record(dataset, scene, spec, files, intrinsics, response, results, settings, board, square_mm, timings)
+    _write(out, record, spec, results, intrinsics, response)
+    return record
+
+
+def _fit_photos(photos: list[Path], spec, intrinsics: dict | None, response: dict | None, settings: PoseSettings, bar,
+                timings: dict) -> dict:
+    """Each photo's PoseResult by file name; the first fixes the intrinsics when no boards did."""
+    import numpy as np
+
+    inverse = None
+    if response is not None and "points" in response:
+        points = np.asarray(response["points"], float)
+        inverse = lambda v: np.interp(v, points[:, 1], points[:, 0]).astype(np.float32)  # noqa: E731
+    model = scene_model(spec)
+    renderer = None
+    known = None if intrinsics is None else dict(intrinsics, dist=tuple((list(intrinsics["dist"]) + [0.0] * 5)[:5]))
+    results = {}
+    for path in photos:
+        tick = time.perf_counter()
+        photo = read_photo(path, inverse if path.suffix.lower() not in RAW_SUFFIXES else None)
+        start = start_camera(spec, photo, known)
+        if renderer is None and settings.render_check:
+            renderer = fit_renderer(spec, start, settings.render_spp)
+        unknowns = Unknowns(intrinsics=known is None, distortion=known is None)
+        result = fit_photo(photo, model, start, unknowns, settings, renderer, bar, known.get("std") if known else None)
+        if known is None:  # no boards: this photo's intrinsics hold for the rest
+            c = result.camera
+            known = {"width": c.width, "height": c.height, "fx": c.fx, "fy": c.fy, "cx": c.cx, "cy": c.cy,
+                     "dist": tuple(c.dist), "source": f"fitted on {path.name}",
+                     "std": {k: result.std[k] for k in ("fx", "fy", "cx", "cy", "dist")}}
+        results[path.name] = result
+        timings[f"pose_{path.name}_s"] = time.perf_counter() - tick
+    return results
+
+
+def _record(dataset, scene, spec, files, intrinsics, response, results, settings: PoseSettings, board, square_mm,
+            timings: dict) -> dict:
+    first = next(iter(results.values()))
+    c = first.camera
+    scales = {name: r.exposure_scale for name, r in results.items()}
+    per_second = {name: (r.exposure_scale / r.exposure_time_s if r.exposure_scale and r.exposure_time_s else None)
+                  for name, r in results.items()}
+    intrinsic_std = ({k: intrinsics["std"][k] for k in ("fx", "fy", "cx", "cy", "dist")} if intrinsics
+                     else {k: first.std[k] for k in ("fx", "fy", "cx", "cy", "dist")})
+    return {
+        "format": DATASET_FORMAT, "command": "workbench calibrate DATASET", "dataset": str(dataset), "scene": str(scene),
+        "camera": {"width": c.width, "height": c.height, "fx": c.fx, "fy": c.fy, "cx": c.cx, "cy": c.cy,
+                   "dist": [float(d) for d in c.dist], "fov_x_deg": first.camera_json()["fov_x_deg"],
+                   "world_to_camera": {name: r.camera.world_to_camera.tolist() for name, r in results.items()}},
+        "std": intrinsic_std | {"fov_x_deg": first.std["fov_x_deg"],
+                                "poses": {name: {k: r.std[k] for k in ("rotation_deg", "rotation_total_deg",
+                                                                       "camera_center_m")} for name, r in results.items()},
+                                "exposure_scale": {name: r.exposure_scale_std for name, r in results.items()}},
+        "exposure_scale": scales, "exposure_time_s": {name: r.exposure_time_s for name, r in results.items()},
+        "exposure_scale_per_second": per_second, "light_power_scale": 1.0, "photometry": PHOTOMETRY_NOTE,
+        "response": _response_summary(response),
+        "intrinsics": {"source": intrinsics["source"], "rms_px": intrinsics.get("rms_px"),
+                       "views": intrinsics.get("views"), "flags": intrinsics.get("flags")} if intrinsics
+        else {"source": f"fitted on {next(iter(results))} (no board views in calibration/)"},
+        "residuals": {name: {k: v for k, v in r.residuals.items()} for name, r in results.items()},
+        "photos": {name: result_json(r) for name, r in results.items()},
+        "files": {k: [str(p) for p in v] for k, v in files.items()},
+        "settings": {"board": list(board), "square_mm": square_mm, "pose": settings.to_json(), "scene": spec.source},
+        "versions": versions(), "timings": timings,
+    }
+
+
+def _response_summary(response: dict | None) -> dict | None:
+    if response is None:
+        return None
+    keys = ("method", "points", "linear", "raw_linearity", "times_s", "files")
+    return {k: response[k] for k in keys if k in response}
+
+
+def _write(out: Path, record: dict, spec, results: dict, intrinsics: dict | None, response: dict | None) -> None:
+    from calibration.fitted_scene import fitted_scene_text
+    from calibration.pose import _json_default
+
+    out.mkdir(parents=True, exist_ok=True)
+    for i, (name, result) in enumerate(results.items()):
+        exposure = spec.camera.exposure * (result.exposure_scale if result.exposure_scale is not None else 1.0)
+        text = fitted_scene_text(spec, result.camera, exposure,
+                                 f"{spec.name} with the camera fitted to {name} by workbench calibrate")
+        atomic_write_text(out / "scenes" / f"{Path(name).stem}.toml", text)
+        if i == 0:
+            atomic_write_text(out / "fitted_scene.toml", text)
+    if intrinsics is not None:
+        atomic_write_text(out / "intrinsics.json", json.dumps(intrinsics, indent=2, default=_json_default) + "\n")
+    if response is not None:
+        atomic_write_text(out / "response.json", json.dumps(response, indent=1, default=_json_default) + "\n")
+    atomic_write_text(out / "calibration.json", json.dumps(record, indent=2, default=_json_default) + "\n")
