@@ -135,12 +135,15 @@ def _sphere_scene(mi, bsdf, seed, res=24, spp=128):
     T = mi.ScalarTransform4f
     scene = mi.load_dict({
         "type": "scene", "integrator": {"type": "path", "max_depth": 10},
-        "sensor": {"type": "perspective", "fov": 40, "to_world": T().look_at(origin=[0, 0.3, -2.5], target=[0, 0, 0], up=[0, 1, 0]),
+        "sensor": {"type": "perspective", "fov": 40,
+                   "to_world": T().look_at(origin=[0, 0.3, -2.5], target=[0, 0, 0], up=[0, 1, 0]),
                    "sampler": {"type": "independent", "sample_count": spp},
                    "film": {"type": "specfilm", "width": res, "height": res, "rfilter": {"type": "box"},
                             "channel_y": {"type": "irregular", "wavelengths": "360, 830", "values": "1, 1"}}},
-        "floor": {"type": "rectangle", "to_world": T().translate([0, -0.5, 0]).rotate([1, 0, 0], -90).scale(3), "bsdf": {"type": "diffuse"}},
-        "back": {"type": "rectangle", "to_world": T().translate([0, 0, 1.5]).rotate([0, 1, 0], 180).scale(3), "bsdf": {"type": "diffuse"}},
+        "floor": {"type": "rectangle", "to_world": T().translate([0, -0.5, 0]).rotate([1, 0, 0], -90).scale(3),
+                  "bsdf": {"type": "diffuse"}},
+        "back": {"type": "rectangle", "to_world": T().translate([0, 0, 1.5]).rotate([0, 1, 0], 180).scale(3),
+                 "bsdf": {"type": "diffuse"}},
         "light": {"type": "rectangle", "to_world": T().translate([0, 2, 0]).rotate([1, 0, 0], 90).scale(0.8),
                   "emitter": {"type": "area", "radiance": 1.0}},
         "ball": {"type": "sphere", "radius": 0.5, "bsdf": bsdf}})
@@ -216,7 +219,7 @@ print(float(np.mean(_sphere_scene(mi, bsdf_dict(material_from_spec('n-bk7')), se
     assert out.returncode == 0, out.stderr
     lines = [list(map(float, line.split())) for line in out.stdout.split("\n") if line.strip()]
     n = np.real(BK7.refractive_index(np.array([450.0, 650.0, 450.0, 650.0])))
-    for (angle, weight), nj in zip(lines[:4], n):
+    for (angle, weight), nj in zip(lines[:4], n, strict=True):
         assert angle == pytest.approx(math.asin(math.sin(math.radians(60)) / nj), abs=1e-4)
         assert weight == pytest.approx(4 / nj**2, rel=1e-5)
     assert math.isfinite(lines[4][0]) and lines[4][0] > 0

@@ -9,8 +9,8 @@
 * Consistency for the path integrator: sample_direction's weight is eval_direction /
   pdf_direction and its pdf is pdf_direction's (1e-5, float32); its mean times cos at a
   receiver is the irradiance from a numpy quadrature over the light (1 %: 5 sigma of the
-  Monte Carlo mean is 0.03-0.6 %, asserted below 1 %; measured errors 0-0.1 %). sample_ray's weight is the total power and its mean
-  cos theta is (n + 2) / (n + 3), the cos^(n+1) distribution (1 %: 5 sigma).
+  Monte Carlo mean is 0.03-0.6 %, asserted below 1 %; measured errors 0-0.1 %). sample_ray's weight is the total
+  power and its mean cos theta is (n + 2) / (n + 3), the cos^(n+1) distribution (1 %: 5 sigma).
 * Render (llvm_ad_spectral and, in a subprocess, scalar_spectral): a white Lambertian
   floor under a small light (1 cm, 0.25 m up) rendered by the path integrator; each
   pixel is rho/pi E with E = L0 A cos^n(theta) cos(theta) cos(theta') / r^2 (here theta'
@@ -127,9 +127,13 @@ def _floor_render(mi, cos_power, *, builtin=False, res=12, spp=256, light_size=0
                else {"type": "cospower_area", "cos_power": cos_power, "radiance": {"type": "uniform", "value": 1.0}})
     T = mi.ScalarTransform4f
     scene = {"type": "scene", "integrator": {"type": "path", "max_depth": 6 if box else 2},
-             "floor": {"type": "rectangle", "to_world": T().rotate([1, 0, 0], -90).scale(0.5), "bsdf": {"type": "diffuse", "reflectance": 1.0}},
-             "light": {"type": "rectangle", "to_world": T().translate([0, height, 0]).rotate([1, 0, 0], 90).scale([half, half, 1]), "emitter": emitter},
-             "sensor": {"type": "orthographic", "to_world": T().look_at(origin=[0, 0.2, 0], target=[0, 0, 0], up=[0, 0, 1]) @ T().scale([0.3, 0.3, 1]),
+             "floor": {"type": "rectangle", "to_world": T().rotate([1, 0, 0], -90).scale(0.5),
+                       "bsdf": {"type": "diffuse", "reflectance": 1.0}},
+             "light": {"type": "rectangle",
+                       "to_world": T().translate([0, height, 0]).rotate([1, 0, 0], 90).scale([half, half, 1]),
+                       "emitter": emitter},
+             "sensor": {"type": "orthographic",
+                        "to_world": T().look_at(origin=[0, 0.2, 0], target=[0, 0, 0], up=[0, 0, 1]) @ T().scale([0.3, 0.3, 1]),
                         "sampler": {"type": "stratified", "sample_count": spp},  # strata over the pixel footprint
                         "film": {"type": "specfilm", "width": res, "height": res, "rfilter": {"type": "box"},
                                  "channel_y": {"type": "irregular", "wavelengths": "360, 830", "values": "1, 1"}}}}
@@ -144,7 +148,7 @@ def _floor_render(mi, cos_power, *, builtin=False, res=12, spp=256, light_size=0
     U, V = np.meshgrid(u, u)
     if mi.variant().startswith("scalar"):
         o = np.array([list(sensor.sample_ray(0.0, 0.5, mi.Point2f(float(a), float(b)), mi.Point2f(0.5, 0.5))[0].o)
-                      for a, b in zip(U.ravel(), V.ravel())]).T
+                      for a, b in zip(U.ravel(), V.ravel(), strict=True)]).T
     else:
         ray, _ = sensor.sample_ray(0.0, 0.5, mi.Point2f(mi.Float(U.ravel()), mi.Float(V.ravel())), mi.Point2f(0.5, 0.5))
         o = np.array(ray.o)
@@ -215,7 +219,8 @@ def test_scene_file_profile_builds_and_renders(mitsuba_variant):
     assert base.light.cos_power is None
     means = {}
     for profile in ('"lambertian"', "{ cos_power = 4 }"):
-        spec = parse_scene(base.text.replace('emission_profile = "lambertian"', f"emission_profile = {profile}"), source="t.toml", base_dir=None)
+        text = base.text.replace('emission_profile = "lambertian"', f"emission_profile = {profile}")
+        spec = parse_scene(text, source="t.toml", base_dir=None)
         spec = with_resolution(spec, (32, 24))
         for integrator in ("path", "direct"):
             d, _ = scene_dict(mi, spec, spp=16, integrator=integrator)

@@ -65,7 +65,7 @@ def _centroids(image: np.ndarray) -> list[tuple[float, float]]:
     labels, count = ndimage.label(lum > 0.2 * lum.max(), structure=np.ones((3, 3)))
     found = ndimage.center_of_mass(lum, labels, range(1, count + 1))
     sizes = ndimage.sum(np.ones_like(lum), labels, range(1, count + 1))
-    return [c for c, s in zip(found, sizes) if s >= 1]
+    return [c for c, s in zip(found, sizes, strict=True) if s >= 1]
 
 
 @pytest.mark.parametrize("mode", ["improved", "paper"])
@@ -91,5 +91,5 @@ def test_orders_appear_where_the_grating_equation_puts_them(mitsuba_variant, tmp
     expected = sorted(_centroids(reference), key=lambda c: c[1])
     assert len(expected) == 3
     assert len(spots) == 3, f"found {len(spots)} spots"
-    for got, want in zip(spots, expected):
+    for got, want in zip(spots, expected, strict=True):
         assert math.dist(got, want) < TOLERANCE_PIXELS, (got, want)

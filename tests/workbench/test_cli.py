@@ -88,7 +88,9 @@ BAD_FILES = {
     "stripe ends before it starts": (GOOD.replace("x = [0.5, 1.1]", "x = [1.1, 0.5]"), "layers[0].shapes[0].x", "x1 > x0"),
     "stripe wider than the period": (GOOD.replace("x = [0.5, 1.1]", "x = [0.0, 2.0]"), "layers[0].shapes[0].x", "<= 1.6"),
     "missing superstrate": (GOOD.replace('superstrate = "polycarbonate"\n', ""), "superstrate", "missing"),
-    "2D shape in 1D": (GOOD.replace("x = [0.5, 1.1]", "rect = { center = [0, 0], size = [1, 1] }"), "layers[0].shapes[0].rect", "x = [x0, x1]"),
+    "2D shape in 1D": (
+        GOOD.replace("x = [0.5, 1.1]", "rect = { center = [0, 0], size = [1, 1] }"), "layers[0].shapes[0].rect", "x = [x0, x1]"
+    ),
 }
 
 
@@ -117,7 +119,7 @@ def test_bad_arguments(tmp_path, capsys, case):
     extra, field, expected = BAD_ARGUMENTS[case]
     path = _write(tmp_path, GOOD)
     args = {"--wavelength": "550", "--orders": "11", "--theta": "10"}
-    for k, v in zip(extra[::2], extra[1::2]):
+    for k, v in zip(extra[::2], extra[1::2], strict=True):
         args[k] = v
     argv = ["rcwa", "solve", str(path)] + [x for kv in args.items() for x in kv]
     code, _, err = _run(capsys, *argv)
@@ -125,7 +127,8 @@ def test_bad_arguments(tmp_path, capsys, case):
 
 
 def test_wavelength_error_names_file_and_field(tmp_path, capsys):
-    text = GOOD.replace('substrate = "aluminum"', 'substrate = "gold"').replace('superstrate = "polycarbonate"', 'superstrate = "air"')
+    text = GOOD.replace('substrate = "aluminum"', 'substrate = "gold"')
+    text = text.replace('superstrate = "polycarbonate"', 'superstrate = "air"')
     path = _write(tmp_path, text.replace('material = "polycarbonate"', 'material = "air"'))
     code, _, err = _run(capsys, "rcwa", "solve", str(path), "--wavelength", "3000", "--orders", "11")
     assert code == 2 and str(path) in err and "substrate" in err and "gold" in err
