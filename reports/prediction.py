@@ -1,0 +1,416 @@
+"""Where the grating equation puts the CD's lit bands, for a camera, independent of the renderer.
+
+For every camera pixel that sees the CD, every diffraction order m and every wavelength
+(5 nm apart over the camera's range) the camera ray is sent back through the grating
+equation and tested against the ceiling light's rectangle; a pixel of order m is lit at
+lambda when that ray reaches the light. Nothing here uses Mitsuba or an efficiency table:
+it is geometry, so it checks the renderer from outside.
+
+The path, for one pixel (world frame, metres; the CD's frame is renderer.build.frame_to):
+
+1. The camera ray (renderer.camera.CameraModel, OpenCV's model with distortion) meets the
+   CD's flat polycarbonate top (``CD_TOP_THICKNESS_M`` above the grating) and refracts
+   (Snell's law; the top's index is the scene's: n(lambda) of polycarbonate, or its mean
+   over 360-830 nm when the scene's top is not dispersive, as renderer.dielectric does),
+   then meets the grating plane at p, which must lie on the annulus.
+2. The grating axis at p is radial, computed from p and the CD's centre (the CD's
+   circular tracks; not a mesh triangle's direction).
+3. The grating equation (Lange et al. 2021, Eq. 2, with the order sign of
+   workbench.core.conventions.ORDER_SIGN): tangential wave vectors over k0 satisfy
+   ``k_out = k_inc + ORDER_SIGN m lambda / Lambda x_hat``. The flat top keeps the
+   tangential wave vector, so ``k_out`` is the tangential part of the direction toward the
+   camera in air, and ``k_inc = k_out - ORDER_SIGN m lambda / Lambda x_hat``
+   (renderer.planner._incident_directions, in air: both indices 1); the wave exists where
+   ``|k_inc| < 1``.
+4. The light lies against the incident wave (renderer.planner._source_rays). Inside the
+   top the back-traced ray climbs ``CD_TOP_THICKNESS_M`` at the refracted angle, so it
+   leaves the top beside p; from there it must hit the light's rectangle
+   (renderer.planner._hits_light; occlusion by other objects is not tested).
+
+Per pixel, order and channel the lit fraction is the camera-sensitivity-weighted share
+of the light's spectrum that arrives: ``sum_lambda S_c E lit w / sum_lambda S_c E``, with
+E the light's spectrum and w the light's emission profile cos^n at the angle the ray
+leaves it (1 for a Lambertian light). The diffraction efficiency and the top's Fresnel
+transmission are left out: they change slowly with wavelength, so they move a band's
+brightness, not where its edges are. Pixels are supersampled (``SUPERSAMPLE`` per axis)
+and averaged, so a prediction is pixel-integrated as a render and a photo are.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from renderer.camera import CameraModel
+from renderer.planner import _hits_light, _incident_directions, _source_rays
+from renderer.scene import CD_TOP_THICKNESS_M, SPECTRAL_RANGE_NM, CDSpec, SceneSpec
+from workbench.core.conventions import ORDER_SIGN
+from workbench.core.errors import UserInputError
+
+PREDICTION_STEP_NM = 5.0  # wavelengths sampled; a band edge moves about 0.5-1 px per 5 nm along a radius
+SUPERSAMPLE = 2  # sub-pixel rays per axis: pixel-integrated like the images, 4 rays per pixel
+BBOX_MARGIN_PX = 3
+RIM_POINTS = 720
+MAX_ORDER = 12  # |m| * lambda / Lambda < 2 bounds the propagating orders; 12 covers a 1.6 um period down to 270 nm
+LIGHT_BOX_MARGIN = 0.05  # direction cosines; the top's lateral shift moves a direction by < 0.005
+
+
+@dataclass(frozen=True)
+class CDGeometry:
+    """One CD: the grating plane's centre, its frame (columns e1, e2, normal), radii, top, period."""
+
+    center: np.ndarray
+    frame: np.ndarray
+    inner_radius: float
+    outer_radius: float
+    top_thickness_m: float
+    top_dispersive: bool
+    period_um: float
+
+    @property
+    def normal(self) -> np.ndarray:
+        return self.frame[:, 2]
+
+    def top_index(self, wavelengths_nm: np.ndarray) -> np.ndarray:
+        """The top's real index at ``wavelengths_nm``: n(lambda), or its mean over 360-830 nm
+        (renderer.dielectric.mean_index: 1 nm steps, held constant beyond the data)."""
+        from rcwa.materials import material_from_spec
+
+        pc = material_from_spec("polycarbonate")
+        lo, hi = pc.wavelength_range_nm or SPECTRAL_RANGE_NM
+        if self.top_dispersive:
+            return np.real(pc.refractive_index(np.clip(wavelengths_nm, lo, hi)))
+        grid = np.linspace(SPECTRAL_RANGE_NM[0], SPECTRAL_RANGE_NM[1], round(SPECTRAL_RANGE_NM[1] - SPECTRAL_RANGE_NM[0]) + 1)
+        mean = float(np.real(pc.refractive_index(np.clip(grid, lo, hi))).mean())
+        return np.full(np.shape(wavelengths_nm), mean)
+
+    def rim_points(self, radius: float | None = None, count: int = RIM_POINTS, on_top: bool = False) -> np.ndarray:
+        """World points (count, 3) on a circle about the centre (the outer rim by default)."""
+        angles = np.linspace(0.0, 2 * np.pi, count, endpoint=False)
+        r = self.outer_radius if radius is None else radius
+        lift = self.top_thickness_m if on_top else 0.0
+        return (self.center + lift * self.normal)[None] + r * (np.cos(angles)[:, None] * self.frame[:, 0]
+                                                               + np.sin(angles)[:, None] * self.frame[:, 1])
+
+
+def cd_geometry(spec: SceneSpec, index: int = 0) -> CDGeometry:
+    """The geometry of the scene's CD ``index`` and its structure's period."""
+    import rcwa
+    from renderer.build import frame_to
+
+    if not spec.cds:
+        raise UserInputError("the scene has no CD: there are no fringes to measure", file=spec.source, field="cd")
+    if not 0 <= index < len(spec.cds):
+        raise UserInputError("no such CD in the scene", file=spec.source, field="cd", expected=f"0..{len(spec.cds) - 1}",
+                             got=index)
+    cd: CDSpec = spec.cds[index]
+    structure = rcwa.load_structure(cd.structure)
+    if len(structure.period) != 1:
+        raise UserInputError("the CD's structure is not a 1D grating (one period): its fringes are not radial bands",
+                             file=spec.source, field=f"cd[{index}].structure", got=cd.structure)
+    return CDGeometry(np.asarray(cd.center, float), frame_to(cd.normal, cd.rotation_deg), cd.inner_radius,
+                      cd.outer_radius, CD_TOP_THICKNESS_M if cd.top_surface else 0.0, cd.dispersion,
+                      float(structure.period[0]))
+
+
+def pixel_rays(camera: CameraModel, pixels: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The camera centre (3,) and unit world directions (N, 3) through pixel positions (N, 2)
+    (OpenCV: pixel centres at integers; the lens model inverted by CameraModel.normalized)."""
+    xy = camera.normalized(np.asarray(pixels, float))
+    local = np.concatenate([xy, np.ones((len(xy), 1))], axis=1)
+    rotation = camera.world_to_camera[:3, :3]
+    origin = -rotation.T @ camera.world_to_camera[:3, 3]
+    directions = local @ rotation  # rows: R^T d
+    return origin, directions / np.linalg.norm(directions, axis=1, keepdims=True)
+
+
+def _plane_hit(origin: np.ndarray, rays: np.ndarray, point: np.ndarray, normal: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    denom = rays @ normal
+    with np.errstate(divide="ignore", invalid="ignore"):
+        t = ((point - origin) @ normal) / denom
+    ok = np.isfinite(t) & (t > 0)
+    return origin + rays * np.where(ok, t, 0.0)[:, None], ok
+
+
+def _on_annulus(points: np.ndarray, cd: CDGeometry, lift: float = 0.0) -> np.ndarray:
+    r = np.linalg.norm(points - (cd.center + lift * cd.normal), axis=1)
+    return (r >= cd.inner_radius) & (r <= cd.outer_radius)
+
+
+def trace_to_grating(origin: np.ndarray, rays: np.ndarray, cd: CDGeometry, top_index: float) -> tuple[np.ndarray, np.ndarray]:
+    """Points (N, 3) where camera rays meet the grating after refracting into the top
+    (Snell's law, vector form: t = eta d + (eta cos_i - cos_t) n, eta = 1 / n_top), and which
+    rays reach the annulus from the camera's side through the top's annulus."""
+    normal = cd.normal
+    cos_i = -(rays @ normal)
+    valid = cos_i > 0  # the camera looks at the grating's front
+    if cd.top_thickness_m <= 0:
+        points, ok = _plane_hit(origin, rays, cd.center, normal)
+        return points, valid & ok & _on_annulus(points, cd)
+    entry, ok = _plane_hit(origin, rays, cd.center + cd.top_thickness_m * normal, normal)
+    valid &= ok & _on_annulus(entry, cd, cd.top_thickness_m)
+    eta = 1.0 / top_index
+    cos_t = np.sqrt(np.maximum(1.0 - eta**2 * (1.0 - cos_i**2), 0.0))
+    inside = eta * rays + (eta * cos_i - cos_t)[:, None] * normal[None]
+    points = entry + inside * (cd.top_thickness_m / np.maximum(cos_t, 1e-12))[:, None]
+    return points, valid & _on_annulus(points, cd)
+
+
+@dataclass
+class Prediction:
+    """Predicted lit fractions over a crop of the image (rows y0.., columns x0..).
+
+    ``lit`` (orders, 3, h, w): per order and camera channel, the weighted share of the
+    light's spectrum that reaches the pixel through that order (0..1). ``on_cd`` (h, w):
+    the share of the pixel's sub-rays that meet the grating. ``lit_nm`` (orders, 2, h, w):
+    the shortest and longest lit wavelength at the pixel's centre ray (nan where unlit).
+    """
+
+    camera: CameraModel
+    cd: CDGeometry
+    orders: list[int]
+    wavelengths_nm: np.ndarray
+    weights: np.ndarray  # (3, wavelengths): each channel's normalised S_c E
+    x0: int
+    y0: int
+    lit: np.ndarray
+    on_cd: np.ndarray
+    lit_nm: np.ndarray
+    seconds: float = 0.0
+
+    def full(self, image: np.ndarray, fill: float = 0.0) -> np.ndarray:
+        """A crop-shaped array (..., h, w) placed in the camera's whole frame (..., H, W)."""
+        out = np.full(image.shape[:-2] + (self.camera.height, self.camera.width), fill, dtype=float)
+        h, w = image.shape[-2:]
+        out[..., self.y0:self.y0 + h, self.x0:self.x0 + w] = image
+        return out
+
+    def channel_image(self, order: int) -> np.ndarray:
+        """(3, H, W) lit fraction of one order over the whole frame."""
+        return self.full(self.lit[self.orders.index(order)])
+
+    def total(self) -> np.ndarray:
+        """(3, H, W): every order's lit fraction summed (each order's band weighted alike)."""
+        return self.full(self.lit.sum(axis=0))
+
+
+def channel_weights(spec: SceneSpec, step_nm: float = PREDICTION_STEP_NM) -> tuple[np.ndarray, np.ndarray]:
+    """Wavelengths over the camera's range (step ``step_nm``) and each channel's weights
+    S_c(lambda) E(lambda), normalised to sum 1 (renderer.build's sensitivities and light spectrum)."""
+    from renderer.build import camera_sensitivities, light_spectrum
+    from renderer.checks import visible_range
+
+    sens = camera_sensitivities(spec.camera.sensitivities)
+    grid = np.unique(np.concatenate([w for w, _ in sens]))
+    curves = np.stack([np.interp(grid, w, s, left=0, right=0) for w, s in sens])
+    lo, hi = visible_range(grid, curves)
+    wavelengths = np.arange(lo, hi + 1e-9, step_nm)
+    light_wl, light_values = light_spectrum(spec.light.spectrum)
+    emission = np.interp(wavelengths, light_wl, light_values, left=0.0, right=0.0)
+    weights = np.stack([np.interp(wavelengths, w, s, left=0, right=0) for w, s in sens]) * emission[None]
+    sums = weights.sum(axis=1, keepdims=True)
+    if np.any(sums <= 0):
+        raise UserInputError("a camera channel sees none of the light's spectrum", field="camera.sensitivities",
+                             got=spec.camera.sensitivities)
+    return wavelengths, weights / sums
+
+
+def cd_bbox(camera: CameraModel, cd: CDGeometry, margin: int = BBOX_MARGIN_PX) -> tuple[int, int, int, int] | None:
+    """(x0, y0, x1, y1) of the pixels the CD's rim encloses (clipped to the frame), or None
+    when the CD is behind the camera or wholly outside the image."""
+    rims = np.concatenate([cd.rim_points(), cd.rim_points(on_top=True)])
+    camera_points = rims @ camera.world_to_camera[:3, :3].T + camera.world_to_camera[:3, 3]
+    if np.any(camera_points[:, 2] <= 0):
+        return None
+    px = camera.project(rims)
+    x0, y0 = np.floor(px.min(axis=0)).astype(int) - margin
+    x1, y1 = np.ceil(px.max(axis=0)).astype(int) + margin + 1
+    x0, y0, x1, y1 = max(x0, 0), max(y0, 0), min(x1, camera.width), min(y1, camera.height)
+    return None if x1 <= x0 or y1 <= y0 else (int(x0), int(y0), int(x1), int(y1))
+
+
+def _subpixels(x0: int, y0: int, x1: int, y1: int, s: int) -> np.ndarray:
+    offsets = (np.arange(s) + 0.5) / s - 0.5
+    ys, xs = np.arange(y0, y1), np.arange(x0, x1)
+    yy = (ys[:, None] + offsets[None]).ravel()
+    xx = (xs[:, None] + offsets[None]).ravel()
+    grid_y, grid_x = np.meshgrid(yy, xx, indexing="ij")  # (h s, w s)
+    return np.stack([grid_x.ravel(), grid_y.ravel()], axis=1)
+
+
+def _candidate_orders(cd: CDGeometry, wavelengths: np.ndarray) -> list[int]:
+    """Orders that propagate somewhere in the range: |m| lambda_min / Lambda < 2 (k_out, k_inc in the unit disk)."""
+    limit = min(MAX_ORDER, math.floor(2 * cd.period_um * 1000.0 / float(wavelengths.min())))
+    return list(range(-limit, limit + 1))
+
+
+def _light_box(spec: SceneSpec, cd: CDGeometry, margin: float = LIGHT_BOX_MARGIN) -> tuple[np.ndarray, np.ndarray]:
+    """Bounds (lo, hi) of the light's directions seen from the CD, as tangential components
+    along the CD's fixed axes (e1, e2): a cheap test that rules out most (pixel, wavelength)
+    pairs before the exact one. From the rim and the centre to the light's corners and edge
+    midpoints, widened by ``margin`` (the top's lateral shift and the direction set's curvature)."""
+    center, half = np.asarray(spec.light.center, float), np.asarray(spec.light.size, float) / 2
+    offsets = np.array([[a, b] for a in (-1.0, 0.0, 1.0) for b in (-1.0, 0.0, 1.0)])
+    corners = center[None] + np.stack([offsets[:, 0] * half[0], np.zeros(len(offsets)), offsets[:, 1] * half[1]], 1)
+    starts = np.concatenate([cd.rim_points(count=64), cd.center[None]])
+    d = corners[None] - starts[:, None]
+    d /= np.linalg.norm(d, axis=2, keepdims=True)
+    k = np.stack([d @ cd.frame[:, 0], d @ cd.frame[:, 1]], axis=-1).reshape(-1, 2)
+    return k.min(axis=0) - margin, k.max(axis=0) + margin
+
+
+def _light_hits(spec: SceneSpec, cd: CDGeometry, points: np.ndarray, axis: np.ndarray, ey: np.ndarray,
+                omega_t: np.ndarray, m: int, lam: np.ndarray, top_index: float) -> tuple[np.ndarray, np.ndarray]:
+    """For order m at wavelengths ``lam`` (one per row): which points receive the light, and
+    the emission-profile weight there."""
+    theta, phi, ok = _incident_directions(omega_t, m, 0, lam, (cd.period_um,), 1.0, 1.0)  # type: ignore[arg-type]
+    lit = np.zeros(len(points), bool)
+    weight = np.zeros(len(points))
+    idx = np.flatnonzero(ok)
+    if not len(idx):
+        return lit, weight
+    source = _source_rays(theta[idx], phi[idx], axis[idx], ey[idx], cd.normal, above=True)  # in air, toward the light
+    start = points[idx]
+    if cd.top_thickness_m > 0:  # the back-traced ray climbs through the top before it leaves into air
+        sin_air = np.sin(np.radians(theta[idx]))
+        tangential = source - (source @ cd.normal)[:, None] * cd.normal[None]
+        sin_in = sin_air / top_index
+        cos_in = np.sqrt(1.0 - sin_in**2)
+        along = np.where(sin_air > 0, sin_in / np.maximum(sin_air, 1e-300), 0.0)
+        start = start + cd.top_thickness_m * (tangential * (along / cos_in)[:, None] + cd.normal[None])
+    hit = _hits_light(start, source, spec)
+    lit[idx] = hit
+    weight[idx] = np.where(hit, np.maximum(source[:, 1], 0.0) ** (spec.light.cos_power or 0.0), 0.0)
+    return lit, weight
+
+
+@dataclass
+class _Hits:
+    """Camera rays that reach the grating, in its radial frame (for one top index)."""
+
+    rows: np.ndarray  # indices of the rays
+    points: np.ndarray
+    axis: np.ndarray
+    ey: np.ndarray
+    omega_t: np.ndarray  # toward the camera, radial frame
+    fixed_k: np.ndarray  # toward the camera, CD's fixed axes (e1, e2)
+    fixed_axis: np.ndarray  # the radial axis in (e1, e2)
+
+
+def _grating_hits(origin: np.ndarray, rays: np.ndarray, cd: CDGeometry, top_index: float) -> _Hits:
+    points, on = trace_to_grating(origin, rays, cd, top_index)
+    rows = np.flatnonzero(on)
+    p = points[rows]
+    radial = p - cd.center
+    axis = radial / np.maximum(np.linalg.norm(radial, axis=1, keepdims=True), 1e-300)
+    ey = np.cross(cd.normal[None], axis)
+    toward = -rays[rows]
+    dot = lambda a, b: np.einsum("ij,ij->i", a, b)  # noqa: E731
+    e1, e2 = cd.frame[:, 0], cd.frame[:, 1]
+    return _Hits(rows, p, axis, ey, np.stack([dot(toward, axis), dot(toward, ey)], 1),
+                 np.stack([toward @ e1, toward @ e2], 1), np.stack([axis @ e1, axis @ e2], 1))
+
+
+def _candidate_pairs(hits: _Hits, m: int, lam: np.ndarray, period_um: float,
+                     box: tuple[np.ndarray, np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
+    """(ray, wavelength index) pairs whose direction toward the light falls in ``box``.
+
+    Along the CD's fixed axes k_inc = a + lambda b is linear in lambda (a: toward the camera,
+    b = -ORDER_SIGN m x_hat / Lambda), so each axis bounds lambda to an interval; ``lam`` is sorted."""
+    a = hits.fixed_k
+    b = -ORDER_SIGN * m / (1000.0 * period_um) * hits.fixed_axis
+    lower = np.full(len(a), lam[0])
+    upper = np.full(len(a), lam[-1])
+    for j in range(2):  # the light's side: lo <= -(a + lambda b) <= hi
+        lo_k, hi_k = -box[1][j], -box[0][j]
+        with np.errstate(divide="ignore", invalid="ignore"):
+            t1, t2 = (lo_k - a[:, j]) / b[:, j], (hi_k - a[:, j]) / b[:, j]
+        flat = b[:, j] == 0
+        inside = (a[:, j] >= lo_k) & (a[:, j] <= hi_k)
+        lower = np.maximum(lower, np.where(flat, np.where(inside, -np.inf, np.inf), np.minimum(t1, t2)))
+        upper = np.minimum(upper, np.where(flat, np.where(inside, np.inf, -np.inf), np.maximum(t1, t2)))
+    first = np.searchsorted(lam, lower, side="left")
+    counts = np.maximum(np.searchsorted(lam, upper, side="right") - first, 0)
+    rays = np.repeat(np.arange(len(a)), counts)
+    offsets = np.arange(len(rays)) - np.repeat(np.cumsum(counts) - counts, counts)
+    return rays, first[rays] + offsets
+
+
+def _lit_events(spec: SceneSpec, cd: CDGeometry, origin: np.ndarray, rays: np.ndarray, orders: list[int],
+                wavelengths: np.ndarray):
+    """Every lit (order index, ray rows, wavelength indices, emission weights), and once per top
+    index the rays that reach the grating (order index -1, rows, empty, empty)."""
+    top_indices = cd.top_index(wavelengths)
+    box = _light_box(spec, cd)
+    for index in np.unique(top_indices):  # one index (a non-dispersive top) or one per wavelength
+        hits = _grating_hits(origin, rays, cd, float(index))
+        yield -1, hits.rows, np.zeros(0, int), np.zeros(0)
+        lam_index = np.flatnonzero(top_indices == index)
+        lam = wavelengths[lam_index]
+        for i, m in enumerate(orders):
+            ray, wl = _candidate_pairs(hits, m, lam, cd.period_um, box)
+            if not len(ray):
+                continue
+            lit, weight = _light_hits(spec, cd, hits.points[ray], hits.axis[ray], hits.ey[ray], hits.omega_t[ray], m,
+                                      lam[wl], float(index))
+            if lit.any():
+                yield i, hits.rows[ray[lit]], lam_index[wl[lit]], weight[lit]
+
+
+def lit_table(spec: SceneSpec, camera: CameraModel, pixels: np.ndarray, order: int, *, cd_index: int = 0,
+              step_nm: float = PREDICTION_STEP_NM) -> tuple[np.ndarray, np.ndarray]:
+    """Wavelengths (L,) and, for rays through the exact ``pixels`` (N, 2), which are lit by ``order`` (N, L)."""
+    cd = cd_geometry(spec, cd_index)
+    wavelengths, _ = channel_weights(spec, step_nm)
+    origin, rays = pixel_rays(camera, pixels)
+    table = np.zeros((len(pixels), len(wavelengths)), bool)
+    for i, rows, lam_index, _weight in _lit_events(spec, cd, origin, rays, [order], wavelengths):
+        if i >= 0:
+            table[rows, lam_index] = True
+    return wavelengths, table
+
+
+def predict(spec: SceneSpec, camera: CameraModel | None = None, *, cd_index: int = 0, supersample: int = SUPERSAMPLE,
+            step_nm: float = PREDICTION_STEP_NM) -> Prediction:
+    """The lit fractions of every order over the CD's pixels for ``camera`` (the scene's by default).
+
+    Raises UserInputError when the CD is not in the camera's view."""
+    import time
+
+    started = time.perf_counter()
+    camera = camera or spec.camera.model
+    cd = cd_geometry(spec, cd_index)
+    wavelengths, weights = channel_weights(spec, step_nm)
+    box = cd_bbox(camera, cd)
+    if box is None:
+        raise UserInputError("the camera does not see the CD (it projects outside the image or lies behind the camera)",
+                             file=spec.source, field=f"cd[{cd_index}].center")
+    x0, y0, x1, y1 = box
+    h, w, s = y1 - y0, x1 - x0, supersample
+    pixels = _subpixels(x0, y0, x1, y1, s)
+    origin, rays = pixel_rays(camera, pixels)
+    orders = _candidate_orders(cd, wavelengths)
+    lit_sum = np.zeros((len(orders), 3, len(pixels)))
+    lo_nm = np.full((len(orders), len(pixels)), np.inf)
+    hi_nm = np.full((len(orders), len(pixels)), -np.inf)
+    hit_any = np.zeros(len(pixels), bool)
+    for i, rows, lam_index, weight in _lit_events(spec, cd, origin, rays, orders, wavelengths):
+        if i < 0:
+            hit_any[rows] = True
+            continue
+        for c in range(3):
+            np.add.at(lit_sum[i, c], rows, weights[c, lam_index] * weight)
+        np.minimum.at(lo_nm[i], rows, wavelengths[lam_index])
+        np.maximum.at(hi_nm[i], rows, wavelengths[lam_index])
+    keep = [i for i in range(len(orders)) if lit_sum[i].any()]
+    lit = lit_sum[keep].reshape(len(keep), 3, h, s, w, s).mean(axis=(3, 5))
+    on_cd = hit_any.reshape(h, s, w, s).mean(axis=(1, 3))
+    lo_img = lo_nm[keep].reshape(len(keep), h, s, w, s)
+    hi_img = hi_nm[keep].reshape(len(keep), h, s, w, s)
+    c = s // 2  # the sub-ray at the pixel's centre (odd s) or just past it (even s)
+    lit_nm = np.stack([lo_img[:, :, c, :, c], hi_img[:, :, c, :, c]], axis=1)
+    lit_nm = np.where(np.isfinite(lit_nm), lit_nm, np.nan)
+    return Prediction(camera, cd, [orders[i] for i in keep], wavelengths, weights, x0, y0, lit, on_cd, lit_nm,
+                      time.perf_counter() - started)
