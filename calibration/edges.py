@@ -29,6 +29,8 @@ CANNY_SIGMA_PX = 1.0
 STRIP_HALF_WIDTH_PX = 1.5   # half-length of the strip along the edge that is averaged
 STRIP_STEP_PX = 0.5         # sample spacing across and along the edge
 PRESMOOTH_SIGMA_PX = 0.7    # a symmetric blur against pixel noise: it does not move a symmetric step's steepest point
+LOBE_HALF_WIDTH_PX = 2.0  # the derivative's centroid is taken this far either side of its peak
+LOBE_FLOOR = 0.1            # ... over the part above this share of the peak (drops noise and shading slopes)
 
 
 def display_grey(linear: np.ndarray) -> np.ndarray:
@@ -117,18 +119,19 @@ def _profiles(image: np.ndarray, pixels: np.ndarray, normals: np.ndarray, half_w
             + along[None, None, :, None] * tangents[:, None, None, :])
     h, w = image.shape
     inside = np.all((grid[..., 0] >= 0) & (grid[..., 0] <= w - 1) & (grid[..., 1] >= 0) & (grid[..., 1] <= h - 1), axis=(1, 2))
-    values = bilinear(image, grid.reshape(-1, 2))
+    values = bilinear(image, grid.reshape(-1, 2), interpolation=cv2.INTER_CUBIC)
     return values.reshape(len(pixels), len(across), len(along)).mean(axis=2), across, inside
 
 
-def bilinear(image: np.ndarray, xy: np.ndarray, row: int = 1024) -> np.ndarray:
-    """``image`` (H, W) at the points ``xy`` (N, 2), bilinear, edges replicated (cv2.remap,
-    whose maps must stay under 32767 rows: the points are laid out ``row`` to a row)."""
+def bilinear(image: np.ndarray, xy: np.ndarray, row: int = 1024, interpolation: int = cv2.INTER_LINEAR) -> np.ndarray:
+    """``image`` (H, W) at the points ``xy`` (N, 2), bilinear (or ``interpolation``), edges
+    replicated (cv2.remap, whose maps must stay under 32767 rows: the points are laid out
+    ``row`` to a row)."""
     n = len(xy)
     padded = np.zeros((-(-n // row) * row, 2), np.float32)
     padded[:n] = xy
     maps = padded.reshape(-1, row, 2)
-    values = cv2.remap(np.ascontiguousarray(image, np.float32), maps[..., 0], maps[..., 1], cv2.INTER_LINEAR,
+    values = cv2.remap(np.ascontiguousarray(image, np.float32), maps[..., 0], maps[..., 1], interpolation,
                        borderMode=cv2.BORDER_REPLICATE)
     return values.reshape(-1)[:n]
 
@@ -145,15 +148,16 @@ def edge_offsets(image: np.ndarray, pixels: np.ndarray, normals: np.ndarray, hal
     profile, across, inside = _profiles(image, pixels, normals, half_window)
     derivative = (profile[:, 2:] - profile[:, :-2]) / (2 * STRIP_STEP_PX)     # at across[1:-1]
     score = derivative * sign[:, None] if sign is not None else np.abs(derivative)
+    positions = across[1:-1]
     k = np.argmax(score, axis=1)
     rows = np.arange(len(pixels))
     interior = (k > 0) & (k < score.shape[1] - 1)
     kc = np.clip(k, 1, score.shape[1] - 2)
-    y0, y1, y2 = score[rows, kc - 1], score[rows, kc], score[rows, kc + 1]
-    curvature = y0 - 2 * y1 + y2
-    shift = np.where(curvature < 0, 0.5 * (y0 - y2) / np.where(curvature < 0, curvature, -1.0), 0.0)
-    offset = across[1:-1][kc] + np.clip(shift, -0.5, 0.5) * STRIP_STEP_PX
-    valid = inside & interior & (curvature < 0) & (score[rows, kc] > 0)
+    top = score[rows, kc]
+    lobe = np.abs(positions[None, :] - positions[kc][:, None]) <= LOBE_HALF_WIDTH_PX
+    weight = np.where(lobe, np.maximum(score - LOBE_FLOOR * top[:, None], 0.0), 0.0)
+    offset = (weight * positions).sum(1) / np.maximum(weight.sum(1), 1e-30)
+    valid = inside & interior & (top > 0) & (np.abs(offset) <= half_window)
     peak = derivative[rows, kc]
     if noise is None:
         noise = derivative_noise(image)

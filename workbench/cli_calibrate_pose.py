@@ -1,0 +1,139 @@
+"""``workbench calibrate pose`` and ``workbench calibrate DATASET`` (calibration.pose, calibration.dataset).
+
+    workbench calibrate pose PHOTO --scene SCENE [--intrinsics intrinsics.json] [--response response.json] --out DIR
+    workbench calibrate DATASET --scene SCENE --out DIR [--board COLSxROWS] [--square-mm S]
+
+Two entries for workbench/cli_calibrate.py's CALIBRATE_STEPS (``STEPS``: a function adding
+the parser, one running it). ``calibrate DATASET`` names a folder where the other steps
+name a subcommand; ``route_dataset`` rewrites such a command line to
+``calibrate dataset DATASET ...`` before argparse sees it (``calibrate dataset DATASET``
+works as well).
+"""
+
+from __future__ import annotations
+
+import argparse
+from collections.abc import Callable, Sequence
+
+SCENE_HELP = "the scene the photos show: a built-in scene (`workbench list scenes`) or a scene file"
+DATASET_STEP = "dataset"
+
+
+def _board(text: str) -> tuple[int, int]:
+    try:
+        cols, rows = (int(v) for v in text.lower().split("x"))
+        if cols < 2 or rows < 2:
+            raise ValueError
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected COLSxROWS with integers >= 2 (e.g. 9x6), got {text!r}") from None
+    return cols, rows
+
+
+def _positive(kind: type) -> Callable[[str], float]:
+    def parse(text: str):
+        try:
+            value = kind(text)
+            if not value > 0:
+                raise ValueError
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"expected a positive {kind.__name__}, got {text!r}") from None
+        return value
+    return parse
+
+
+def _add_common(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--scene", required=True, metavar="SCENE", help=SCENE_HELP)
+    p.add_argument("--out", required=True, metavar="DIR", help="the results folder (created; files in it are replaced)")
+    p.add_argument("--render-spp", type=_positive(int), default=16, metavar="N",
+                   help="samples per pixel of the render check (exposure x light power, the edge finder's bias)")
+    p.add_argument("--no-render-check", action="store_true",
+                   help="skip the render check: edges only, no photometry (seconds instead of a minute)")
+    p.add_argument("--quiet", action="store_true", help="no progress bar")
+
+
+def add_pose(steps) -> None:
+    p = steps.add_parser("pose", help="pose and field of view of one scene photo from the scene's known edges",
+                         description="Starts from the scene file's camera, aligns the box's edges, the light and the "
+                                     "CD's rim with the photo (coarse chamfer, then sub-pixel edges), checks against a "
+                                     "render, and writes DIR/pose.json and DIR/fitted_scene.toml.")
+    p.add_argument("photo", metavar="PHOTO", help="a raw file (DNG, NEF, CR2, ...) or a JPEG/PNG/TIFF of the scene")
+    p.add_argument("--intrinsics", metavar="intrinsics.json",
+                   help="hold these intrinsics fixed (`workbench calibrate intrinsics`); without them the focal "
+                        "length, principal point and k1, k2 are fitted from the photo alone (weakly constrained)")
+    p.add_argument("--response", metavar="response.json", help="inverse response for a non-raw photo")
+    _add_common(p)
+
+
+def add_dataset(steps) -> None:
+    p = steps.add_parser(DATASET_STEP, help="every step on a dataset folder (also: `workbench calibrate DATASET`)",
+                         description="Intrinsics from DATASET/calibration/, the response from DATASET/brackets/, the "
+                                     "pose of every photo in DATASET/photos/; writes DIR/calibration.json, "
+                                     "DIR/fitted_scene.toml, DIR/scenes/*.toml, intrinsics.json and response.json. "
+                                     "Never reads truth.json.")
+    p.add_argument("dataset", metavar="DATASET", help="a folder with photos/ (and brackets/, calibration/), "
+                                                      "as `workbench synth` writes")
+    p.add_argument("--board", type=_board, default=(9, 6), metavar="COLSxROWS",
+                   help="inner corners of the checkerboard in calibration/ (default: 9x6)")
+    p.add_argument("--square-mm", type=_positive(float), default=20.0, metavar="S", help="the board's square size")
+    _add_common(p)
+
+
+def _settings(args: argparse.Namespace):
+    from calibration.pose import PoseSettings
+
+    return PoseSettings(render_check=not args.no_render_check, render_spp=args.render_spp)
+
+
+def run_pose(args: argparse.Namespace) -> int:
+    from calibration.pose import calibrate_pose
+
+    record = calibrate_pose(args.photo, args.scene, args.out, intrinsics=args.intrinsics, response=args.response,
+                            settings=_settings(args), progress=not args.quiet)
+    print(summary_line(record["photo"], record))
+    print(f"wrote {args.out}/pose.json and {args.out}/fitted_scene.toml in {record['timings']['total_s']:.1f} s")
+    return 0
+
+
+def run_dataset(args: argparse.Namespace) -> int:
+    from calibration.dataset import calibrate_dataset
+
+    record = calibrate_dataset(args.dataset, args.scene, args.out, board=args.board, square_mm=args.square_mm,
+                               settings=_settings(args), progress=not args.quiet)
+    camera, std = record["camera"], record["std"]
+    print(f"camera: fx {camera['fx']:.2f} +- {std['fx']:.2f}, fy {camera['fy']:.2f} +- {std['fy']:.2f}, "
+          f"cx {camera['cx']:.2f} +- {std['cx']:.2f}, cy {camera['cy']:.2f} +- {std['cy']:.2f} px "
+          f"(FOV {camera['fov_x_deg']:.3f} deg; intrinsics: {record['intrinsics']['source']})")
+    for name, photo in record["photos"].items():
+        print(summary_line(name, photo))
+    print(f"wrote {args.out}/calibration.json and fitted_scene.toml in {record['timings']['total_s']:.1f} s")
+    return 0
+
+
+def summary_line(name: str, photo: dict) -> str:
+    std, residuals = photo["std"], photo["residuals"]
+    centre = photo["camera"]["camera_center_m"]
+    scale = photo.get("exposure_scale")
+    text = (f"{name}: camera at ({centre[0]:.4f}, {centre[1]:.4f}, {centre[2]:.4f}) m "
+            f"+- {1000 * max(std['camera_center_m']):.2f} mm, rotation +- {std['rotation_total_deg']:.3f} deg, "
+            f"FOV {photo['camera']['fov_x_deg']:.3f} deg, edge residual {residuals['robust_sigma_px']:.2f} px "
+            f"({residuals['points']} points)")
+    if scale is not None:
+        text += f", exposure x light {scale:.4g}"
+    return text
+
+
+STEPS: dict[str, tuple[Callable, Callable[[argparse.Namespace], int]]] = {
+    "pose": (add_pose, run_pose),
+    DATASET_STEP: (add_dataset, run_dataset),
+}
+
+
+def route_dataset(argv: Sequence[str], steps: Sequence[str]) -> list[str]:
+    """``calibrate DATASET ...`` -> ``calibrate dataset DATASET ...`` when the word after
+    ``calibrate`` is neither a step (``steps``) nor an option."""
+    argv = list(argv)
+    if "calibrate" in argv:
+        i = argv.index("calibrate")
+        if i + 1 < len(argv) and argv[i + 1] not in steps and not argv[i + 1].startswith("-"):
+            argv.insert(i + 1, DATASET_STEP)
+    return argv
