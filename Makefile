@@ -24,6 +24,10 @@ $(STAMP): $(SOURCES)
 	@test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
 	$(BIN)/python -m pip install -q --upgrade pip
 	$(BIN)/python -m pip install -q "scikit-build-core>=0.10" "nanobind>=2.4" "scipy-openblas32>=0.3.28" cmake ninja
+	@# opencv-contrib-python-headless replaces opencv-python-headless (both install cv2, and removing either
+	@# later breaks the other): a venv that still has the old one drops both, and the next line installs contrib.
+	@if $(BIN)/python -m pip show -q opencv-python-headless >/dev/null 2>&1; then \
+	  $(BIN)/python -m pip uninstall -y -q opencv-python-headless opencv-contrib-python-headless; fi
 	$(BIN)/python -m pip install -q --no-build-isolation -e '.[test]'
 	@touch $@
 
@@ -49,6 +53,7 @@ bench: install
 	$(BIN)/python -m benchmarks.bench_noise
 	$(BIN)/python -m benchmarks.bench_fit
 	$(BIN)/python -m benchmarks.bench_render
+	$(BIN)/python -m benchmarks.bench_corners
 
 clean:
 	rm -rf build $(VENV)

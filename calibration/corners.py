@@ -1,38 +1,90 @@
 """Checkerboard corners in a photograph: found by OpenCV, refined by point symmetry.
 
-OpenCV's detector (``findChessboardCornersSB``) finds the board and orders the corners;
-its own sub-pixel estimates, and ``cornerSubPix``'s, are biased by perspective and
+Any 8/16-bit or float image, grey or colour (calibration.images). Detection tries, in
+order, OpenCV's ``findChessboardCorners`` (about 10 ms on a 640 x 480 view) and then,
+where it fails, ``findChessboardCornersSB`` with several flag sets (90-400 ms each here,
+so only as fallbacks: trying SB first would not meet the 0.05 s per view budget). The
+first detector that finds the board wins; its name and flags are reported. Corners are
+listed in ``findChessboardCorners``' order (``findChessboardCornersSB`` lists them in
+reverse; its lists are turned round).
+
+OpenCV's own sub-pixel estimates, and ``cornerSubPix``'s, are biased by perspective and
 weigh noisy gradients (measured on the synthetic calibration set, 640 x 480: 0.21 and
-0.25 px RMS against the truth). Each corner is therefore moved to the centre of point
-symmetry of the image around it (0.09 px on the same views; 0.02-0.05 px on analytically
-rasterized boards). The symmetry criterion is that of saddle-point / symmetry corner
-detectors (e.g. D. Chen & G. Zhang, "A new sub-pixel detector for X-corners in camera
-calibration targets", WSCG 2005; L. Lucchese & S. K. Mitra, "Using saddle points for
-subpixel feature detection in camera calibration targets", APCCAS 2002), written here as
-a least-squares fit with a shading term.
+0.25 px RMS against the truth), so each corner is then moved to the centre of point
+symmetry of the image around it (calibration.symmetry: 0.09 px on the same views,
+0.02-0.03 px on analytically rasterized boards).
+
+A detector asked for fewer corners than the board has finds a sub-board; the board's
+border tells (calibration.board_border): the result lists the sides past which the
+checker pattern goes on, and the calibration refuses such a board size.
 """
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import cv2
 import numpy as np
-from scipy.optimize import least_squares
+
+from calibration.board_border import continuing_sides, grid_is_regular
+from calibration.images import grey_uint8, grey_unit
+from calibration.symmetry import refine_by_symmetry
+from workbench.core.errors import UserInputError
+
+# (name, function, flags, order reversed): tried in this order until one finds the board.
+DETECTORS = (
+    ("findChessboardCorners(ADAPTIVE_THRESH|NORMALIZE_IMAGE)", "classic",
+     cv2.CALIB_CB_ADAPTIVE_THRESH | cv2.CALIB_CB_NORMALIZE_IMAGE),
+    ("findChessboardCorners(ADAPTIVE_THRESH|NORMALIZE_IMAGE|FILTER_QUADS)", "classic",
+     cv2.CALIB_CB_ADAPTIVE_THRESH | cv2.CALIB_CB_NORMALIZE_IMAGE | cv2.CALIB_CB_FILTER_QUADS),
+    ("findChessboardCornersSB(NORMALIZE_IMAGE)", "sb", cv2.CALIB_CB_NORMALIZE_IMAGE),
+    ("findChessboardCornersSB(EXHAUSTIVE|ACCURACY)", "sb", cv2.CALIB_CB_EXHAUSTIVE | cv2.CALIB_CB_ACCURACY),
+    ("findChessboardCornersSB(NORMALIZE_IMAGE|EXHAUSTIVE)", "sb", cv2.CALIB_CB_NORMALIZE_IMAGE | cv2.CALIB_CB_EXHAUSTIVE),
+)
 
 
-def find_board_corners(grey: np.ndarray, pattern: tuple[int, int]) -> tuple[bool, np.ndarray | None]:
-    """(found, corners (N, 1, 2) float32 in pixels) of a ``pattern`` = (cols, rows) inner-corner
-    checkerboard in ``grey`` (linear, about 0-1): OpenCV's detector, then point-symmetry
-    refinement."""
-    grey8 = np.rint(255 * np.clip(grey, 0, 1)).astype(np.uint8)
-    found, corners = cv2.findChessboardCornersSB(grey8, pattern, flags=cv2.CALIB_CB_EXHAUSTIVE | cv2.CALIB_CB_ACCURACY)
-    if not found:
-        return False, None
-    return True, refine_by_symmetry(grey, corners, pattern)
+@dataclass(frozen=True)
+class BoardCorners:
+    """What the corner finder says about one view."""
+
+    found: bool
+    corners: np.ndarray | None = None   # (cols * rows, 1, 2) float32 pixels, findChessboardCorners' order
+    detector: str = ""                  # the detector and flags that found the board
+    continues: tuple[str, ...] = ()     # sides of the grid past which the checker pattern goes on
+    unrefined: int = 0                  # corners the symmetry fit did not trust (left at the detector's estimate)
 
 
-def _neighbour_spacing(grid: np.ndarray) -> np.ndarray:
-    """Distance from each corner of a (rows, cols, 2) grid to its nearest grid neighbour."""
-    rows, cols = grid.shape[:2]
+def validate_pattern(pattern: tuple[int, int], where: str = "--board") -> tuple[int, int]:
+    """(cols, rows) inner corners, each at least 2 (OpenCV's detectors need 3 x 3 squares)."""
+    try:
+        cols, rows = (int(n) for n in pattern)
+    except (TypeError, ValueError):
+        raise UserInputError("not a board size", field=where, expected="(columns, rows) of inner corners",
+                             got=pattern) from None
+    if cols < 2 or rows < 2:
+        raise UserInputError("a checkerboard needs at least 2 x 2 inner corners", field=where, got=f"{cols}x{rows}")
+    return cols, rows
+
+
+def detect_board(grey8: np.ndarray, pattern: tuple[int, int]) -> tuple[np.ndarray | None, str]:
+    """OpenCV's detectors in turn on an 8-bit grey image: (corners (N, 1, 2) in findChessboardCorners'
+    order, detector name), or (None, "") when none finds the board."""
+    for name, kind, flags in DETECTORS:
+        if kind == "classic":
+            ok, corners = cv2.findChessboardCorners(grey8, pattern, flags=flags)
+        else:
+            ok, corners = cv2.findChessboardCornersSB(grey8, pattern, flags=flags)
+            if ok:
+                corners = corners[::-1]
+        if ok:
+            return np.ascontiguousarray(corners, np.float32).reshape(-1, 1, 2), name
+    return None, ""
+
+
+def grid_spacing(corners: np.ndarray, pattern: tuple[int, int]) -> np.ndarray:
+    """Distance (pixels) from each corner of a row-by-row grid to its nearest grid neighbour."""
+    cols, rows = pattern
+    grid = np.asarray(corners, float).reshape(rows, cols, 2)
     spacing = np.full((rows, cols), np.inf)
     along = np.linalg.norm(np.diff(grid, axis=1), axis=2)
     across = np.linalg.norm(np.diff(grid, axis=0), axis=2)
@@ -40,39 +92,20 @@ def _neighbour_spacing(grid: np.ndarray) -> np.ndarray:
     spacing[:, 1:] = np.minimum(spacing[:, 1:], along)
     spacing[:-1] = np.minimum(spacing[:-1], across)
     spacing[1:] = np.minimum(spacing[1:], across)
-    return spacing
+    return spacing.ravel()
 
 
-def refine_by_symmetry(grey: np.ndarray, corners: np.ndarray, pattern: tuple[int, int]) -> np.ndarray:
-    """Each corner moved to the centre of point symmetry of the image around it.
-
-    A checkerboard corner is point-symmetric (q + v and q - v fall on the same colour)
-    however the board is tilted, and so is its image after pixel averaging and blur:
-    locally the pattern is an affine image of the board, which keeps the symmetry. So the
-    q that best matches I(q + v) with I(q - v) over a disc of radius 0.7 times the
-    distance to the nearest neighbouring corner is unbiased by perspective. A linear
-    shading term g, I(q + v) - I(q - v) = (g . v)(I(q + v) + I(q - v)), takes up a
-    light's fall-off across the board.
-    """
-    image = np.ascontiguousarray(grey, dtype=np.float32)
-    cols, rows = pattern
-    grid = corners.reshape(rows, cols, 2).astype(float)
-    refined = [_refine_one(image, q0, d) for q0, d in zip(grid.reshape(-1, 2), _neighbour_spacing(grid).ravel())]
-    return np.array(refined, dtype=np.float32).reshape(-1, 1, 2)
-
-
-def _refine_one(image: np.ndarray, q0: np.ndarray, spacing: float) -> np.ndarray:
-    radius = max(2.0, 0.7 * spacing)
-    n = int(np.ceil(radius))
-    vy, vx = np.mgrid[-n:n + 1, -n:n + 1].astype(float)
-    half = (vx**2 + vy**2 <= radius**2) & ((vy > 0) | ((vy == 0) & (vx > 0)))  # each pair (v, -v) once
-    v = np.stack([vx[half], vy[half]], 1)
-
-    def residual(p):
-        at = np.concatenate([p[:2] + v, p[:2] - v]).astype(np.float32)
-        s = cv2.remap(image, at[None, :, 0].copy(), at[None, :, 1].copy(), cv2.INTER_CUBIC).ravel()
-        plus, minus = s[:len(v)], s[len(v):]
-        return plus - minus - (v @ p[2:]) * (plus + minus)
-
-    fit = least_squares(residual, np.r_[q0, 0.0, 0.0], diff_step=1e-3, x_scale=np.array([1.0, 1.0, 0.01, 0.01]))
-    return fit.x[:2]
+def find_board_corners(image: np.ndarray, pattern: tuple[int, int]) -> BoardCorners:
+    """The inner corners of a ``pattern`` = (cols, rows) checkerboard in ``image`` (any 8/16-bit
+    or float array, grey (H, W) or colour (H, W, C)): detection, point-symmetry refinement,
+    and the border check."""
+    pattern = validate_pattern(pattern)
+    grey = grey_unit(image)
+    detected, detector = detect_board(grey_uint8(grey), pattern)
+    if detected is None:
+        return BoardCorners(False)
+    if not grid_is_regular(grey, detected, pattern):
+        return BoardCorners(False)   # a detector's grid that skips squares, or whose squares do not alternate
+    refined, trusted = refine_by_symmetry(grey, detected.reshape(-1, 2), grid_spacing(detected, pattern))
+    continues = continuing_sides(grey, refined, pattern)
+    return BoardCorners(True, refined.astype(np.float32).reshape(-1, 1, 2), detector, continues, int((~trusted).sum()))

@@ -1,31 +1,88 @@
-"""Intrinsics from checkerboard photographs (raw DNG files): Zhang's planar calibration.
+"""Intrinsics from board photographs: ``workbench calibrate intrinsics``.
 
 Z. Zhang, "A flexible new technique for camera calibration", IEEE TPAMI 22(11),
-1330-1334, 2000, as implemented by OpenCV's ``calibrateCamera`` (OpenCV's distortion
-model [k1, k2, p1, p2, k3]; k3 held at 0 by default, as wide-angle terms are not
-observable from a few boards). Corners: calibration.corners.
+1330-1334, 2000, as implemented by OpenCV's ``calibrateCameraExtended`` (OpenCV's
+distortion model [k1, k2, p1, p2, k3]; k3 held at 0 by default, as the wide-angle term is
+not observable from a few boards). calibrateCameraExtended also gives the parameters'
+standard deviations (from the Jacobian at the optimum, scaled by the residual) and each
+view's RMS reprojection error.
+
+Views: any photograph calibration.decode reads (raw, 8/16-bit JPEG/PNG/TIFF, grey or
+colour). Corners: calibration.corners (checkerboards) or calibration.charuco. A view
+whose board is not found is reported and skipped; so is a view whose checker pattern
+goes on past the requested corners, and when that happens in more than a quarter of the
+views the board size is wrong and the calibration stops. Outliers: while the worst view's
+RMS is above OUTLIER_FACTOR times the median view's (and above OUTLIER_FLOOR_PX), it is
+dropped and the calibration repeated, as long as MIN_VIEWS views remain.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+import json
+import time
+from collections.abc import Sequence
+from dataclasses import asdict, dataclass, field
 from pathlib import Path
+from typing import Any
 
 import cv2
 import numpy as np
-import rawpy
 
-from calibration.corners import find_board_corners
+from calibration.charuco import CharucoSpec, charuco_board, find_charuco_corners
+from calibration.corners import find_board_corners, validate_pattern
+from calibration.decode import decode, versions
+from calibration.images import grey_unit
+from workbench.core.errors import UserInputError
+from workbench.core.files import atomic_write_text
+
+MIN_VIEWS = 6
+OUTLIER_FACTOR = 3.0        # a view whose RMS is this many times the median view's is an outlier ...
+OUTLIER_FLOOR_PX = 0.5      # ... unless it is within half a pixel anyway (clean sets have no outliers to find)
+WRONG_SIZE_FRACTION = 0.25  # views whose pattern goes on past the grid, beyond which the board size is wrong
+CRITERIA = (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 100, 1e-12)
+FLAG_NAMES = ("CALIB_USE_INTRINSIC_GUESS", "CALIB_FIX_ASPECT_RATIO", "CALIB_FIX_PRINCIPAL_POINT",
+              "CALIB_ZERO_TANGENT_DIST", "CALIB_FIX_FOCAL_LENGTH", "CALIB_FIX_K1", "CALIB_FIX_K2", "CALIB_FIX_K3")
+UNSUPPORTED_FLAGS = ("CALIB_RATIONAL_MODEL", "CALIB_THIN_PRISM_MODEL", "CALIB_TILTED_MODEL")
+
+
+@dataclass
+class ViewReport:
+    file: str
+    found: bool
+    rms_px: float | None = None
+    used: bool = False
+    corners: int = 0
+    detector: str = ""
+    note: str = ""               # why a view is not used, or what was odd about it
 
 
 @dataclass
 class Calibration:
-    K: np.ndarray                 # 3 x 3 camera matrix (pixels)
-    dist: np.ndarray              # [k1, k2, p1, p2, k3]
-    rms_px: float                 # RMS reprojection error
-    found: list[str]              # files whose board was found
-    missed: list[str]             # files whose board was not
-    image_points: list[np.ndarray]
+    K: np.ndarray                        # 3 x 3 camera matrix (pixels)
+    dist: np.ndarray                     # [k1, k2, p1, p2, k3]
+    std: dict[str, Any]                  # standard deviations: fx, fy, cx, cy, dist
+    rms_px: float                        # RMS reprojection error over the used views' corners
+    width: int
+    height: int
+    views: list[ViewReport]
+    flags: int
+    image_points: list[np.ndarray]       # used views' corners (N, 1, 2)
+    object_points: list[np.ndarray]      # and their board points (N, 3), metres
+    timings: dict[str, float] = field(default_factory=dict)
+
+    @property
+    def found(self) -> list[str]:
+        return [v.file for v in self.views if v.found]
+
+    @property
+    def missed(self) -> list[str]:
+        return [v.file for v in self.views if not v.found]
+
+    def to_json(self) -> dict[str, Any]:
+        K = self.K
+        return {"width": self.width, "height": self.height, "fx": float(K[0, 0]), "fy": float(K[1, 1]),
+                "cx": float(K[0, 2]), "cy": float(K[1, 2]), "dist": [float(d) for d in self.dist], "std": self.std,
+                "rms_px": self.rms_px, "views": [asdict(v) for v in self.views], "flags": flag_names(self.flags)}
 
 
 def board_points(inner_corners: tuple[int, int], square_size_m: float) -> np.ndarray:
@@ -37,32 +94,138 @@ def board_points(inner_corners: tuple[int, int], square_size_m: float) -> np.nda
     return np.stack([(i - (cols - 1) / 2) * s, (j - (rows - 1) / 2) * s, np.zeros_like(i, float)], -1).reshape(-1, 3)
 
 
-def raw_grey(path: str | Path) -> np.ndarray:
-    """A raw file as linear grey (rawpy's black level and white balance off, no gamma),
-    scaled so that its 99.5th percentile is 1."""
-    with rawpy.imread(str(path)) as raw:
-        rgb = raw.postprocess(gamma=(1, 1), no_auto_bright=True, use_camera_wb=False, user_wb=[1, 1, 1, 1],
-                              output_bps=16, output_color=rawpy.ColorSpace.raw, demosaic_algorithm=rawpy.DemosaicAlgorithm.LINEAR)
-    grey = rgb.astype(float).mean(-1) / 65535.0
-    return grey / max(np.percentile(grey, 99.5), 1e-6)
+def flag_names(flags: int) -> list[str]:
+    return [name for name in FLAG_NAMES if flags & getattr(cv2, name)]
 
 
-def calibrate_board_views(paths, inner_corners: tuple[int, int], square_size_m: float, image_size: tuple[int, int],
-                          flags: int = cv2.CALIB_FIX_K3) -> Calibration:
-    """Find the board in each raw file and calibrate (needs the board in at least 3 views)."""
-    cols, rows = inner_corners
-    board = board_points(inner_corners, square_size_m).astype(np.float32)
-    found, missed, points = [], [], []
-    for path in paths:
-        ok, corners = find_board_corners(raw_grey(path), inner_corners)
-        (found if ok else missed).append(str(path))
-        if ok:
-            points.append(corners)
-    if len(points) < 3:
-        raise ValueError(f"the board ({cols} x {rows} inner corners) was found in {len(points)} of {len(found) + len(missed)} "
-                         "views; calibration needs at least 3")
-    rms, K, dist, _, _ = cv2.calibrateCamera([board] * len(points), points, image_size, None, None, flags=flags)
-    return Calibration(K, dist.ravel(), float(rms), found, missed, points)
+def _check_flags(flags: int) -> None:
+    for name in UNSUPPORTED_FLAGS:
+        if flags & getattr(cv2, name):
+            raise UserInputError("the camera model has five distortion coefficients (k1, k2, p1, p2, k3)",
+                                 field="flags", got=name)
+
+
+def _load_grey(path: Path) -> np.ndarray:
+    return grey_unit(decode(path).pixels, where=str(path))
+
+
+def _detect_views(paths: Sequence[Path], board_size: tuple[int, int], square_size_m: float,
+                  charuco: CharucoSpec | None, image_size: tuple[int, int] | None, progress: bool):
+    """Per view: (report, corners, object points); and the common image size."""
+    from tqdm import tqdm
+
+    board = charuco_board(board_size, square_size_m, charuco) if charuco else None
+    checker_points = None if charuco else board_points(board_size, square_size_m).astype(np.float32)
+    size = image_size
+    found = []
+    for path in tqdm(paths, desc="board views", unit="view", disable=not progress):
+        grey = _load_grey(path)
+        shape = (grey.shape[1], grey.shape[0])
+        if size is None:
+            size = shape
+        elif shape != tuple(size):
+            raise UserInputError("the views differ in size: all must come from one camera at one resolution",
+                                 file=path, expected=f"{size[0]} x {size[1]} pixels", got=f"{shape[0]} x {shape[1]}")
+        continues: tuple[str, ...] = ()
+        if board is not None:
+            charuco_result = find_charuco_corners(grey, board)
+            ok, corners, points = charuco_result.found, charuco_result.corners, charuco_result.object_points
+            detector, unrefined = charuco_result.detector, charuco_result.unrefined
+        else:
+            checker = find_board_corners(grey, board_size)
+            ok, corners, points, continues = checker.found, checker.corners, checker_points, checker.continues
+            detector, unrefined = checker.detector, checker.unrefined
+        report = ViewReport(str(path), ok, detector=detector, corners=0 if corners is None else len(corners))
+        notes = []
+        if continues:
+            notes.append("the checker pattern goes on past the grid's " + " and ".join(continues))
+        if unrefined:
+            notes.append(f"{unrefined} corners kept at the detector's estimate")
+        report.note = "; ".join(notes)
+        found.append((report, corners, points, bool(continues)))
+    return found, size
+
+
+def _calibrate(object_points, image_points, size, flags):
+    rms, K, dist, _, _, std_intrinsics, _, per_view = cv2.calibrateCameraExtended(
+        object_points, image_points, size, np.eye(3), np.zeros(5), flags=flags, criteria=CRITERIA)
+    return float(rms), K, dist.ravel()[:5], std_intrinsics.ravel(), per_view.ravel()
+
+
+def calibrate_board_views(paths: Sequence[str | Path], board_size: tuple[int, int], square_size_m: float,
+                          image_size: tuple[int, int] | None = None, flags: int = cv2.CALIB_FIX_K3, *,
+                          charuco: CharucoSpec | None = None, progress: bool = False) -> Calibration:
+    """Find the board in each view and calibrate.
+
+    ``board_size``: inner corners (cols, rows) of a checkerboard, or with ``charuco`` the
+    board's squares (cols, rows) as OpenCV's CharucoBoard counts them. ``square_size_m``:
+    the side of a square. ``image_size``: (width, height) every view must have (default: the
+    first view's). Needs the board in at least MIN_VIEWS views.
+    """
+    start = time.perf_counter()
+    if not charuco:
+        board_size = validate_pattern(board_size)
+    if not square_size_m > 0:
+        raise UserInputError("the square size must be positive", field="--square-mm", got=square_size_m)
+    _check_flags(flags)
+    files = [Path(p) for p in paths]
+    if not files:
+        raise UserInputError("no views given", field="IMAGE")
+    detections, size = _detect_views(files, board_size, square_size_m, charuco, image_size, progress)
+    detected_s = time.perf_counter() - start
+    reports = [d[0] for d in detections]
+    found = [d for d in detections if d[0].found]
+    continuing = [d[0].file for d in found if d[3]]
+    what = (f"{board_size[0]} x {board_size[1]} squares (ChArUco)" if charuco
+            else f"{board_size[0]} x {board_size[1]} inner corners")
+    if continuing and len(continuing) > WRONG_SIZE_FRACTION * len(found):
+        raise UserInputError(f"the board has more squares than {what}: in {len(continuing)} of {len(found)} views the "
+                             "checker pattern goes on past the corners found", field="--board",
+                             expected="the board's inner corners, COLSxROWS", got=[Path(f).name for f in continuing])
+    usable = [i for i, d in enumerate(detections) if d[0].found and not d[3]]
+    if len(usable) < MIN_VIEWS:
+        missed = [Path(r.file).name for r in reports if not r.found]
+        raise UserInputError(f"the board ({what}) was found in {len(usable)} of {len(files)} views; calibration needs "
+                             f"at least {MIN_VIEWS} (check --board and --square-mm)", field="IMAGE",
+                             got={"not found": missed} if missed else None)
+    dropped: list[int] = []
+    while True:
+        used = [i for i in usable if i not in dropped]
+        objects = [detections[i][2] for i in used]
+        images = [detections[i][1] for i in used]
+        rms, K, dist, std, per_view = _calibrate(objects, images, size, flags)
+        worst = int(np.argmax(per_view))
+        threshold = max(OUTLIER_FACTOR * float(np.median(per_view)), OUTLIER_FLOOR_PX)
+        if per_view[worst] <= threshold or len(used) <= MIN_VIEWS:
+            break
+        dropped.append(used[worst])
+        reports[used[worst]].note = (f"outlier: RMS {per_view[worst]:.2f} px, over {threshold:.2f} px "
+                                     f"({OUTLIER_FACTOR:g} x the median view's, at least {OUTLIER_FLOOR_PX} px)")
+    for i, error in zip(used, per_view, strict=True):
+        reports[i].used, reports[i].rms_px = True, float(error)
+    for i in dropped:
+        reports[i].rms_px = _view_rms(detections[i][2], detections[i][1], K, dist)
+    std_json = {"fx": float(std[0]), "fy": float(std[1]), "cx": float(std[2]), "cy": float(std[3]),
+                "dist": [float(s) for s in std[4:9]]}
+    timings = {"detection_s": detected_s, "calibration_s": time.perf_counter() - start - detected_s,
+               "total_s": time.perf_counter() - start}
+    return Calibration(K, dist, std_json, rms, int(size[0]), int(size[1]), reports, flags, images, objects, timings)
+
+
+def _view_rms(object_points: np.ndarray, image_points: np.ndarray, K: np.ndarray, dist: np.ndarray) -> float:
+    """A dropped view's RMS reprojection error under the final intrinsics (its own best pose)."""
+    ok, rvec, tvec = cv2.solvePnP(object_points, image_points, K, dist)
+    if not ok:
+        return float("nan")
+    projected, _ = cv2.projectPoints(object_points, rvec, tvec, K, dist)
+    return float(np.sqrt(np.mean(np.sum((projected.reshape(-1, 2) - image_points.reshape(-1, 2)) ** 2, axis=1))))
+
+
+def write_intrinsics(calibration: Calibration, out: str | Path, settings: dict[str, Any]) -> dict[str, Any]:
+    """intrinsics.json: the result, the settings, versions and timings; written atomically."""
+    record = {**calibration.to_json(), "settings": settings, "versions": versions(), "timings": calibration.timings}
+    atomic_write_text(out, json.dumps(record, indent=2) + "\n")
+    return record
 
 
 def distortion_difference_px(K: np.ndarray, dist_a, dist_b, size: tuple[int, int], covered: np.ndarray | None = None,

@@ -13,6 +13,7 @@ import sys
 from collections.abc import Sequence
 from pathlib import Path
 
+from workbench import cli_calibrate
 from workbench.catalog import KINDS
 from workbench.cli_cache import add_cache_option, apply_cache_option
 from workbench.cli_cache import add_parsers as add_cache_parsers
@@ -195,6 +196,7 @@ def _build_parser() -> argparse.ArgumentParser:
     listing = commands.add_parser("list", help="the built-in structures, scenes, materials and cameras")
     listing.add_argument("kind", choices=list(KINDS), help="what to list")
     add_cache_parsers(commands)
+    cli_calibrate.add_parsers(commands)
 
     info = rcwa_commands.add_parser("info", help="what a table holds: grid, settings, size, symmetry, integrity")
     info.add_argument("table", metavar="TABLE", help="a table folder written by `workbench rcwa table`")
@@ -348,6 +350,8 @@ def main(argv: Sequence[str] | None = None) -> int:
             data = table_info(args.table)
             print(json.dumps(data, indent=2) if args.json else format_table_info(data))
             return 0
+        if args.command in cli_calibrate.COMMANDS:
+            return cli_calibrate.run(args)
         if args.command == "demo":
             from workbench.demo import run_demo
 
