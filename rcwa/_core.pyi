@@ -33,6 +33,18 @@ class StackMethod(enum.Enum):
     SCATTERING_MATRIX = 0
     """Redheffer star product of layer scattering matrices (Rumpf 2011)."""
 
+class Incidence(enum.Enum):
+    """Which incident polarizations a single solve must answer."""
+
+    S = 0
+    """s (TE) incidence only, where the stack decouples; else both."""
+
+    P = 1
+    """p (TM) incidence only, where the stack decouples; else both."""
+
+    BOTH = 2
+    """Both polarizations."""
+
 class LayerInput:
     """
     One layer as the core receives it: its kind, its thickness times k0, the permittivity of a uniform layer, and the N x N Fourier matrices of a patterned one (lamellar: E, Exx; general: E, Exx, Exy, Eyx, Eyy). Checked on construction (ValueError naming the field).
@@ -82,6 +94,12 @@ class StackSolution:
     def kz_substrate(self) -> Annotated[NDArray[numpy.complex128], dict(shape=(None,), writable=False)]:
         """kz / k0 of each harmonic in the substrate, outgoing branch, (N,)."""
 
+    @property
+    def decoupled(self) -> bool:
+        """
+        Whether TE and TM were solved apart on N x N blocks (1D, every ky = 0: polarized.hpp); a polarization not asked for then has NaN amplitudes.
+        """
+
 class SweepSolution:
     """
     Amplitudes of the K kept harmonics at P incident directions, as StackSolution per point restricted to the kept rows (s rows, then p rows), and the work done.
@@ -126,9 +144,9 @@ class EigenDecomposition:
     def vectors(self) -> Annotated[NDArray[numpy.complex128], dict(shape=(None, None), writable=False)]:
         """Eigenvectors as columns, (N, N), each of unit norm."""
 
-def solve_stack(kx: Annotated[NDArray[numpy.float64], dict(shape=(None,), device='cpu', writable=False)], ky: Annotated[NDArray[numpy.float64], dict(shape=(None,), device='cpu', writable=False)], zero_order: int, eps_superstrate: complex, eps_substrate: complex, s_direction: tuple[float, float], layers: Sequence[LayerInput], method: StackMethod = StackMethod.ENHANCED_TRANSMITTANCE) -> StackSolution:
+def solve_stack(kx: Annotated[NDArray[numpy.float64], dict(shape=(None,), device='cpu', writable=False)], ky: Annotated[NDArray[numpy.float64], dict(shape=(None,), device='cpu', writable=False)], zero_order: int, eps_superstrate: complex, eps_substrate: complex, s_direction: tuple[float, float], layers: Sequence[LayerInput], method: StackMethod = StackMethod.ENHANCED_TRANSMITTANCE, incidence: Incidence = Incidence.BOTH, fast_paths: bool = True) -> StackSolution:
     """
-    One solve. kx, ky: (N,) tangential wave vectors / k0 of the harmonics; zero_order: the index of the incident wave's; s_direction: s-hat where kx = ky = 0; layers from the superstrate down.
+    One solve. kx, ky: (N,) tangential wave vectors / k0 of the harmonics; zero_order: the index of the incident wave's; s_direction: s-hat where kx = ky = 0; layers from the superstrate down. incidence: the polarizations needed; fast_paths=False forces the general 2N x 2N path (for checking the fast ones).
     """
 
 def sweep(dkx: Annotated[NDArray[numpy.float64], dict(shape=(None,), device='cpu', writable=False)], dky: Annotated[NDArray[numpy.float64], dict(shape=(None,), device='cpu', writable=False)], zero_order: int, eps_superstrate: complex, eps_substrate: complex, layers: Sequence[LayerInput], kx0: Annotated[NDArray[numpy.float64], dict(shape=(None,), device='cpu', writable=False)], ky0: Annotated[NDArray[numpy.float64], dict(shape=(None,), device='cpu', writable=False)], s_x: Annotated[NDArray[numpy.float64], dict(shape=(None,), device='cpu', writable=False)], s_y: Annotated[NDArray[numpy.float64], dict(shape=(None,), device='cpu', writable=False)], keep: Sequence[int], method: StackMethod = StackMethod.ENHANCED_TRANSMITTANCE, threads: int = 1) -> SweepSolution:

@@ -121,6 +121,7 @@ def solve(
     pol: str | Polarization = Polarization.UNPOLARIZED,
     factorization: str = "auto",
     stack: str = "etm",
+    fast_paths: bool = True,
 ) -> SolveResult:
     """Diffraction efficiencies of ``structure`` for one incident plane wave.
 
@@ -138,6 +139,12 @@ def solve(
         sweep, the default: half the time of the other for one-sided solves), or
         ``"smatrix"``, Redheffer's star product of layer scattering matrices (Rumpf 2011).
         They agree to round-off (tests/rcwa/test_stack_methods.py).
+    fast_paths: where a 1D stack has every k_y = 0 (classical mount) and the ETM stack is
+        used, TE and TM are solved apart on N x N blocks (rcwa/cpp/polarized.hpp), and for
+        ``pol="s"`` or ``"p"`` only that one: the other polarization's efficiencies and
+        amplitudes are then NaN. ``SolveResult.fast_paths`` names what was used. False
+        forces the general path (to check the fast ones: tests/rcwa/test_fast_paths.py);
+        the two agree to 1e-12.
     """
     pol = _polarization(pol)
     check_stack(stack)
@@ -146,9 +153,21 @@ def solve(
     kx0, ky0 = incident_tangential_k(math.sqrt(prep.eps_sup.real), theta, phi)
     kx, ky = kx0 + prep.dkx, ky0 + prep.dky
     sol = _core.solve_stack(kx, ky, prep.zero, prep.eps_sup, prep.eps_sub, s_direction(phi), prep.core_layers,
-                            STACK_METHOD_OF[stack])
+                            STACK_METHOD_OF[stack], INCIDENCE_OF[pol.value], fast_paths)
+    paths = _fast_paths(sol, pol)
     return _result(prep, theta_deg, phi_deg, pol, kx, ky, sol.reflected, sol.transmitted, sol.kz_superstrate,
-                   sol.kz_substrate)
+                   sol.kz_substrate, paths)
+
+
+# The incident polarizations the core must answer for each requested one.
+INCIDENCE_OF = {"s": _core.Incidence.S, "p": _core.Incidence.P, "unpolarized": _core.Incidence.BOTH}
+
+
+def _fast_paths(sol: _core.StackSolution, pol: Polarization) -> tuple[str, ...]:
+    """Names of the fast paths the core took (reported in SolveResult.fast_paths)."""
+    if not sol.decoupled:
+        return ()
+    return ("te_tm_decoupled",) + (("single_polarization",) if pol != Polarization.UNPOLARIZED else ())
 
 
 def check_stack(stack: str) -> None:
@@ -308,13 +327,19 @@ def _layer_input(layer, structure: Structure, eps_of, h: HarmonicIndices, rule: 
     return LayerInput(LayerKind.GENERAL, k0d, 0j, (pm.E, pm.exx, exy, eyx, pm.eyy))
 
 
-def _result(prep: PreparedStructure, theta_deg, phi_deg, pol, kx, ky, r, t, kz_sup, kz_sub) -> SolveResult:
+def _result(prep: PreparedStructure, theta_deg, phi_deg, pol, kx, ky, r, t, kz_sup, kz_sub,
+            fast_paths: tuple[str, ...] = ()) -> SolveResult:
     n = kx.size
     eps_sup, eps_sub, h = prep.eps_sup, prep.eps_sub, prep.harmonics
     R, T, T_into = efficiencies(r, t, kz_sup, kz_sub, kz_sup[prep.zero], eps_sup, eps_sub)
     lossless_sub = eps_sub.imag == 0.0 and eps_sub.real > 0
-    weights = {"s": np.array([1.0, 0.0]), "p": np.array([0.0, 1.0]), "unpolarized": np.array([0.5, 0.5])}[pol.value]
-    R_pol, T_pol = R @ weights, T @ weights
+    # A column, not a weighted sum, for one polarization: the other may be NaN (not solved).
+    if pol.value == "unpolarized":
+        half = np.array([0.5, 0.5])
+        R_pol, T_pol = R @ half, T @ half
+    else:
+        column = 0 if pol.value == "s" else 1
+        R_pol, T_pol = R[:, column], T[:, column]
 
     kt = np.hypot(kx, ky)
     prop_R = (eps_sup.real - kt**2) > 0
@@ -346,6 +371,7 @@ def _result(prep: PreparedStructure, theta_deg, phi_deg, pol, kx, ky, r, t, kz_s
         absorption=1.0 - R_total - T_total, orders=orders,
         all_orders={"m": h.m, "n": h.n, "R": R, "T": T, "T_into_substrate": T_into, "kz_superstrate": kz_sup,
                     "kz_substrate": kz_sub},
+        fast_paths=fast_paths,
     )
 
 

@@ -94,14 +94,15 @@ rcwa::SweepProblem base_problem(const RArray1& dkx, const RArray1& dky, int zero
 // One solve: kx, ky are the harmonics themselves (offsets from a zero incident vector).
 rcwa::StackSolution solve_stack_py(const RArray1& kx, const RArray1& ky, int zero_order, cplx eps_sup,
                                    cplx eps_sub, std::tuple<double, double> s_direction,
-                                   std::vector<rcwa::LayerInput> layers, rcwa::StackMethod method) {
+                                   std::vector<rcwa::LayerInput> layers, rcwa::StackMethod method,
+                                   rcwa::Incidence incidence, bool fast_paths) {
     rcwa::SweepProblem pr = base_problem(kx, ky, zero_order, eps_sup, eps_sub, std::move(layers), method);
     pr.kx0 = {0.0};
     pr.ky0 = {0.0};
     pr.s_x = {std::get<0>(s_direction)};
     pr.s_y = {std::get<1>(s_direction)};
     nb::gil_scoped_release release;
-    return rcwa::solve_point(pr, 0);
+    return rcwa::solve_point(pr, 0, incidence, fast_paths);
 }
 
 rcwa::SweepResult sweep_py(const RArray1& dkx, const RArray1& dky, int zero_order, cplx eps_sup, cplx eps_sub,
@@ -142,6 +143,11 @@ void bind_layers(nb::module_& m) {
                "Moharam, Pommet, Grann & Gaylord 1995: one bottom-up sweep.")
         .value("SCATTERING_MATRIX", rcwa::StackMethod::ScatteringMatrix,
                "Redheffer star product of layer scattering matrices (Rumpf 2011).");
+
+    nb::enum_<rcwa::Incidence>(m, "Incidence", "Which incident polarizations a single solve must answer.")
+        .value("S", rcwa::Incidence::S, "s (TE) incidence only, where the stack decouples; else both.")
+        .value("P", rcwa::Incidence::P, "p (TM) incidence only, where the stack decouples; else both.")
+        .value("BOTH", rcwa::Incidence::Both, "Both polarizations.");
 
     nb::class_<rcwa::LayerInput>(m, "LayerInput",
                                  "One layer as the core receives it: its kind, its thickness times k0, the "
@@ -189,7 +195,10 @@ void bind_results(nb::module_& m) {
         .def_prop_ro("kz_superstrate", [](const rcwa::StackSolution& s) { return view(s.kz_superstrate); },
                      "kz / k0 of each harmonic in the superstrate, outgoing branch, (N,).")
         .def_prop_ro("kz_substrate", [](const rcwa::StackSolution& s) { return view(s.kz_substrate); },
-                     "kz / k0 of each harmonic in the substrate, outgoing branch, (N,).");
+                     "kz / k0 of each harmonic in the substrate, outgoing branch, (N,).")
+        .def_ro("decoupled", &rcwa::StackSolution::decoupled,
+                "Whether TE and TM were solved apart on N x N blocks (1D, every ky = 0: polarized.hpp); a "
+                "polarization not asked for then has NaN amplitudes.");
 
     nb::class_<rcwa::SweepResult>(m, "SweepSolution",
                                   "Amplitudes of the K kept harmonics at P incident directions, as StackSolution "
@@ -225,8 +234,10 @@ NB_MODULE(_core, m) {
     bind_results(m);
     m.def("solve_stack", &solve_stack_py, "kx"_a, "ky"_a, "zero_order"_a, "eps_superstrate"_a, "eps_substrate"_a,
           "s_direction"_a, "layers"_a, "method"_a = rcwa::StackMethod::EnhancedTransmittance,
+          "incidence"_a = rcwa::Incidence::Both, "fast_paths"_a = true,
           "One solve. kx, ky: (N,) tangential wave vectors / k0 of the harmonics; zero_order: the index of the "
-          "incident wave's; s_direction: s-hat where kx = ky = 0; layers from the superstrate down.");
+          "incident wave's; s_direction: s-hat where kx = ky = 0; layers from the superstrate down. incidence: the "
+          "polarizations needed; fast_paths=False forces the general 2N x 2N path (for checking the fast ones).");
     m.def("sweep", &sweep_py, "dkx"_a, "dky"_a, "zero_order"_a, "eps_superstrate"_a, "eps_substrate"_a, "layers"_a,
           "kx0"_a, "ky0"_a, "s_x"_a, "s_y"_a, "keep"_a, "method"_a = rcwa::StackMethod::EnhancedTransmittance,
           "threads"_a = 1,

@@ -36,37 +36,41 @@ Eigen eig_near(Mat A, const Mat* guess, int& refined) {
 }  // namespace
 
 LamellarEigen lamellar_eigen(const std::vector<double>& kx, const Mat& E, const Mat& Exx, const Mat& Z,
-                             const LamellarEigen* near) {
+                             const LamellarEigen* near, const LamellarParts& parts) {
     const int n = static_cast<int>(kx.size());
     LamellarEigen out;
-    Mat MA = E;
-    for (int i = 0; i < n; ++i) MA(i, i) -= kx[i] * kx[i];
-    Eigen ea = eig_near(std::move(MA), near ? &near->WA : nullptr, out.refined);
-    out.WA = std::move(ea.vectors);
-    out.muA = std::move(ea.values);
-
-    Mat Bm(n, n);  // I - Kx Z Kx
-    for (int j = 0; j < n; ++j)
-        for (int i = 0; i < n; ++i) Bm(i, j) = (i == j ? 1.0 : 0.0) - kx[i] * Z(i, j) * kx[j];
-    Eigen eb = eig_near(matmul(Exx, Bm), near ? &near->VB : nullptr, out.refined);
-    out.VB = std::move(eb.vectors);
-    out.muB = std::move(eb.values);
-
-    out.B_VB = matmul(Bm, out.VB);
-    Mat KxVB = out.VB;
-    for (int j = 0; j < n; ++j)
-        for (int i = 0; i < n; ++i) KxVB(i, j) *= kx[i];
-    out.ZKx_VB = matmul(Z, KxVB);
-
     out.kx = kx;
-    out.WA_inv = LU(out.WA).inverse();
-    out.VB_inv = LU(out.VB).inverse();
-    out.B_VB_inv = LU(out.B_VB).inverse();
-    out.M1 = matmul(out.WA_inv, matmul(out.ZKx_VB, out.B_VB_inv));
-    Mat KxWA_mu = out.WA;  // Kx WA muA^-1
-    for (int j = 0; j < n; ++j)
-        for (int i = 0; i < n; ++i) KxWA_mu(i, j) *= kx[i] / out.muA[j];
-    out.M3 = matmul(out.VB_inv, matmul(KxWA_mu, out.WA_inv));
+    if (parts.te) {
+        Mat MA = E;
+        for (int i = 0; i < n; ++i) MA(i, i) -= kx[i] * kx[i];
+        Eigen ea = eig_near(std::move(MA), near ? &near->WA : nullptr, out.refined);
+        out.WA = std::move(ea.vectors);
+        out.muA = std::move(ea.values);
+        out.WA_inv = LU(out.WA).inverse();
+    }
+    if (parts.tm) {
+        Mat Bm(n, n);  // I - Kx Z Kx
+        for (int j = 0; j < n; ++j)
+            for (int i = 0; i < n; ++i) Bm(i, j) = (i == j ? 1.0 : 0.0) - kx[i] * Z(i, j) * kx[j];
+        Eigen eb = eig_near(matmul(Exx, Bm), near ? &near->VB : nullptr, out.refined);
+        out.VB = std::move(eb.vectors);
+        out.muB = std::move(eb.values);
+
+        out.B_VB = matmul(Bm, out.VB);
+        Mat KxVB = out.VB;
+        for (int j = 0; j < n; ++j)
+            for (int i = 0; i < n; ++i) KxVB(i, j) *= kx[i];
+        out.ZKx_VB = matmul(Z, KxVB);
+        out.VB_inv = LU(out.VB).inverse();
+        out.B_VB_inv = LU(out.B_VB).inverse();
+    }
+    if (parts.te && parts.tm && parts.conical) {
+        out.M1 = matmul(out.WA_inv, matmul(out.ZKx_VB, out.B_VB_inv));
+        Mat KxWA_mu = out.WA;  // Kx WA muA^-1
+        for (int j = 0; j < n; ++j)
+            for (int i = 0; i < n; ++i) KxWA_mu(i, j) *= kx[i] / out.muA[j];
+        out.M3 = matmul(out.VB_inv, matmul(KxWA_mu, out.WA_inv));
+    }
     return out;
 }
 

@@ -81,11 +81,21 @@ struct LamellarEigen {
     Mat M3;        // VB^-1 Kx WA muA^-1 WA^-1
     int refined = 0;  // how many of the two eigen-solves were refined from `near` (0-2)
 };
-// Z = E^-1 is passed in (it depends on the wavelength only). `near`: the solution at a
-// nearby kx, whose eigenvectors seed eig_from_guess (linalg.hpp) instead of a full
-// eigen-solve; nullptr, or a guess that does not converge, means a full solve.
+// Which parts of a LamellarEigen to compute. At ky = 0 the families never couple: the TE
+// family (A) alone serves s incidence, the TM family (B) alone p incidence, and the
+// coupling blocks M1, M3 (multiplied by ky) are not needed (polarized.hpp). Parts left
+// out stay empty.
+struct LamellarParts {
+    bool te = true;       // WA, muA, WA_inv
+    bool tm = true;       // VB, muB, B_VB, ZKx_VB, VB_inv, B_VB_inv
+    bool conical = true;  // M1, M3 (need both families)
+};
+// Z = E^-1 is passed in (it depends on the wavelength only; unused when only the TE
+// family is asked for). `near`: the solution at a nearby kx, whose eigenvectors seed
+// eig_from_guess (linalg.hpp) instead of a full eigen-solve; nullptr, or a guess that does
+// not converge, means a full solve.
 LamellarEigen lamellar_eigen(const std::vector<double>& kx, const Mat& E, const Mat& Exx, const Mat& Z,
-                             const LamellarEigen* near = nullptr);
+                             const LamellarEigen* near = nullptr, const LamellarParts& parts = {});
 std::unique_ptr<LayerModes> lamellar_modes(const std::vector<double>& kx, const LamellarEigen& eig,
                                            double ky);
 

@@ -51,12 +51,6 @@ Basis polarization_basis(const StackProblem& pr) {
     return b;
 }
 
-CVec half_space_kz(const Harmonics& h, cplx eps) {
-    CVec kz(h.size());
-    for (int i = 0; i < h.size(); ++i) kz[i] = outgoing_sqrt(eps - h.kx[i] * h.kx[i] - h.ky[i] * h.ky[i]);
-    return kz;
-}
-
 // Columns: s wave of harmonic i at i, p wave at N + i. direction = +1 up-going, -1 down-going.
 void outgoing_columns(const Basis& b, const CVec& kz, cplx eps, double direction, Mat& F, Mat& G) {
     const int n = static_cast<int>(kz.size());
@@ -340,6 +334,12 @@ void solve_smatrix(const StackProblem& pr, const Basis& basis, StackSolution& ou
 }
 
 }  // namespace
+
+CVec half_space_kz(const Harmonics& h, cplx eps) {
+    CVec kz(h.size());
+    for (int i = 0; i < h.size(); ++i) kz[i] = outgoing_sqrt(eps - h.kx[i] * h.kx[i] - h.ky[i] * h.ky[i]);
+    return kz;
+}
 
 StackSolution solve_stack(const StackProblem& pr, StackMethod method) {
     if (pr.thickness.size() != pr.layers.size()) throw std::invalid_argument("solve_stack: one thickness per layer");

@@ -23,7 +23,11 @@ struct StackSolution {
     Mat t;         // 2N x 2
     CVec kz_superstrate;  // N, outgoing branch
     CVec kz_substrate;    // N
+    bool decoupled = false;  // solved per polarization on N x N blocks (polarized.hpp)
 };
+
+// kz of every harmonic in a half-space of permittivity eps, outgoing branch (outgoing_sqrt).
+CVec half_space_kz(const Harmonics& h, cplx eps);
 
 enum class StackMethod {
     // Redheffer star product of layer scattering matrices (Redheffer 1961; Rumpf 2011,

@@ -1,5 +1,7 @@
 #include "sweep.hpp"
 
+#include "polarized.hpp"
+
 #include <algorithm>
 #include <atomic>
 #include <cmath>
@@ -64,7 +66,8 @@ SharedEigen shared_eigen(const SweepProblem& pr, const std::vector<Mat>& Z, cons
     return out;
 }
 
-StackSolution solve_with(const SweepProblem& pr, std::size_t p, const SharedEigen& eig) {
+// Point p's stack without its layers' modes (harmonics, media, s-hat, thicknesses).
+StackProblem stack_problem(const SweepProblem& pr, std::size_t p) {
     StackProblem sp;
     sp.harmonics = harmonics_at(pr, pr.kx0[p], pr.ky0[p]);
     sp.zero_order = pr.zero_order;
@@ -72,6 +75,52 @@ StackSolution solve_with(const SweepProblem& pr, std::size_t p, const SharedEige
     sp.eps_substrate = pr.eps_substrate;
     sp.s_x = pr.s_x[p];
     sp.s_y = pr.s_y[p];
+    for (const LayerInput& in : pr.layers) sp.thickness.push_back(in.thickness);
+    return sp;
+}
+
+bool decoupled_point(const SweepProblem& pr, const StackProblem& sp) {
+    for (const LayerInput& in : pr.layers)
+        if (in.kind == LayerKind::General) return false;
+    return decouples(sp, pr.method);
+}
+
+// TE and TM apart (polarized.hpp), each only if asked for; one eigen-solve per lamellar
+// layer and polarization, and Z = E^-1 only for TM.
+StackSolution solve_decoupled(const SweepProblem& pr, const StackProblem& sp, Incidence incidence) {
+    const bool te = incidence != Incidence::P, tm = incidence != Incidence::S;
+    const int n = sp.harmonics.size();
+    std::vector<PolarizedModes> te_layers, tm_layers;
+    for (const LayerInput& in : pr.layers) {
+        if (in.kind == LayerKind::Uniform) {
+            if (te) te_layers.push_back(uniform_polarized(sp.harmonics.kx, in.eps, Polarization::TE));
+            if (tm) tm_layers.push_back(uniform_polarized(sp.harmonics.kx, in.eps, Polarization::TM));
+            continue;
+        }
+        const Mat Z = tm ? LU(in.matrices[0]).inverse() : Mat();
+        const LamellarEigen e =
+            lamellar_eigen(sp.harmonics.kx, in.matrices[0], in.matrices[1], Z, nullptr, LamellarParts{te, tm, false});
+        if (te) te_layers.push_back(lamellar_polarized(e, Polarization::TE));
+        if (tm) tm_layers.push_back(lamellar_polarized(e, Polarization::TM));
+    }
+    StackSolution out;
+    out.kz_superstrate = half_space_kz(sp.harmonics, sp.eps_superstrate);
+    out.kz_substrate = half_space_kz(sp.harmonics, sp.eps_substrate);
+    out.r = Mat(2 * n, 2);
+    out.t = Mat(2 * n, 2);
+    out.decoupled = true;
+    const cplx not_solved(std::nan(""), std::nan(""));
+    for (int i = 0; i < 2 * n; ++i) {
+        if (!te) out.r(i, 0) = out.t(i, 0) = not_solved;
+        if (!tm) out.r(i, 1) = out.t(i, 1) = not_solved;
+    }
+    if (te) solve_polarized(sp, Polarization::TE, te_layers, out);
+    if (tm) solve_polarized(sp, Polarization::TM, tm_layers, out);
+    return out;
+}
+
+StackSolution solve_with(const SweepProblem& pr, std::size_t p, const SharedEigen& eig) {
+    StackProblem sp = stack_problem(pr, p);
     std::vector<std::unique_ptr<LayerModes>> modes;
     for (std::size_t k = 0; k < pr.layers.size(); ++k) {
         const LayerInput& in = pr.layers[k];
@@ -84,7 +133,6 @@ StackSolution solve_with(const SweepProblem& pr, std::size_t p, const SharedEige
             modes.push_back(general_modes(sp.harmonics, M[0], M[1], M[2], M[3], M[4]));
         }
         sp.layers.push_back(modes.back().get());
-        sp.thickness.push_back(in.thickness);
     }
     return solve_stack(sp, pr.method);
 }
@@ -211,10 +259,14 @@ void check_problem(const SweepProblem& pr) {
             throw std::invalid_argument("keep: index " + std::to_string(i) + " outside [0, " + std::to_string(n) + ")");
 }
 
-StackSolution solve_point(const SweepProblem& pr, std::size_t p) {
+StackSolution solve_point(const SweepProblem& pr, std::size_t p, Incidence incidence, bool fast_paths) {
     check_problem(pr);
     if (p >= pr.kx0.size()) throw std::invalid_argument("point " + std::to_string(p) + " outside the problem's points");
     keep_freed_memory();
+    if (fast_paths) {
+        const StackProblem sp = stack_problem(pr, p);
+        if (decoupled_point(pr, sp)) return solve_decoupled(pr, sp, incidence);
+    }
     return solve_with(pr, p, shared_eigen(pr, inverse_laurent(pr), harmonics_at(pr, pr.kx0[p], pr.ky0[p]), nullptr));
 }
 

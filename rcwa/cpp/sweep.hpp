@@ -70,8 +70,15 @@ struct SweepResult {
 // solve, with the full solve as fallback.
 SweepResult sweep(const SweepProblem& problem);
 
+// Which incident polarizations a single solve must answer.
+enum class Incidence { S, P, Both };
+
 // One point, the sweep's code path with full eigen-solves (used by single solves).
-// Both check the problem first (check_problem).
-StackSolution solve_point(const SweepProblem& problem, std::size_t point);
+// Both check the problem first (check_problem). Where the point decouples (a 1D stack of
+// uniform and lamellar layers with every ky = 0, ETM: polarized.hpp) and `fast_paths`, TE
+// and TM are solved apart on N x N blocks, and only those `incidence` asks for: the other
+// column of r and t is NaN. Otherwise both columns are solved, as in the sweep.
+StackSolution solve_point(const SweepProblem& problem, std::size_t point, Incidence incidence = Incidence::Both,
+                          bool fast_paths = true);
 
 }  // namespace rcwa

@@ -75,7 +75,8 @@ def y_invariant_cell(data: dict, ly: float, axis: int = 0) -> dict:
 
 
 def _solve(data: dict, theta: float, phi: float, orders, rule: str):
-    return rcwa.solve(rcwa.Structure.from_dict(data), WAVELENGTH_NM, theta, phi, orders, "s", rule)
+    # "unpolarized": both incident states are solved (a 1D classical-mount "s" solve leaves p unsolved).
+    return rcwa.solve(rcwa.Structure.from_dict(data), WAVELENGTH_NM, theta, phi, orders, "unpolarized", rule)
 
 
 def assert_same_orders(one_d, two_d, two_d_index) -> None:

@@ -33,8 +33,11 @@ def test_etm_and_smatrix_agree(name, pol):
     s, wl, theta, phi, orders = CASES[name]
     a = rcwa.solve(s, wl, theta, phi, orders, pol, stack="etm")
     b = rcwa.solve(s, wl, theta, phi, orders, pol, stack="smatrix")
-    assert np.allclose(a.all_orders["R"], b.all_orders["R"], atol=TOLERANCE_STACKS, rtol=0)
-    assert np.allclose(a.all_orders["T_into_substrate"], b.all_orders["T_into_substrate"], atol=TOLERANCE_STACKS, rtol=0)
+    col = 0 if pol == "s" else 1  # the etm solve of a 1D classical-mount stack solves only `pol`
+    assert np.allclose(a.all_orders["R"][:, col], b.all_orders["R"][:, col], atol=TOLERANCE_STACKS, rtol=0)
+    assert np.allclose(a.all_orders["T_into_substrate"][:, col], b.all_orders["T_into_substrate"][:, col],
+                       atol=TOLERANCE_STACKS, rtol=0)
     for x, y in zip(a.orders, b.orders, strict=True):
         for key, value in x.amplitudes.items():
-            assert abs(value - y.amplitudes[key]) < TOLERANCE_STACKS * max(1.0, abs(value))
+            if key.endswith("from_" + pol):
+                assert abs(value - y.amplitudes[key]) < TOLERANCE_STACKS * max(1.0, abs(value))

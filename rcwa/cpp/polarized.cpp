@@ -1,0 +1,250 @@
+// TE and TM on N x N blocks (polarized.hpp): the enhanced transmittance matrix of
+// stack.cpp (Moharam, Pommet, Grann & Gaylord 1995, JOSA A 12, 1077, Eqs. 10-15) and its
+// exact closure with the half-spaces, written for one polarization. Every formula is the
+// 2N x 2N one of stack.cpp restricted to the nonzero blocks, so the two agree to
+// round-off (tests/rcwa/test_fast_paths.py).
+#include "polarized.hpp"
+
+#include <cmath>
+#include <utility>
+
+namespace rcwa {
+
+namespace {
+
+Mat diagonal_matrix(const CVec& d) {
+    Mat out(static_cast<int>(d.size()), static_cast<int>(d.size()));
+    for (std::size_t i = 0; i < d.size(); ++i) out(static_cast<int>(i), static_cast<int>(i)) = d[i];
+    return out;
+}
+
+Mat scale_columns(Mat M, const CVec& d) {
+    for (int j = 0; j < M.cols; ++j)
+        for (int i = 0; i < M.rows; ++i) M(i, j) *= d[j];
+    return M;
+}
+
+Mat scale_rows(Mat M, const CVec& d) {
+    for (int j = 0; j < M.cols; ++j)
+        for (int i = 0; i < M.rows; ++i) M(i, j) *= d[i];
+    return M;
+}
+
+// sigma_i: s-hat of harmonic i is sigma_i y-hat (stack.cpp, polarization_basis).
+std::vector<double> s_signs(const StackProblem& pr) {
+    const Harmonics& h = pr.harmonics;
+    std::vector<double> sigma(h.size());
+    for (int i = 0; i < h.size(); ++i) {
+        const double kt = std::hypot(h.kx[i], h.ky[i]);
+        sigma[i] = kt > 1e-12 ? h.kx[i] / kt : pr.s_y;
+    }
+    return sigma;
+}
+
+// The superstrate closure rows (stack.cpp, project_up) for one polarization: TE keeps
+// kz E_s + h_p = sigma (kz Ey + hx), TM keeps E_p - kz/eps h_s = sigma (Ex - kz/eps hy).
+struct Projection {
+    CVec on_u, on_v;  // per harmonic: row i is on_u[i] u_i + on_v[i] v_i
+};
+
+Projection projection(const StackProblem& pr, const std::vector<double>& sigma, const CVec& kz1, Polarization pol) {
+    const int n = pr.harmonics.size();
+    Projection p{CVec(n), CVec(n)};
+    for (int i = 0; i < n; ++i) {
+        if (pol == Polarization::TE) {
+            p.on_u[i] = kz1[i] * sigma[i];
+            p.on_v[i] = sigma[i];
+        } else {
+            p.on_u[i] = sigma[i];
+            p.on_v[i] = -kz1[i] / pr.eps_superstrate * sigma[i];
+        }
+    }
+    return p;
+}
+
+struct Step {
+    LU a;
+    CVec X;
+};
+
+}  // namespace
+
+Mat Operator::apply(const Mat& B) const { return diag.empty() ? matmul(dense, B) : scale_rows(B, diag); }
+
+Mat Operator::times_diagonal(const CVec& d) const {
+    if (diag.empty()) return scale_columns(dense, d);
+    CVec product(d.size());
+    for (std::size_t i = 0; i < d.size(); ++i) product[i] = diag[i] * d[i];
+    return diagonal_matrix(product);
+}
+
+Mat Operator::matrix() const { return diag.empty() ? dense : diagonal_matrix(diag); }
+
+PolarizedModes uniform_polarized(const std::vector<double>& kx, cplx eps, Polarization pol) {
+    // The blocks of UniformModes (modes.cpp) at ky = 0: W = I; TE: hx = (kx^2 - eps)/kz Ey,
+    // inverse -eps/(eps kz); TM: hy = eps/kz Ex, inverse (eps - kx^2)/(eps kz). eps is
+    // moved with a regularized kz as there, so that V and V^-1 stay exact inverses.
+    const std::size_t n = kx.size();
+    PolarizedModes m;
+    m.kz.resize(n);
+    m.W.diag.assign(n, 1.0);
+    m.W_inverse.diag.assign(n, 1.0);
+    m.V.diag.resize(n);
+    m.V_inverse.diag.resize(n);
+    for (std::size_t i = 0; i < n; ++i) {
+        const double kt2 = kx[i] * kx[i];
+        const cplx kz = regularize_kz(outgoing_sqrt(eps - kt2));
+        const cplx e = kz * kz + kt2;
+        const cplx s = 1.0 / (e * kz);
+        m.kz[i] = kz;
+        if (pol == Polarization::TE) {
+            m.V.diag[i] = (kt2 - e) / kz;
+            m.V_inverse.diag[i] = (0.0 - e) * s;
+        } else {
+            m.V.diag[i] = e / kz;
+            m.V_inverse.diag[i] = (e - kt2) * s;
+        }
+    }
+    return m;
+}
+
+PolarizedModes lamellar_polarized(const LamellarEigen& e, Polarization pol) {
+    // The blocks of LamellarModes (lamellar.cpp) at ky = 0. TE (family A): W = WA,
+    // V = -WA muA KzA^-1, W^-1 = WA^-1, V^-1 = -KzA muA^-1 WA^-1. TM (family B):
+    // W = B VB KzB^-1, V = VB, W^-1 = KzB (B VB)^-1, V^-1 = VB^-1.
+    const std::size_t n = e.kx.size();
+    PolarizedModes m;
+    m.kz.resize(n);
+    if (pol == Polarization::TE) {
+        CVec mu_over_kz(n), kz_over_mu(n);
+        for (std::size_t i = 0; i < n; ++i) {
+            m.kz[i] = layer_kz(e.muA[i]);
+            mu_over_kz[i] = -e.muA[i] / m.kz[i];
+            kz_over_mu[i] = -m.kz[i] / e.muA[i];
+        }
+        m.W.dense = e.WA;
+        m.V.dense = scale_columns(e.WA, mu_over_kz);
+        m.W_inverse.dense = e.WA_inv;
+        m.V_inverse.dense = scale_rows(e.WA_inv, kz_over_mu);
+    } else {
+        CVec inv_kz(n);
+        for (std::size_t i = 0; i < n; ++i) {
+            m.kz[i] = layer_kz(e.muB[i]);
+            inv_kz[i] = 1.0 / m.kz[i];
+        }
+        m.W.dense = scale_columns(e.B_VB, inv_kz);
+        m.V.dense = e.VB;
+        m.W_inverse.dense = scale_rows(e.B_VB_inv, m.kz);
+        m.V_inverse.dense = e.VB_inv;
+    }
+    return m;
+}
+
+bool decouples(const StackProblem& pr, StackMethod method) {
+    if (method != StackMethod::EnhancedTransmittance || pr.thickness.empty()) return false;
+    const Harmonics& h = pr.harmonics;
+    for (int i = 0; i < h.size(); ++i) {
+        if (h.ky[i] != 0.0) return false;
+        if (std::abs(h.kx[i]) <= 1e-12 && pr.s_x != 0.0) return false;
+    }
+    return true;
+}
+
+void solve_polarized(const StackProblem& pr, Polarization pol, const std::vector<PolarizedModes>& layers,
+                     StackSolution& out) {
+    const int n = pr.harmonics.size();
+    const int column = pol == Polarization::TE ? 0 : 1;
+    const int row0 = pol == Polarization::TE ? 0 : n;  // where this polarization's amplitudes go
+    const std::vector<double> sigma = s_signs(pr);
+    const CVec& kz1 = out.kz_superstrate;
+    const CVec& kz2 = out.kz_substrate;
+    const cplx eps1 = pr.eps_superstrate, eps2 = pr.eps_substrate;
+
+    // The substrate's down-going waves (stack.cpp, outgoing_columns): TE E = s-hat,
+    // hx = kz sigma; TM h = s-hat, Ex = -kz/eps sigma. Diagonal.
+    CVec f0(n), g0(n);
+    for (int i = 0; i < n; ++i) {
+        if (pol == Polarization::TE) {
+            f0[i] = sigma[i];
+            g0[i] = kz2[i] * sigma[i];
+        } else {
+            f0[i] = -kz2[i] / eps2 * sigma[i];
+            g0[i] = sigma[i];
+        }
+    }
+    Mat f, g;
+    std::vector<Step> steps;
+    steps.reserve(layers.size());
+    Mat R;  // X b a^-1 X of the top layer
+    for (std::size_t k = layers.size(); k-- > 0;) {
+        const PolarizedModes& m = layers[k];
+        const bool bottom = k + 1 == layers.size();
+        const Mat Wf = bottom ? m.W_inverse.times_diagonal(f0) : m.W_inverse.apply(f);
+        const Mat Vg = bottom ? m.V_inverse.times_diagonal(g0) : m.V_inverse.apply(g);
+        Mat a(n, n), b(n, n);
+        for (std::size_t q = 0; q < a.data.size(); ++q) {
+            a.data[q] = 0.5 * (Wf.data[q] - Vg.data[q]);
+            b.data[q] = 0.5 * (Wf.data[q] + Vg.data[q]);
+        }
+        CVec X(n);
+        for (int i = 0; i < n; ++i) X[i] = std::exp(cplx(0.0, 1.0) * m.kz[i] * pr.thickness[k]);
+        LU lu(std::move(a));
+        Mat XMX = lu.solve_right(b);
+        for (int j = 0; j < n; ++j)
+            for (int i = 0; i < n; ++i) XMX(i, j) *= X[i] * X[j];
+        steps.push_back(Step{std::move(lu), std::move(X)});
+        if (k == 0) {
+            R = std::move(XMX);
+            break;
+        }
+        Mat plus = XMX, minus = XMX;
+        for (int i = 0; i < n; ++i) {
+            plus(i, i) += 1.0;
+            minus(i, i) -= 1.0;
+        }
+        f = m.W.apply(plus);
+        g = m.V.apply(minus);
+    }
+
+    // Close with the superstrate (stack.cpp, close_top_layer): above the top layer the field
+    // is [W (I + R); V (R - I)] T; its projection is PW - PV + (PW + PV) R.
+    const PolarizedModes& top = layers.front();
+    const Projection proj = projection(pr, sigma, kz1, pol);
+    const Mat PW = scale_rows(top.W.matrix(), proj.on_u);
+    const Mat PV = scale_rows(top.V.matrix(), proj.on_v);
+    Mat projected(n, n), sum(n, n);
+    for (std::size_t q = 0; q < PW.data.size(); ++q) {
+        projected.data[q] = PW.data[q] - PV.data[q];
+        sum.data[q] = PW.data[q] + PV.data[q];
+    }
+    gemm(sum, R, projected, 1.0, 1.0);
+    // The incident wave (stack.cpp, close_top): TE E = s-hat, hx = kz0 sigma; TM h = s-hat,
+    // Ex = -kz0/eps sigma.
+    const int i0 = pr.zero_order;
+    const cplx kz0 = kz1[i0];
+    const cplx u_inc = pol == Polarization::TE ? cplx(sigma[i0]) : -kz0 / eps1 * sigma[i0];
+    const cplx v_inc = pol == Polarization::TE ? kz0 * sigma[i0] : cplx(sigma[i0]);
+    Mat T(n, 1);
+    T(i0, 0) = proj.on_u[i0] * u_inc + proj.on_v[i0] * v_inc;
+    T = LU(std::move(projected)).solve(T);
+    const Mat RT = matmul(R, T);
+    Mat plus = RT, minus = RT;
+    for (int i = 0; i < n; ++i) {
+        plus(i, 0) += T(i, 0);
+        minus(i, 0) -= T(i, 0);
+    }
+    const Mat u = top.W.apply(plus), v = top.V.apply(minus);
+    for (int i = 0; i < n; ++i) {
+        // r: TE by E along s-hat (sigma Ey), TM by h along s-hat (sigma hy).
+        const cplx field = pol == Polarization::TE ? u(i, 0) - (i == i0 ? u_inc : 0.0) : v(i, 0) - (i == i0 ? v_inc : 0.0);
+        out.r(row0 + i, column) = sigma[i] * field;
+    }
+    // Walk down: T_below = a^-1 X T_above.
+    for (std::size_t k = steps.size(); k-- > 0;) {
+        for (int i = 0; i < n; ++i) T(i, 0) *= steps[k].X[i];
+        T = steps[k].a.solve(T);
+    }
+    for (int i = 0; i < n; ++i) out.t(row0 + i, column) = T(i, 0);
+}
+
+}  // namespace rcwa
