@@ -8,7 +8,13 @@ Layout (other tools read it; DESIGN.md section 6)::
     DIR/calibration/board*.dng    a checkerboard held in the box in several poses, seen by view0's camera
                                   with its flash on
     DIR/truth.json                the truth (never inside the photos)
-    DIR/run.json                  settings, versions and timings of the run
+    DIR/run.json                  settings, versions and timings of the run, and every file it wrote
+                                  (size, SHA-256): what ``--force`` may replace, and nothing else
+
+Safety: everything is checked before anything is written; the dataset is made in a work
+folder beside DIR (``.DIR.synth-partial``) and moved into place when complete, so an
+interrupted run leaves DIR as it was; the work folder keeps the finished renders (as
+.npy), from which the same command resumes with the same bytes.
 
 The hidden camera is the scene's camera perturbed by a seeded random offset (pose by a
 few degrees and centimetres, field of view by a few degrees, principal point,
@@ -39,10 +45,16 @@ with 64 spp per board view did (about a minute here).
 from __future__ import annotations
 
 import dataclasses
+import hashlib
 import json
 import math
+import os
 import platform
+import re
+import shutil
+import sys
 import time
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
@@ -52,7 +64,7 @@ from datasets_synthetic.dng import DngMetadata, write_dng
 from datasets_synthetic.jpeg import develop, hidden_response, write_jpeg
 from datasets_synthetic.sensor import SensorModel
 from workbench.core.errors import UserInputError
-from workbench.core.files import atomic_write_text
+from workbench.core.files import atomic_write, atomic_write_text
 
 PRESETS = {
     "draft": {"resolution": (640, 480), "spp": 64, "views": 2, "calibration_views": 20, "calibration_spp": 16},
@@ -62,12 +74,16 @@ BRACKET_EV = (-2, -1, 0, 1, 2)
 FLASH_KEY = "calibration_flash"
 FLASH_W_PER_SR = 20.0
 MARKER = "workbench-synthetic-dataset"
+WORK_SUFFIX = ".synth-partial"  # the work folder beside DIR: .DIR.synth-partial/{request.json, renders/, dataset/}
+WORK_FORMAT = "workbench-synthetic-dataset-work"
+LEGACY_LAYOUT = re.compile(r"photos/view\d+\.dng|brackets/ev[+-]\d+\.(dng|jpg)|calibration/board\d+\.dng|truth\.json|run\.json")
 MAKE, MODEL, ISO = "Workbench", "Synthetic RGGB", 100
 
 
 def hidden_camera(camera, rng: np.random.Generator):
     """The scene camera perturbed: rotation up to ~2 deg, translation ~2 cm, FOV ~2 deg,
-    principal point ~1 % of the width, a mild distortion."""
+    principal point ~1 % of the width, a mild distortion.
+    """
     from scipy.spatial.transform import Rotation
 
     T = camera.world_to_camera.copy()
@@ -87,7 +103,8 @@ def hidden_camera(camera, rng: np.random.Generator):
 
 def orbit(camera, yaw_deg: float, pitch_deg: float):
     """The same camera moved around the point its optical axis meets the floor (y = 0), or
-    the point 1 m ahead when it looks level: a second photograph of the same scene."""
+    the point 1 m ahead when it looks level: a second photograph of the same scene.
+    """
     from scipy.spatial.transform import Rotation
 
     cam_to_world = np.linalg.inv(camera.world_to_camera)
@@ -102,23 +119,10 @@ def orbit(camera, yaw_deg: float, pitch_deg: float):
     return dataclasses.replace(camera, world_to_camera=np.linalg.inv(moved))
 
 
-def _prepare_folder(out: Path, force: bool) -> None:
-    if out.exists() and any(out.iterdir()):
-        marker = out / "truth.json"
-        ours = marker.exists() and MARKER in marker.read_text()[:200]
-        if not force:
-            raise UserInputError("the output folder is not empty" + (" (it holds another dataset)" if ours else ""),
-                                 file=out, expected="a new or empty folder, or --force to replace the dataset")
-        import shutil
-
-        shutil.rmtree(out)
-    for sub in ("photos", "brackets", "calibration"):
-        (out / sub).mkdir(parents=True, exist_ok=True)
-
-
 @dataclasses.dataclass
 class _Shot:
     """What truth.json says of one file."""
+
     exposure_time_s: float
     world_to_camera: np.ndarray
 
@@ -144,23 +148,246 @@ class _Writer:
 
 
 def synth(scene: str, out: str | Path, *, seed: int = 0, preset: str = "draft", force: bool = False,
-          progress: bool = True) -> dict:
-    """Write the dataset for ``scene`` into ``out``; returns the truth (also in truth.json)."""
+          progress: bool = True, notify: Callable[[str], None] | None = None) -> dict:
+    """Write the dataset for ``scene`` into ``out``; returns the truth (also in truth.json).
+
+    Everything is checked before anything is written. The dataset is made in a work folder
+    beside ``out`` (``.NAME.synth-partial``) and moved into place when complete, so an
+    interrupted run leaves ``out`` as it was; the work folder keeps the finished renders,
+    and the same command resumes from them (same bytes as an uninterrupted run).
+    ``force`` replaces a previous dataset, only if ``out`` holds nothing but the files its
+    run.json lists (unchanged); anything else there is refused by name.
+    """
+    say = notify or (_say if progress else (lambda _message: None))
+    spec, p, out = _checked_request(scene, out, seed, preset)
+    work = out.parent / f".{out.name}{WORK_SUFFIX}"
+    _restore_interrupted_swap(out, work)
+    _check_output(out, force)
+    renders = _RenderStore(work, _request_key(spec, seed, preset, p))
+    if renders.count:
+        say(f"resuming: {renders.count} renders finished by an earlier run of this request are reused ({work})")
+    staging = work / "dataset"
+    try:
+        truth = _generate(spec, scene, staging, renders, seed, preset, p, progress)
+        _check_output(out, force)  # again: the folder may have changed while we rendered
+        _move_into_place(staging, out, work)
+    except BaseException:
+        shutil.rmtree(staging, ignore_errors=True)
+        if renders.count == 0:  # nothing worth resuming: leave nothing behind
+            shutil.rmtree(work, ignore_errors=True)
+        raise
+    shutil.rmtree(work)
+    return truth
+
+
+def _say(message: str) -> None:
+    print(message, file=sys.stderr, flush=True)
+
+
+def _checked_request(scene: str, out: str | Path, seed: int, preset: str):
+    """(scene spec, preset settings, absolute output path), or a UserInputError before anything is written."""
+    from renderer.scene import load_scene
+
     if preset not in PRESETS:
         raise UserInputError("unknown preset", field="--preset", expected=f"one of {sorted(PRESETS)}", got=preset)
+    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or not 0 <= seed < 2**32:
+        raise UserInputError("must be an integer in 0..4294967295", field="--seed", got=seed)
+    spec = load_scene(scene)
+    if spec.camera is None:  # pragma: no cover - the scene format requires a camera
+        raise UserInputError("the scene has no camera", field="camera")
+    out = Path(os.path.abspath(out))
+    if out.exists() and not out.is_dir():
+        raise UserInputError("is a file, not a folder", field="--out", expected="a new folder or a dataset's folder",
+                             got=str(out))
+    return spec, PRESETS[preset], out
+
+
+def _request_key(spec, seed: int, preset: str, settings: dict) -> str:
+    """What a dataset is of: the scene's text and tables, seed, preset, workbench version."""
+    from renderer.build import table_keys
+    from workbench.core.version import __version__ as workbench_version
+
+    request = {"scene": spec.text, "tables": table_keys(spec), "seed": seed, "preset": preset,
+               "settings": {k: list(v) if isinstance(v, tuple) else v for k, v in settings.items()},
+               "version": workbench_version}
+    return hashlib.sha256(json.dumps(request, sort_keys=True).encode()).hexdigest()
+
+
+def _dataset_files(folder: Path) -> dict[str, dict]:
+    """Every file under ``folder`` but run.json, by relative path: size and SHA-256."""
+    files = {}
+    for path in sorted(p for p in folder.rglob("*") if p.is_file() or p.is_symlink()):
+        rel = path.relative_to(folder).as_posix()
+        if rel != "run.json":
+            files[rel] = {"bytes": path.stat().st_size, "sha256": hashlib.sha256(path.read_bytes()).hexdigest()}
+    return files
+
+
+def _check_output(out: Path, force: bool) -> None:
+    """Raise unless ``out`` is new, empty (empty folders count as empty), or, with ``force``,
+    holds exactly a previous dataset's files as its run.json lists them.
+    """
+    if not out.exists():
+        return
+    present = sorted(p.relative_to(out).as_posix() for p in out.rglob("*") if not p.is_dir() or p.is_symlink())
+    if not present:
+        return
+    listed = _listed_files(out) or _legacy_dataset(out, present)
+    if listed is None:
+        raise UserInputError(f"the output folder holds files that no dataset of this workbench listed ({_names(present)}); "
+                             "it is never replaced, not even with --force", file=out, expected="a new or empty folder")
+    foreign = [rel for rel in present if rel != "run.json" and rel not in listed]
+    changed = [rel for rel in present if rel in listed and not _unchanged(out / rel, listed[rel])]
+    if foreign or changed:
+        parts = ([f"files that are not the dataset's ({_names(foreign)})"] if foreign else []) + \
+                ([f"dataset files changed since they were written ({_names(changed)})"] if changed else [])
+        raise UserInputError(f"the output folder holds {' and '.join(parts)}; --force replaces only a dataset's own "
+                             "files", file=out, expected="a new or empty folder, or one holding only a dataset")
+    if not force:
+        raise UserInputError("the output folder is not empty (it holds another dataset)", file=out,
+                             expected="a new or empty folder, or --force to replace the dataset")
+
+
+def _listed_files(out: Path) -> dict[str, dict | None] | None:
+    """The files a dataset's run.json lists, or None if ``out`` has no run.json of a dataset
+    that lists its files.
+    """
+    try:
+        record = json.loads((out / "run.json").read_text())
+    except (OSError, ValueError):
+        return None
+    if not isinstance(record, dict) or record.get("format") != MARKER or not isinstance(record.get("files"), dict):
+        return None
+    return record["files"]
+
+
+def _legacy_dataset(out: Path, present: list[str]) -> dict[str, None] | None:
+    """A dataset written before run.json listed its files: recognised by its truth.json and
+    by every file having a name of the layout (nothing to check their bytes against)."""
+    try:
+        ours = MARKER in (out / "truth.json").read_text()[:200]
+    except (OSError, UnicodeDecodeError):
+        return None
+    if not ours or not all(LEGACY_LAYOUT.fullmatch(rel) for rel in present):
+        return None
+    return dict.fromkeys(present)
+
+
+def _unchanged(path: Path, listed: dict | None) -> bool:
+    if listed is None:  # a legacy dataset's file
+        return not path.is_symlink()
+    try:
+        if path.is_symlink() or path.stat().st_size != listed.get("bytes"):
+            return False
+        return hashlib.sha256(path.read_bytes()).hexdigest() == listed.get("sha256")
+    except OSError:
+        return False
+
+
+def _names(paths: list[str], shown: int = 8) -> str:
+    return ", ".join(paths[:shown]) + (f" and {len(paths) - shown} more" if len(paths) > shown else "")
+
+
+class _RenderStore:
+    """The renders of one request, kept in the work folder until the dataset is in place, so
+    a killed run resumes from them. A work folder of another request is ours to empty; a
+    folder of that name we did not make is refused.
+    """
+
+    def __init__(self, work: Path, key: str) -> None:
+        self.folder = work / "renders"
+        self.reused = 0
+        record = work / "request.json"
+        if work.exists():
+            try:
+                recorded = json.loads(record.read_text())
+            except (OSError, ValueError):
+                recorded = None
+            if not isinstance(recorded, dict) or recorded.get("format") != WORK_FORMAT:
+                if any(work.iterdir()):
+                    raise UserInputError("a folder this workbench did not make is in the way of the dataset's work "
+                                         "folder", file=work, expected="that folder moved away")
+            elif recorded.get("key") != key:
+                shutil.rmtree(work)  # the renders of another request (seed, scene, preset)
+        atomic_write_text(record, json.dumps({"format": WORK_FORMAT, "key": key}))  # first: it marks the folder ours
+        self.folder.mkdir(parents=True, exist_ok=True)
+
+    @property
+    def count(self) -> int:
+        return sum(1 for _ in self.folder.glob("*.npy")) if self.folder.is_dir() else 0
+
+    def get(self, name: str, render: Callable[[], np.ndarray]) -> np.ndarray:
+        """The stored render ``name``, or ``render()`` stored atomically."""
+        path = self.folder / f"{name}.npy"
+        try:
+            stored = np.load(path)
+            self.reused += 1
+            return stored
+        except (OSError, ValueError, EOFError):  # not rendered yet, or a damaged file: render again
+            pass
+        rgb = render()
+
+        def write(tmp: Path) -> None:
+            with open(tmp, "wb") as f:
+                np.save(f, rgb)
+                f.flush()
+                os.fsync(f.fileno())
+        atomic_write(path, write)
+        return rgb
+
+
+def _move_into_place(staging: Path, out: Path, work: Path) -> None:
+    """Put the finished dataset at ``out``: one rename when ``out`` is new; otherwise the old
+    dataset's entries move into the work folder and the new ones in (run.json last), with
+    their names recorded so that an interruption in between is undone on the next run.
+    """
+    if not out.exists():
+        os.rename(staging, out)
+        return
+    new = sorted(p.name for p in staging.iterdir() if p.name != "run.json") + ["run.json"]
+    old_folder = work / "old"
+    old_folder.mkdir()
+    atomic_write_text(work / "swap.json", json.dumps({"new": new}), sync=True)
+    for child in list(out.iterdir()):
+        os.rename(child, old_folder / child.name)
+    for name in new:
+        os.rename(staging / name, out / name)
+
+
+def _restore_interrupted_swap(out: Path, work: Path) -> None:
+    """Undo a move into place that was interrupted: the old dataset goes back."""
+    old_folder, record = work / "old", work / "swap.json"
+    if not old_folder.is_dir() or not record.is_file():
+        return
+    for name in json.loads(record.read_text())["new"]:
+        if (out / name).exists() and not (old_folder / name).exists():
+            _remove(out / name)
+    for child in list(old_folder.iterdir()):
+        if (out / child.name).exists():
+            _remove(out / child.name)
+        os.rename(child, out / child.name)
+    old_folder.rmdir()
+    record.unlink()
+
+
+def _remove(path: Path) -> None:
+    if path.is_dir() and not path.is_symlink():
+        shutil.rmtree(path)
+    else:
+        path.unlink()
+
+
+def _generate(spec, scene: str, out: Path, renders: _RenderStore, seed: int, preset: str, p: dict, progress: bool) -> dict:
+    """Render and write the whole dataset into ``out`` (the staging folder); the truth."""
     from tqdm import tqdm
 
     from renderer.fit import FitRenderer
     from renderer.render import with_resolution
-    from renderer.scene import load_scene
 
     started = time.perf_counter()
-    spec = load_scene(scene)
-    if spec.camera is None:  # pragma: no cover - the scene format requires a camera
-        raise UserInputError("the scene has no camera", field="camera")
-    out = Path(out)
-    _prepare_folder(out, force)
-    p = PRESETS[preset]
+    shutil.rmtree(out, ignore_errors=True)  # a half-written dataset of a killed run
+    for sub in ("photos", "brackets", "calibration"):
+        (out / sub).mkdir(parents=True, exist_ok=True)
     rng_camera, rng_views, rng_noise, rng_board = (np.random.default_rng(s) for s in np.random.SeedSequence(seed).spawn(4))
     spec = with_resolution(spec, p["resolution"])
     camera = hidden_camera(spec.camera.model, rng_camera)
@@ -181,7 +408,7 @@ def synth(scene: str, out: str | Path, *, seed: int = 0, preset: str = "draft", 
         view_camera = camera if k == 0 else orbit(camera, rng_views.choice([-1, 1]) * rng_views.uniform(6, 12),
                                                    rng_views.uniform(-3, 3))
         fit.set(camera=view_camera)
-        rgb = fit.render(seed=seed * 1000 + k)
+        rgb = renders.get(f"view{k}", lambda k=k: fit.render(seed=seed * 1000 + k))
         exposure_s = _auto_exposure(rgb, sensor) * exposure_scale
         writer.capture("photos", f"view{k}", rgb, exposure_s, view_camera, rng_noise)
         if k == 0:
@@ -197,7 +424,7 @@ def synth(scene: str, out: str | Path, *, seed: int = 0, preset: str = "draft", 
 
     tick = time.perf_counter()
     board = Checkerboard()
-    poses = _calibration_set(hidden, camera, board, p, light_scale, seed, writer, rng_board, rng_noise, bar)
+    poses = _calibration_set(hidden, camera, board, p, light_scale, seed, writer, rng_board, rng_noise, bar, renders)
     timings["calibration_s"] = time.perf_counter() - tick
     bar.close()
 
@@ -218,16 +445,16 @@ def synth(scene: str, out: str | Path, *, seed: int = 0, preset: str = "draft", 
     }
     atomic_write_text(out / "truth.json", json.dumps(truth, indent=2))
     timings["total_s"] = time.perf_counter() - started
-    _write_run_record(out, scene, seed, preset, p, timings)
+    _write_run_record(out, scene, seed, preset, p, timings, renders.reused)
     return truth
 
 
 def _calibration_set(hidden, camera, board: Checkerboard, p: dict, light_scale: float, seed: int, writer: _Writer,
-                     rng_board, rng_noise, bar) -> dict[str, np.ndarray]:
+                     rng_board, rng_noise, bar, renders: _RenderStore) -> dict[str, np.ndarray]:
     """Board views from view0's camera, its flash on: seeded poses in which nothing hides the board."""
-    from renderer.fit import FitRenderer
-
     import mitsuba as mi
+
+    from renderer.fit import FitRenderer
 
     first = sample_pose(board, camera, rng_board, view=0)
     fit = FitRenderer(hidden, resolution=(camera.width, camera.height), spp=p["calibration_spp"],
@@ -241,8 +468,8 @@ def _calibration_set(hidden, camera, board: Checkerboard, p: dict, light_scale: 
             if corners_visible(mi, fit.scene, board, pose, camera):
                 break
             pose = sample_pose(board, camera, rng_board, view=i)
-        rgb = fit.render(seed=seed * 1000 + 500 + i)
         name = f"board{i:02d}"
+        rgb = renders.get(name, lambda i=i: fit.render(seed=seed * 1000 + 500 + i))
         writer.capture("calibration", name, rgb, _auto_exposure(rgb, writer.sensor), camera, rng_noise)
         poses[f"{name}.dng"] = pose
         if i + 1 < p["calibration_views"]:
@@ -255,7 +482,8 @@ def _flash(spec, camera) -> dict:
     """The photographer's flash: a point light at the camera's centre with the scene light's
     spectrum and radiant intensity FLASH_W_PER_SR (W/sr), so that it outshines the ceiling
     light on the board (80 W/m^2 at 0.5 m, against about 25 W/m^2 at 35 cm from the
-    10 W ceiling light)."""
+    10 W ceiling light).
+    """
     from renderer.build import irregular, light_spectrum
 
     wl, s = light_spectrum(spec.light.spectrum)
@@ -263,20 +491,27 @@ def _flash(spec, camera) -> dict:
     return {"type": "point", "position": centre.tolist(), "intensity": irregular(wl, s * FLASH_W_PER_SR / np.trapezoid(s, wl))}
 
 
-def _write_run_record(out: Path, scene: str, seed: int, preset: str, settings: dict, timings: dict) -> None:
+def _write_run_record(out: Path, scene: str, seed: int, preset: str, settings: dict, timings: dict,
+                      resumed_renders: int) -> None:
+    """run.json: settings, timings, versions, and every file the run wrote (size, SHA-256),
+    which is what ``--force`` may replace.
+    """
     import mitsuba
 
     from workbench.core.version import __version__ as workbench_version
 
-    record = {"command": "workbench synth", "scene": scene, "seed": seed, "preset": preset, "settings": settings,
-              "timings": timings, "versions": {"workbench": workbench_version, "mitsuba": mitsuba.__version__,
-                                               "numpy": np.__version__, "python": platform.python_version()}}
+    record = {"format": MARKER, "command": "workbench synth", "scene": scene, "seed": seed, "preset": preset,
+              "settings": settings, "timings": timings, "resumed_renders": resumed_renders,
+              "versions": {"workbench": workbench_version, "mitsuba": mitsuba.__version__, "numpy": np.__version__,
+                           "python": platform.python_version()},
+              "files": _dataset_files(out)}
     atomic_write_text(out / "run.json", json.dumps(record, indent=2, default=list))
 
 
 def _auto_exposure(rgb: np.ndarray, sensor: SensorModel) -> float:
     """An exposure time that puts the 99th percentile at 70 % of the raw range (before the
-    seeded 'off by a factor' the photographer could not control)."""
+    seeded 'off by a factor' the photographer could not control).
+    """
     level = np.percentile(rgb.max(axis=-1), 99.0)
     usable = sensor.white_level - sensor.black_level
     return float(0.7 * usable / (sensor.gain * sensor.electrons_per_unit * max(level, 1e-12)))

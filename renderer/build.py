@@ -179,7 +179,10 @@ def element_table(element, camera_sens, where: str = "element", scene_file: str 
     if plan.settings is None:
         wavelengths = _check_named_table(plan, where, scene_file)
     else:
-        build_table(plan.structure, plan.settings, plan.path, progress=True, force=True)  # the cache owns the path
+        try:
+            build_table(plan.structure, plan.settings, plan.path, progress=True, force=True)  # the cache owns the path
+        except UserInputError as exc:  # e.g. wavelengths outside a material's data: say which scene field asked
+            raise UserInputError(f"its table cannot be built: {exc}", file=scene_file, field=f"{where}.table") from None
         wavelengths = np.asarray(plan.settings.wavelengths_nm)
     wl = np.unique(np.concatenate([w for w, _ in camera_sens]))
     curves = np.stack([np.interp(wl, w, s, left=0, right=0) for w, s in camera_sens])
