@@ -55,7 +55,9 @@ import shutil
 import sys
 import time
 from collections.abc import Callable
+from functools import partial
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -76,7 +78,8 @@ FLASH_W_PER_SR = 20.0
 MARKER = "workbench-synthetic-dataset"
 WORK_SUFFIX = ".synth-partial"  # the work folder beside DIR: .DIR.synth-partial/{request.json, renders/, dataset/}
 WORK_FORMAT = "workbench-synthetic-dataset-work"
-LEGACY_LAYOUT = re.compile(r"photos/view\d+\.dng|brackets/ev[+-]\d+\.(dng|jpg)|calibration/board\d+\.dng|truth\.json|run\.json")
+LEGACY_LAYOUT = re.compile(  # the files of a dataset written before run.json listed them
+    r"photos/view\d+\.dng|brackets/ev[+-]\d+\.(dng|jpg)|calibration/board\d+\.dng|truth\.json|run\.json")
 MAKE, MODEL, ISO = "Workbench", "Synthetic RGGB", 100
 
 
@@ -112,7 +115,8 @@ def orbit(camera, yaw_deg: float, pitch_deg: float):
     distance = -origin[1] / axis[1] if axis[1] < -0.05 else 1.0
     pivot = origin + distance * axis
     right = cam_to_world[:3, 0]
-    turn = Rotation.from_rotvec(np.radians(yaw_deg) * np.array([0.0, 1.0, 0.0])) * Rotation.from_rotvec(np.radians(pitch_deg) * right)
+    yaw = Rotation.from_rotvec(np.radians(yaw_deg) * np.array([0.0, 1.0, 0.0]))
+    turn = yaw * Rotation.from_rotvec(np.radians(pitch_deg) * right)
     moved = np.eye(4)
     moved[:3, :3] = turn.as_matrix() @ cam_to_world[:3, :3]
     moved[:3, 3] = pivot + turn.apply(origin - pivot)
@@ -159,18 +163,18 @@ def synth(scene: str, out: str | Path, *, seed: int = 0, preset: str = "draft", 
     run.json lists (unchanged); anything else there is refused by name.
     """
     say = notify or (_say if progress else (lambda _message: None))
-    spec, p, out = _checked_request(scene, out, seed, preset)
-    work = out.parent / f".{out.name}{WORK_SUFFIX}"
-    _restore_interrupted_swap(out, work)
-    _check_output(out, force)
+    spec, p, folder = _checked_request(scene, out, seed, preset)
+    work = folder.parent / f".{folder.name}{WORK_SUFFIX}"
+    _restore_interrupted_swap(folder, work)
+    _check_output(folder, force)
     renders = _RenderStore(work, _request_key(spec, seed, preset, p))
     if renders.count:
         say(f"resuming: {renders.count} renders finished by an earlier run of this request are reused ({work})")
     staging = work / "dataset"
     try:
         truth = _generate(spec, scene, staging, renders, seed, preset, p, progress)
-        _check_output(out, force)  # again: the folder may have changed while we rendered
-        _move_into_place(staging, out, work)
+        _check_output(folder, force)  # again: the folder may have changed while we rendered
+        _move_into_place(staging, folder, work)
     except BaseException:
         shutil.rmtree(staging, ignore_errors=True)
         if renders.count == 0:  # nothing worth resuming: leave nothing behind
@@ -184,7 +188,7 @@ def _say(message: str) -> None:
     print(message, file=sys.stderr, flush=True)
 
 
-def _checked_request(scene: str, out: str | Path, seed: int, preset: str):
+def _checked_request(scene: str, out: str | Path, seed: int, preset: str) -> tuple[Any, dict, Path]:
     """(scene spec, preset settings, absolute output path), or a UserInputError before anything is written."""
     from renderer.scene import load_scene
 
@@ -234,8 +238,8 @@ def _check_output(out: Path, force: bool) -> None:
         return
     listed = _listed_files(out) or _legacy_dataset(out, present)
     if listed is None:
-        raise UserInputError(f"the output folder holds files that no dataset of this workbench listed ({_names(present)}); "
-                             "it is never replaced, not even with --force", file=out, expected="a new or empty folder")
+        raise UserInputError(f"the output folder holds files that no dataset of this workbench listed "
+                             f"({_names(present)}); it is never replaced, not even with --force", file=out, expected="a new or empty folder")
     foreign = [rel for rel in present if rel != "run.json" and rel not in listed]
     changed = [rel for rel in present if rel in listed and not _unchanged(out / rel, listed[rel])]
     if foreign or changed:
@@ -377,7 +381,8 @@ def _remove(path: Path) -> None:
         path.unlink()
 
 
-def _generate(spec, scene: str, out: Path, renders: _RenderStore, seed: int, preset: str, p: dict, progress: bool) -> dict:
+def _generate(spec, scene: str, out: Path, renders: _RenderStore, seed: int, preset: str, p: dict,
+              progress: bool) -> dict:
     """Render and write the whole dataset into ``out`` (the staging folder); the truth."""
     from tqdm import tqdm
 
@@ -408,7 +413,7 @@ def _generate(spec, scene: str, out: Path, renders: _RenderStore, seed: int, pre
         view_camera = camera if k == 0 else orbit(camera, rng_views.choice([-1, 1]) * rng_views.uniform(6, 12),
                                                    rng_views.uniform(-3, 3))
         fit.set(camera=view_camera)
-        rgb = renders.get(f"view{k}", lambda k=k: fit.render(seed=seed * 1000 + k))
+        rgb = renders.get(f"view{k}", partial(fit.render, seed=seed * 1000 + k))
         exposure_s = _auto_exposure(rgb, sensor) * exposure_scale
         writer.capture("photos", f"view{k}", rgb, exposure_s, view_camera, rng_noise)
         if k == 0:
@@ -417,6 +422,7 @@ def _generate(spec, scene: str, out: Path, renders: _RenderStore, seed: int, pre
     timings["photos_s"] = time.perf_counter() - tick
 
     tick = time.perf_counter()
+    assert view0 is not None, "the presets have at least one view"
     rgb, exposure_s = view0
     for ev in BRACKET_EV:
         writer.capture("brackets", f"ev{ev:+d}", rgb, exposure_s * 2.0**ev, camera, rng_noise, jpeg=True)
@@ -469,7 +475,7 @@ def _calibration_set(hidden, camera, board: Checkerboard, p: dict, light_scale: 
                 break
             pose = sample_pose(board, camera, rng_board, view=i)
         name = f"board{i:02d}"
-        rgb = renders.get(name, lambda i=i: fit.render(seed=seed * 1000 + 500 + i))
+        rgb = renders.get(name, partial(fit.render, seed=seed * 1000 + 500 + i))
         writer.capture("calibration", name, rgb, _auto_exposure(rgb, writer.sensor), camera, rng_noise)
         poses[f"{name}.dng"] = pose
         if i + 1 < p["calibration_views"]:

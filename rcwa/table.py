@@ -123,7 +123,8 @@ def settings_for(structure: Structure, preset: str = "paper", *, theta_step: flo
         raise UserInputError("unknown polarization", field="--pol", expected=f"one of {POLARIZATIONS}", got=pol)
     p = PRESETS[preset]
     dim = structure.dimension
-    wl = parse_wavelengths(wavelengths) if wavelengths else tuple(float(v) for v in np.linspace(*p["wavelengths"][:2], p["wavelengths"][2]))
+    start, stop, count = p["wavelengths"]
+    wl = parse_wavelengths(wavelengths) if wavelengths else tuple(float(v) for v in np.linspace(start, stop, count))
     counts = _counts(orders if orders is not None else p["orders"][dim], dim, "--orders")
     kept = _counts(keep if keep is not None else min(p["keep"][dim], counts[0]), dim, "--keep-orders")
     if any(k > c for k, c in zip(kept, counts)):
@@ -269,7 +270,8 @@ def _build_locked(structure: Structure, settings: TableSettings, out: Path, key:
     done = _read_progress(out)
     repaired = _drop_damaged_chunks(out, store, settings, done, notes)
     sym = symmetry.detect(structure) if settings.use_symmetry else symmetry.MirrorSymmetry(False, False)
-    report = BuildReport(out, key, len(settings.wavelengths_nm), 0, len(done), 0.0, symmetry=sym.describe(), notes=notes,
+    report = BuildReport(out, key, len(settings.wavelengths_nm), 0, len(done), 0.0, symmetry=sym.describe(),
+                         notes=notes,
                          chunks_repaired=repaired)
     todo = [i for i in range(len(settings.wavelengths_nm)) if str(i) not in done]
     if not todo and store.attrs.get("complete"):
@@ -308,7 +310,8 @@ def _compute_chunks(structure: Structure, settings: TableSettings, out: Path, st
     if executor is None:
         results = ((i, timed(compute_chunk, structure, settings, settings.wavelengths_nm[i], threads)) for i in todo)
     else:
-        futures = {i: executor.submit(timed, compute_chunk, structure, settings, settings.wavelengths_nm[i], 1) for i in todo}
+        futures = {i: executor.submit(timed, compute_chunk, structure, settings, settings.wavelengths_nm[i], 1)
+                   for i in todo}
         results = ((i, futures[i].result()) for i in todo)
     with bar:
         for i, ((arrays, (solves, refined)), seconds) in results:
@@ -343,7 +346,8 @@ def _drop_damaged_chunks(out: Path, store, settings: TableSettings, done: dict, 
 
 def _foreign_entries(out: Path) -> list[str]:
     """What ``out`` holds that is not part of a table (hidden temporary files of atomic writes aside)."""
-    return sorted(p.name for p in out.iterdir() if p.name not in TABLE_FILES and not p.name.startswith(".progress.json."))
+    return sorted(p.name for p in out.iterdir()
+                  if p.name not in TABLE_FILES and not p.name.startswith(".progress.json."))
 
 
 def _refuse_unless_replaceable(out: Path, key: str, force: bool) -> None:
@@ -414,11 +418,12 @@ def _open_arrays(out: Path, meta: dict):
 
     try:
         group = zarr.open_group(str(out), mode="a")
-        shapes = {tuple(group[name].shape) for name in meta["arrays"]}
+        arrays = [group[name] for name in meta["arrays"]]
     except Exception:  # a deleted or damaged array zarr.json
         return None
     expected = len(meta["settings"]["wavelengths_nm"])
-    return group if all(shape[0] == expected for shape in shapes) else None
+    intact = all(isinstance(a, zarr.Array) and a.shape[0] == expected for a in arrays)
+    return group if intact else None
 
 
 def _transmits(structure: Structure, settings: TableSettings) -> bool:
@@ -544,17 +549,18 @@ def open_table(path: str | Path) -> Table:
     done = _read_progress(path)
     group = zarr.open_group(str(path), mode="r")
     arrays: dict[str, np.ndarray] = {}
+    count = len(meta["settings"]["wavelengths_nm"])
     for name in meta["arrays"]:
         try:
-            arrays[name] = np.stack([_read_chunk(group, name, i) for i in range(len(meta["settings"]["wavelengths_nm"]))])
+            arrays[name] = np.stack([_read_chunk(group, name, i) for i in range(count)])
         except _ChunkUnreadable as exc:
-            raise UserInputError(f"array {name}, {_chunk_words(meta, exc.index)} cannot be read ({exc.reason}); {repair}: "
-                                 "damaged chunks are computed again", file=path) from None
-    for i in range(len(meta["settings"]["wavelengths_nm"])):
+            raise UserInputError(f"array {name}, {_chunk_words(meta, exc.index)} cannot be read ({exc.reason}); "
+                                 f"{repair}: damaged chunks are computed again", file=path) from None
+    for i in range(count):
         record = done.get(str(i))
         if record is None or _chunk_hash({name: arrays[name][i] for name in arrays}) != record["sha256"]:
-            raise UserInputError(f"{_chunk_words(meta, i)} is damaged or missing (its checksum does not match); {repair}: "
-                                 "damaged chunks are computed again", file=path)
+            raise UserInputError(f"{_chunk_words(meta, i)} is damaged or missing (its checksum does not match); "
+                                 f"{repair}: damaged chunks are computed again", file=path)
     return Table(path, meta, arrays)
 
 

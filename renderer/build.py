@@ -164,7 +164,8 @@ def table_plan(element, where: str = "element", scene_file: str | None = None) -
 
 def table_keys(spec: SceneSpec) -> list[str]:
     """The request keys of a scene's tables (their content, wherever the cache is), in order."""
-    elements = [(f"cd[{i}]", cd) for i, cd in enumerate(spec.cds)] + [(f"grating[{i}]", g) for i, g in enumerate(spec.gratings)]
+    elements = ([(f"cd[{i}]", cd) for i, cd in enumerate(spec.cds)]
+                + [(f"grating[{i}]", g) for i, g in enumerate(spec.gratings)])
     return [table_plan(element, where, spec.source).key for where, element in elements]
 
 

@@ -18,16 +18,19 @@ import platform
 import time
 from dataclasses import replace
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
 from renderer.scene import SceneSpec, load_scene
 from workbench.core.errors import UserInputError
 from workbench.core.files import atomic_write as _atomic
+from workbench.core.files import atomic_write_text
 from workbench.core.timing import timed
 from workbench.core.version import __version__ as workbench_version
 
-PRESETS = {"draft": {"spp": 256, "pass_spp": 64}, "paper": {"spp": 2045, "pass_spp": 128, "resolution": (978, 734)}}
+PRESETS: dict[str, dict[str, Any]] = {"draft": {"spp": 256, "pass_spp": 64},
+                                      "paper": {"spp": 2045, "pass_spp": 128, "resolution": (978, 734)}}
 SIDECAR_FORMAT = "workbench-render"
 
 
@@ -127,7 +130,7 @@ def render(scene: str | Path, out: str | Path, *, preset: str = "draft", spp: in
                    "sensitivities": spec.camera.sensitivities, "exposure": spec.camera.exposure,
                    "response": spec.camera.response.to_json()},
     }
-    _atomic(sidecar, lambda tmp: tmp.write_text(json.dumps(info, indent=2)))
+    atomic_write_text(sidecar, json.dumps(info, indent=2))
     partial.unlink(missing_ok=True)
     return info | {"served": False}
 
@@ -162,7 +165,8 @@ def _checked_request(scene: str | Path, out: str | Path, preset: str, spp: int |
         raise UserInputError("must be at least 1", field="--spp", got=spp)
     out = Path(out)
     if out.suffix.lower() != ".exr":
-        raise UserInputError("the output must be an OpenEXR file", field="--out", expected="a path ending in .exr", got=str(out))
+        raise UserInputError("the output must be an OpenEXR file", field="--out", expected="a path ending in .exr",
+                             got=str(out))
     if out.is_dir():
         raise UserInputError("is a folder, not a file", field="--out", expected="a path ending in .exr", got=str(out))
     spec = with_resolution(load_scene(scene), resolution or settings.get("resolution"))

@@ -127,7 +127,8 @@ def test_a_named_table_must_exist_be_intact_and_match_the_structure(mitsuba_vari
     from renderer.build import scene_dict
     from renderer.scene import load_scene
 
-    with pytest.raises(UserInputError, match=r"scene.toml: field 'cd\[0\].table.path'.*nope.zarr.*not an efficiency table"):
+    missing = r"scene.toml: field 'cd\[0\].table.path'.*nope.zarr.*not an efficiency table"
+    with pytest.raises(UserInputError, match=missing):
         scene_dict(mi, load_scene(_scene_with_table(tmp_path, 'table = { path = "nope.zarr" }')), spp=1)
 
     thicker = rcwa.load_structure("cd").text.replace("thickness = 0.11", "thickness = 0.12")

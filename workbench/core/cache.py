@@ -171,9 +171,9 @@ def clear(root: Path | None = None) -> tuple[list[CacheEntry], list[CacheEntry]]
         else:
             kept.append(entry)
     for orphan in root.glob("*/.*.lock"):  # locks of entries that were never finished
-        entry = orphan.with_name(orphan.name[1:-len(".lock")])
-        if not entry.exists():
-            _remove_unless_locked(entry, orphan)
+        unfinished = orphan.with_name(orphan.name[1:-len(".lock")])
+        if not unfinished.exists():
+            _remove_unless_locked(unfinished, orphan)
     return removed, kept
 
 
