@@ -326,10 +326,15 @@ def _drop_damaged_chunks(out: Path, store, settings: TableSettings, done: dict, 
     """Check every finished chunk against its checksum; forget the damaged ones (they are
     computed again) and say which.
     """
+    arrays = {name: store[name] for name in store.attrs["arrays"]}  # opened once (_open_arrays checked them)
+    try:
+        whole = {name: array[...] for name, array in arrays.items()}  # one read when every chunk decodes
+    except Exception:  # a truncated chunk file: read chunk by chunk below
+        whole = None
     damaged = []
     for index in sorted(done, key=int):
         try:
-            chunk = {name: store[name][int(index)] for name in store.attrs["arrays"]}
+            chunk = {name: (whole[name] if whole is not None else array)[int(index)] for name, array in arrays.items()}
             intact = _chunk_hash(chunk) == done[index]["sha256"]
         except Exception:  # a truncated or unreadable chunk file
             intact = False
