@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import hashlib
 import math
+import sys
 import tomllib
 from dataclasses import dataclass
 from pathlib import Path
@@ -181,7 +182,9 @@ def element_table(element, camera_sens, where: str = "element", scene_file: str 
         wavelengths = _check_named_table(plan, where, scene_file)
     else:
         try:
-            build_table(plan.structure, plan.settings, plan.path, progress=True, force=True)  # the cache owns the path
+            report = build_table(plan.structure, plan.settings, plan.path, progress=True, force=True)  # the cache's path
+            for note in report.notes:  # damaged chunks computed again: say so, as `rcwa table` does
+                print(f"{plan.path}: {note}", file=sys.stderr)
         except UserInputError as exc:  # e.g. wavelengths outside a material's data: say which scene field asked
             raise UserInputError(f"its table cannot be built: {exc}", file=scene_file, field=f"{where}.table") from None
         wavelengths = np.asarray(plan.settings.wavelengths_nm)
