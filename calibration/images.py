@@ -14,6 +14,7 @@ come out:
 
 from __future__ import annotations
 
+import cv2
 import numpy as np
 
 from workbench.core.errors import UserInputError
@@ -51,4 +52,6 @@ def grey_uint8(grey: np.ndarray) -> np.ndarray:
     lo, hi = np.percentile(grey[::step, ::step], STRETCH_PERCENTILES)  # a regular subsample estimates them well
     if hi <= lo:
         return np.zeros(grey.shape, np.uint8)
-    return np.rint(np.clip((grey - lo) * (255.0 / (hi - lo)), 0, 255)).astype(np.uint8)
+    scale = 255.0 / (hi - lo)
+    floored = cv2.max(np.asarray(grey, np.float32), float(lo))  # convertScaleAbs takes |x|: nothing below lo may reach it
+    return cv2.convertScaleAbs(floored, alpha=scale, beta=-lo * scale)  # rounds and saturates at 255

@@ -119,18 +119,21 @@ class DiscSampler:
         self._inside[which] = np.take(inside, self._plus, 1) & np.take(inside, self._minus, 1)
         self._anchor[which] = anchor
 
-    def sample(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """(fields at q + k, fields at q - k, both inside the image): fields (N, 3, K) are value, d/dx, d/dy."""
+    def sample(self, q: np.ndarray, which: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """For the corners ``which`` at q (len(which), 2): (fields at q + k, fields at q - k, both inside the
+        image); fields (n, 3, K) are value, d/dx, d/dy."""
         anchor = np.floor(q).astype(np.int64)
-        moved = np.flatnonzero(np.any(anchor != self._anchor, axis=1))
+        moved = np.flatnonzero(np.any(anchor != self._anchor[which], axis=1))
         if len(moved):
-            self._gather(moved, anchor[moved])
+            self._gather(which[moved], anchor[moved])
         fx, fy = (q - anchor).T
         wx, dwx = _keys_weights(fx)
         wy, dwy = _keys_weights(fy)
         weights = np.stack([wy[:, :, None] * wx[:, None, :], wy[:, :, None] * dwx[:, None, :],
                             dwy[:, :, None] * wx[:, None, :]], 1).reshape(len(q), 3, 16).astype(np.float32)
-        return weights @ self._blocks[0], weights @ self._blocks[1], self._inside
+        if len(which) == self._blocks.shape[1]:
+            return weights @ self._blocks[0], weights @ self._blocks[1], self._inside
+        return weights @ self._blocks[0, which], weights @ self._blocks[1, which], self._inside[which]
 
 
 def refine_by_symmetry(grey: np.ndarray, corners: np.ndarray, spacing: np.ndarray,
@@ -150,11 +153,14 @@ def refine_by_symmetry(grey: np.ndarray, corners: np.ndarray, spacing: np.ndarra
     k = _half_disc(lattice_radius)
     in_disc = np.linalg.norm(k, axis=1)[None, :] <= radius[:, None]            # (N, K)
     sampler = DiscSampler(grey, k, lattice_radius, len(start))
-    q, h = start.copy(), np.zeros_like(start)    # h: shading gradient per pixel (g / r in the module docstring)
+    q, h = start.copy(), np.zeros_like(start)    # h: the shading gradient per pixel
     converged = np.zeros(len(q), bool)
-    valid = in_disc
+    valid = in_disc.copy()
+    offsets = k.astype(float)
     for _ in range(MAX_ITERATIONS):
-        e, J, valid = _residuals_and_jacobian(*sampler.sample(q), k.astype(float), h, in_disc)
+        active = np.flatnonzero(~converged)          # corners stop as they converge: the slowest set the count
+        e, J, valid[active] = _residuals_and_jacobian(*sampler.sample(q[active], active), offsets, h[active],
+                                                      in_disc[active])
         A = (J @ J.transpose(0, 2, 1)).astype(float)
         b = (J @ e[..., None])[..., 0].astype(float)
         A[:, np.arange(4), np.arange(4)] *= 1.0 + DAMPING
@@ -162,9 +168,9 @@ def refine_by_symmetry(grey: np.ndarray, corners: np.ndarray, spacing: np.ndarra
         step = -np.linalg.solve(A, b[..., None])[..., 0]
         length = np.linalg.norm(step[:, :2], axis=1)
         step *= np.minimum(1.0, MAX_STEP_PX / np.maximum(length, 1e-300))[:, None]
-        q += step[:, :2]
-        h += step[:, 2:]
-        converged = length < STEP_TOLERANCE_PX
+        q[active] += step[:, :2]
+        h[active] += step[:, 2:]
+        converged[active] = length < STEP_TOLERANCE_PX
         if converged.all():
             break
     kept = valid.sum(axis=1) / np.maximum(in_disc.sum(axis=1), 1)

@@ -41,12 +41,17 @@ def board_homography(K: np.ndarray, R: np.ndarray, t: np.ndarray) -> np.ndarray:
 
 
 def checkerboard_view(H: np.ndarray, inner: tuple[int, int], size: tuple[int, int], supersample: int = 4,
-                      margin: float = 1.0, dark: float = 0.05, light: float = 0.8, background: float = 0.3) -> np.ndarray:
-    """The image (float, H x W) of a checkerboard of ``inner`` = (cols, rows) inner corners, squares of 1 unit."""
+                      margin: float = 1.0, dark: float = 0.05, light: float = 0.8, background: float = 0.3,
+                      K: np.ndarray | None = None, dist: np.ndarray | None = None) -> np.ndarray:
+    """The image (float, H x W) of a checkerboard of ``inner`` = (cols, rows) inner corners, squares of 1 unit;
+    with ``K`` and ``dist``, seen through OpenCV's lens distortion (each sample undistorted first)."""
     cols, rows = inner
     n = supersample
     ys, xs = np.mgrid[0:size[1] * n, 0:size[0] * n]
     pix = np.stack([(xs + 0.5) / n - 0.5, (ys + 0.5) / n - 0.5, np.ones_like(xs, float)], -1)
+    if dist is not None and K is not None:
+        ideal = cv2.undistortPoints(pix[..., :2].reshape(-1, 1, 2), K, dist, P=K).reshape(pix.shape[:2] + (2,))
+        pix = np.concatenate([ideal, np.ones(pix.shape[:2] + (1,))], -1)
     board = pix @ np.linalg.inv(H).T
     bx, by = board[..., 0] / board[..., 2], board[..., 1] / board[..., 2]
     on_board = (bx > -1 - margin) & (bx < cols + margin) & (by > -1 - margin) & (by < rows + margin) & (board[..., 2] > 0)
