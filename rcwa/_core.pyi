@@ -100,6 +100,12 @@ class StackSolution:
         Whether TE and TM were solved apart on N x N blocks (1D, every ky = 0: polarized.hpp); a polarization not asked for then has NaN amplitudes.
         """
 
+    @property
+    def hermitian_solves(self) -> int:
+        """
+        Eigen-solves of lossless 1D layers done by Hermitian solvers (zheevd, zhegvd) instead of zgeev.
+        """
+
 class SweepSolution:
     """
     Amplitudes of the K kept harmonics at P incident directions, as StackSolution per point restricted to the kept rows (s rows, then p rows), and the work done.

@@ -76,7 +76,8 @@ class SolveResult:
     all_orders: dict[str, np.ndarray] = field(repr=False, default_factory=dict)
     # The core's fast paths this solve took (rcwa.solver.solve, fast_paths): empty for the
     # general path; "te_tm_decoupled" (1D, k_y = 0: TE and TM on N x N blocks),
-    # "single_polarization" (only the requested one solved; the other's values are NaN).
+    # "single_polarization" (only the requested one solved; the other's values are NaN),
+    # "hermitian_eigensolver" (lossless 1D layers solved as Hermitian problems).
     fast_paths: tuple[str, ...] = ()
 
     def order(self, m: int, n: int = 0) -> OrderResult:

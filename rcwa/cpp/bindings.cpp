@@ -198,7 +198,9 @@ void bind_results(nb::module_& m) {
                      "kz / k0 of each harmonic in the substrate, outgoing branch, (N,).")
         .def_ro("decoupled", &rcwa::StackSolution::decoupled,
                 "Whether TE and TM were solved apart on N x N blocks (1D, every ky = 0: polarized.hpp); a "
-                "polarization not asked for then has NaN amplitudes.");
+                "polarization not asked for then has NaN amplitudes.")
+        .def_ro("hermitian_solves", &rcwa::StackSolution::hermitian_solves,
+                "Eigen-solves of lossless 1D layers done by Hermitian solvers (zheevd, zhegvd) instead of zgeev.");
 
     nb::class_<rcwa::SweepResult>(m, "SweepSolution",
                                   "Amplitudes of the K kept harmonics at P incident directions, as StackSolution "

@@ -20,6 +20,8 @@
 // costs three N x N products and no factorization per direction.
 #include "modes.hpp"
 
+#include <optional>
+
 namespace rcwa {
 
 namespace {
@@ -40,29 +42,59 @@ LamellarEigen lamellar_eigen(const std::vector<double>& kx, const Mat& E, const 
     const int n = static_cast<int>(kx.size());
     LamellarEigen out;
     out.kx = kx;
+    const bool lossless = parts.hermitian && !near && is_hermitian(E, kHermitianTolerance);
     if (parts.te) {
         Mat MA = E;
         for (int i = 0; i < n; ++i) MA(i, i) -= kx[i] * kx[i];
-        Eigen ea = eig_near(std::move(MA), near ? &near->WA : nullptr, out.refined);
-        out.WA = std::move(ea.vectors);
-        out.muA = std::move(ea.values);
-        out.WA_inv = LU(out.WA).inverse();
+        if (lossless) {
+            Eigen ea = eig_hermitian(std::move(MA));
+            out.WA_inv = adjoint(ea.vectors);
+            out.WA = std::move(ea.vectors);
+            out.muA = std::move(ea.values);
+            ++out.hermitian;
+        } else {
+            Eigen ea = eig_near(std::move(MA), near ? &near->WA : nullptr, out.refined);
+            out.WA = std::move(ea.vectors);
+            out.muA = std::move(ea.values);
+            out.WA_inv = LU(out.WA).inverse();
+        }
     }
     if (parts.tm) {
         Mat Bm(n, n);  // I - Kx Z Kx
         for (int j = 0; j < n; ++j)
             for (int i = 0; i < n; ++i) Bm(i, j) = (i == j ? 1.0 : 0.0) - kx[i] * Z(i, j) * kx[j];
-        Eigen eb = eig_near(matmul(Exx, Bm), near ? &near->VB : nullptr, out.refined);
-        out.VB = std::move(eb.vectors);
-        out.muB = std::move(eb.values);
-
-        out.B_VB = matmul(Bm, out.VB);
-        Mat KxVB = out.VB;
-        for (int j = 0; j < n; ++j)
-            for (int i = 0; i < n; ++i) KxVB(i, j) *= kx[i];
-        out.ZKx_VB = matmul(Z, KxVB);
-        out.VB_inv = LU(out.VB).inverse();
-        out.B_VB_inv = LU(out.B_VB).inverse();
+        std::optional<Eigen> pencil;
+        if (lossless && is_hermitian(Exx, kHermitianTolerance))
+            pencil = eig_hermitian_definite(matmul(Exx, matmul(Bm, Exx)), Exx);
+        if (pencil) {
+            // v = Exx w with W^H Exx W = I: VB^-1 = W^H; B VB = W mu (from Exx B Exx W = Exx W mu).
+            const Mat& W = pencil->vectors;
+            out.muB = pencil->values;
+            out.VB = matmul(Exx, W);
+            out.VB_inv = adjoint(W);
+            out.B_VB = W;
+            Mat mu_inv_WH = out.VB_inv;  // mu^-1 W^H
+            for (int j = 0; j < n; ++j)
+                for (int i = 0; i < n; ++i) {
+                    out.B_VB(i, j) *= out.muB[j];
+                    mu_inv_WH(i, j) /= out.muB[i];
+                }
+            out.B_VB_inv = matmul(mu_inv_WH, Exx);  // (W mu)^-1 = mu^-1 W^H Exx
+            ++out.hermitian;
+        } else {
+            Eigen eb = eig_near(matmul(Exx, Bm), near ? &near->VB : nullptr, out.refined);
+            out.VB = std::move(eb.vectors);
+            out.muB = std::move(eb.values);
+            out.B_VB = matmul(Bm, out.VB);
+            out.VB_inv = LU(out.VB).inverse();
+            out.B_VB_inv = LU(out.B_VB).inverse();
+        }
+        if (parts.conical) {  // used only with ky != 0 (LamellarModes' D block, M1)
+            Mat KxVB = out.VB;
+            for (int j = 0; j < n; ++j)
+                for (int i = 0; i < n; ++i) KxVB(i, j) *= kx[i];
+            out.ZKx_VB = matmul(Z, KxVB);
+        }
     }
     if (parts.te && parts.tm && parts.conical) {
         out.M1 = matmul(out.WA_inv, matmul(out.ZKx_VB, out.B_VB_inv));

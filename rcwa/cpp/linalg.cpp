@@ -1,5 +1,6 @@
 #include "linalg.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <string>
 
@@ -93,6 +94,56 @@ Eigen eig(Mat A) {
                                     rwork.data());
     if (info != 0)
         throw std::runtime_error("eig: zgeev did not converge (info=" + std::to_string(info) + ")");
+    return out;
+}
+
+bool is_hermitian(const Mat& A, double tolerance) {
+    if (A.rows != A.cols) return false;
+    double largest = 0.0, asymmetry = 0.0;
+    for (int j = 0; j < A.cols; ++j)
+        for (int i = 0; i <= j; ++i) {
+            largest = std::max(largest, std::abs(A(i, j)));
+            largest = std::max(largest, std::abs(A(j, i)));
+            asymmetry = std::max(asymmetry, std::abs(A(i, j) - std::conj(A(j, i))));
+        }
+    return asymmetry <= tolerance * largest;
+}
+
+Eigen eig_hermitian(Mat A) {
+    if (A.rows != A.cols) throw std::invalid_argument("eig_hermitian: matrix is not square");
+    const int n = A.rows;
+    std::vector<double> w(static_cast<std::size_t>(n));
+    Eigen out;
+    if (n > 0) {
+        const int info = scipy_LAPACKE_zheevd(LAPACK_COL_MAJOR, 'V', 'L', n, A.ptr(), n, w.data());
+        if (info != 0) throw std::runtime_error("eig_hermitian: zheevd failed (info=" + std::to_string(info) + ")");
+    }
+    out.values.assign(w.begin(), w.end());
+    out.vectors = std::move(A);
+    return out;
+}
+
+std::optional<Eigen> eig_hermitian_definite(Mat A, Mat B) {
+    if (A.rows != A.cols || B.rows != A.rows || B.cols != A.cols)
+        throw std::invalid_argument("eig_hermitian_definite: shape mismatch");
+    const int n = A.rows;
+    std::vector<double> w(static_cast<std::size_t>(n));
+    if (n > 0) {
+        const int info = scipy_LAPACKE_zhegvd(LAPACK_COL_MAJOR, 1, 'V', 'L', n, A.ptr(), n, B.ptr(), n, w.data());
+        if (info > n) return std::nullopt;  // B is not positive definite
+        if (info != 0)
+            throw std::runtime_error("eig_hermitian_definite: zhegvd failed (info=" + std::to_string(info) + ")");
+    }
+    Eigen out;
+    out.values.assign(w.begin(), w.end());
+    out.vectors = std::move(A);
+    return out;
+}
+
+Mat adjoint(const Mat& A) {
+    Mat out(A.cols, A.rows);
+    for (int j = 0; j < A.cols; ++j)
+        for (int i = 0; i < A.rows; ++i) out(j, i) = std::conj(A(i, j));
     return out;
 }
 

@@ -56,6 +56,18 @@ struct Eigen {
 };
 Eigen eig(Mat A);
 
+// Whether A equals its conjugate transpose to `tolerance` relative to its largest entry.
+bool is_hermitian(const Mat& A, double tolerance);
+// Eigen-decomposition of a Hermitian matrix (lower triangle read; LAPACK zheevd,
+// divide and conquer): A = V diag(w) V^H, w real, V unitary.
+Eigen eig_hermitian(Mat A);
+// The Hermitian-definite pencil A v = w B v (lower triangles read; LAPACK zhegvd with
+// itype 1): w real, V^H B V = I. Nothing when B is not positive definite (its Cholesky
+// factorization fails).
+std::optional<Eigen> eig_hermitian_definite(Mat A, Mat B);
+// The conjugate transpose.
+Mat adjoint(const Mat& A);
+
 // The eigen-decomposition of A refined from approximate eigenvectors `guess` (columns),
 // such as those of a neighbouring matrix in a sweep, by Newton's iteration on the
 // decomposition: with M = W^-1 A W (nearly diagonal), each step replaces W by W (I + P),

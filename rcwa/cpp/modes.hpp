@@ -79,7 +79,8 @@ struct LamellarEigen {
     Mat WA_inv, VB_inv, B_VB_inv;
     Mat M1;        // WA^-1 Z Kx VB (B VB)^-1
     Mat M3;        // VB^-1 Kx WA muA^-1 WA^-1
-    int refined = 0;  // how many of the two eigen-solves were refined from `near` (0-2)
+    int refined = 0;    // how many of the two eigen-solves were refined from `near` (0-2)
+    int hermitian = 0;  // how many were solved as Hermitian problems (0-2; see LamellarParts)
 };
 // Which parts of a LamellarEigen to compute. At ky = 0 the families never couple: the TE
 // family (A) alone serves s incidence, the TM family (B) alone p incidence, and the
@@ -87,9 +88,17 @@ struct LamellarEigen {
 // out stay empty.
 struct LamellarParts {
     bool te = true;       // WA, muA, WA_inv
-    bool tm = true;       // VB, muB, B_VB, ZKx_VB, VB_inv, B_VB_inv
-    bool conical = true;  // M1, M3 (need both families)
+    bool tm = true;       // VB, muB, B_VB, VB_inv, B_VB_inv
+    bool conical = true;  // ZKx_VB; M1, M3 (need both families)
+    // Lossless layers (E and Exx Hermitian to kHermitianTolerance: a real permittivity
+    // everywhere, and kx real) may use Hermitian eigen-solvers, whose eigenvectors also give
+    // the inverses: TE, MA = E - Kx^2 is Hermitian (zheevd: WA unitary, WA^-1 = WA^H); TM,
+    // MB v = mu v is the Hermitian-definite pencil (Exx B Exx) w = mu Exx w with v = Exx w
+    // (zhegvd, when Exx is positive definite: every permittivity > 0), so VB^-1 = W^H and
+    // B VB = W mu. Otherwise, or with a `near` guess, the general zgeev path.
+    bool hermitian = false;
 };
+constexpr double kHermitianTolerance = 1e-14;
 // Z = E^-1 is passed in (it depends on the wavelength only; unused when only the TE
 // family is asked for). `near`: the solution at a nearby kx, whose eigenvectors seed
 // eig_from_guess (linalg.hpp) instead of a full eigen-solve; nullptr, or a guess that does

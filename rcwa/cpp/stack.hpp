@@ -24,6 +24,7 @@ struct StackSolution {
     CVec kz_superstrate;  // N, outgoing branch
     CVec kz_substrate;    // N
     bool decoupled = false;  // solved per polarization on N x N blocks (polarized.hpp)
+    int hermitian_solves = 0;  // eigen-solves done by Hermitian solvers (lossless layers: LamellarParts)
 };
 
 // kz of every harmonic in a half-space of permittivity eps, outgoing branch (outgoing_sqrt).

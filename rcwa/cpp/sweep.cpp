@@ -57,12 +57,17 @@ std::vector<Mat> inverse_laurent(const SweepProblem& pr) {
 
 // Per-kx0 work shared by the points of a group: the lamellar eigen-solves, seeded by the
 // previous group's (`near`, at a neighbouring kx0) where there is one.
-SharedEigen shared_eigen(const SweepProblem& pr, const std::vector<Mat>& Z, const Harmonics& h, const SharedEigen* near) {
+// `hermitian`: lossless layers may use Hermitian solvers (LamellarParts); single solves only.
+SharedEigen shared_eigen(const SweepProblem& pr, const std::vector<Mat>& Z, const Harmonics& h, const SharedEigen* near,
+                         bool hermitian = false) {
     SharedEigen out(pr.layers.size());
+    LamellarParts parts;
+    parts.hermitian = hermitian;
     for (std::size_t k = 0; k < pr.layers.size(); ++k)
         if (pr.layers[k].kind == LayerKind::Lamellar)
-            out[k] = std::make_unique<LamellarEigen>(lamellar_eigen(
-                h.kx, pr.layers[k].matrices[0], pr.layers[k].matrices[1], Z[k], near ? (*near)[k].get() : nullptr));
+            out[k] = std::make_unique<LamellarEigen>(lamellar_eigen(h.kx, pr.layers[k].matrices[0],
+                                                                    pr.layers[k].matrices[1], Z[k],
+                                                                    near ? (*near)[k].get() : nullptr, parts));
     return out;
 }
 
@@ -91,6 +96,7 @@ StackSolution solve_decoupled(const SweepProblem& pr, const StackProblem& sp, In
     const bool te = incidence != Incidence::P, tm = incidence != Incidence::S;
     const int n = sp.harmonics.size();
     std::vector<PolarizedModes> te_layers, tm_layers;
+    int hermitian_solves = 0;
     for (const LayerInput& in : pr.layers) {
         if (in.kind == LayerKind::Uniform) {
             if (te) te_layers.push_back(uniform_polarized(sp.harmonics.kx, in.eps, Polarization::TE));
@@ -99,7 +105,8 @@ StackSolution solve_decoupled(const SweepProblem& pr, const StackProblem& sp, In
         }
         const Mat Z = tm ? LU(in.matrices[0]).inverse() : Mat();
         const LamellarEigen e =
-            lamellar_eigen(sp.harmonics.kx, in.matrices[0], in.matrices[1], Z, nullptr, LamellarParts{te, tm, false});
+            lamellar_eigen(sp.harmonics.kx, in.matrices[0], in.matrices[1], Z, nullptr, LamellarParts{te, tm, false, true});
+        hermitian_solves += e.hermitian;
         if (te) te_layers.push_back(lamellar_polarized(e, Polarization::TE));
         if (tm) tm_layers.push_back(lamellar_polarized(e, Polarization::TM));
     }
@@ -109,6 +116,7 @@ StackSolution solve_decoupled(const SweepProblem& pr, const StackProblem& sp, In
     out.r = Mat(2 * n, 2);
     out.t = Mat(2 * n, 2);
     out.decoupled = true;
+    out.hermitian_solves = hermitian_solves;
     const cplx not_solved(std::nan(""), std::nan(""));
     for (int i = 0; i < 2 * n; ++i) {
         if (!te) out.r(i, 0) = out.t(i, 0) = not_solved;
@@ -267,7 +275,12 @@ StackSolution solve_point(const SweepProblem& pr, std::size_t p, Incidence incid
         const StackProblem sp = stack_problem(pr, p);
         if (decoupled_point(pr, sp)) return solve_decoupled(pr, sp, incidence);
     }
-    return solve_with(pr, p, shared_eigen(pr, inverse_laurent(pr), harmonics_at(pr, pr.kx0[p], pr.ky0[p]), nullptr));
+    const SharedEigen eig =
+        shared_eigen(pr, inverse_laurent(pr), harmonics_at(pr, pr.kx0[p], pr.ky0[p]), nullptr, fast_paths);
+    StackSolution out = solve_with(pr, p, eig);
+    for (const auto& layer : eig)
+        if (layer) out.hermitian_solves += layer->hermitian;
+    return out;
 }
 
 SweepResult sweep(const SweepProblem& pr) {

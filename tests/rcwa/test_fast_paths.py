@@ -2,11 +2,13 @@
 
 In a 1D stack at k_y = 0 (classical mount) TE and TM decouple in every layer and at both
 half-spaces; the core then solves each polarization on N x N blocks, and only the one
-asked for (rcwa/cpp/polarized.hpp). In exact arithmetic this is the same computation as
-the 2N x 2N path with its zero blocks left out, so both must agree to round-off: 1e-12
-(the issue's bound; measured <= 2e-15 on these cases), on efficiencies and on every
-complex amplitude of every retained harmonic, including at a Rayleigh point, at normal
-incidence, over a metal, and for a lossless layer next to a lossy one.
+asked for (rcwa/cpp/polarized.hpp). Lossless 1D layers are solved with Hermitian
+eigen-solvers, in classical and conical mounts (rcwa/cpp/modes.hpp, LamellarParts). In
+exact arithmetic both are the general path's computation (with its zero blocks left out,
+or with other eigenvector normalizations), so they must agree to round-off: 1e-12 (the
+issue's bound; measured <= 8e-15 on these cases), on efficiencies and on every complex
+amplitude of every retained harmonic, including at a Rayleigh point, at normal incidence,
+over a metal, and for a lossless layer next to a lossy one.
 """
 
 import math
@@ -31,6 +33,7 @@ MIXED = structure([1.0], nk(1.0), nk(1.5), [
     {"thickness": 0.2, "material": nk(1.6, 0.05), "shapes": [{"material": nk(1.0, 0.05), "x": [0, 0.5]}]},  # lossy
     {"thickness": 0.1, "material": nk(2.0)},  # uniform
     {"thickness": 0.05, "material": nk(1.0), "shapes": [{"material": nk(0.2, 3.4), "x": [0.2, 0.7]}]}])  # metal
+
 # Order -2 of a 1 um grating at 600 nm grazes the air superstrate where sin(theta) = 0.2.
 RAYLEIGH_THETA = math.degrees(math.asin(0.2))
 
@@ -42,14 +45,19 @@ CASES = {
     "cd oblique, metal": (rcwa.load_structure("cd"), 633.0, 25.0, 31),
     "lossless next to lossy, metal below": (MIXED, 600.0, 20.0, 25),
 }
+# Eigen-solves done by Hermitian solvers for unpolarized light: two per lossless layer
+# (TE and TM), one where the TM pencil is not definite.
+HERMITIAN_SOLVES = {"P2 oblique": 2, "P2 normal incidence": 2, "dielectric at a Rayleigh point": 2,
+                    "cd at its Rayleigh point (normal)": 0, "cd oblique, metal": 0,
+                    "lossless next to lossy, metal below": 2}
 
 
-def _core_solutions(s, wl, theta, orders, incidence):
-    """The core's fast and general solutions of one classical-mount point."""
+def _core_solutions(s, wl, theta, orders, incidence, phi=0.0):
+    """The core's fast and general solutions of one point."""
     prep = prepare(s, wl, orders)
-    kx0, ky0 = incident_tangential_k(math.sqrt(prep.eps_sup.real), math.radians(theta), 0.0)
-    args = (kx0 + prep.dkx, ky0 + prep.dky, prep.zero, prep.eps_sup, prep.eps_sub, s_direction(0.0), prep.core_layers,
-            STACK_METHOD_OF["etm"], incidence)
+    kx0, ky0 = incident_tangential_k(math.sqrt(prep.eps_sup.real), math.radians(theta), math.radians(phi))
+    args = (kx0 + prep.dkx, ky0 + prep.dky, prep.zero, prep.eps_sup, prep.eps_sub, s_direction(math.radians(phi)),
+            prep.core_layers, STACK_METHOD_OF["etm"], incidence)
     return _core.solve_stack(*args, fast_paths=True), _core.solve_stack(*args, fast_paths=False)
 
 
@@ -74,7 +82,8 @@ def test_decoupled_efficiencies_equal_the_general_path(name, pol):
     fast = rcwa.solve(s, wl, theta, 0.0, orders, pol)
     general = rcwa.solve(s, wl, theta, 0.0, orders, pol, fast_paths=False)
     single = ("single_polarization",) if pol != "unpolarized" else ()
-    assert fast.fast_paths == ("te_tm_decoupled",) + single and general.fast_paths == ()
+    hermitian = ("hermitian_eigensolver",) if HERMITIAN_SOLVES[name] else ()
+    assert fast.fast_paths == ("te_tm_decoupled",) + single + hermitian and general.fast_paths == ()
     for key in ("R", "T", "T_into_substrate"):
         columns = {"s": [0], "p": [1], "unpolarized": [0, 1]}[pol]
         assert np.max(np.abs(fast.all_orders[key][:, columns] - general.all_orders[key][:, columns])) <= TOLERANCE_FAST
@@ -101,10 +110,61 @@ def test_single_polarization_leaves_the_other_unsolved():
 ])
 def test_coupled_or_other_stacks_take_the_general_path(theta, phi, stack):
     result = rcwa.solve(P2, 1000.0, theta, phi, 21, "s", stack=stack)
-    assert result.fast_paths == ()
+    assert result.fast_paths == ("hermitian_eigensolver",)  # P2 is lossless; its stack is not decoupled
     assert all(math.isfinite(o.R_p) for o in result.orders)
 
 
 def test_two_dimensional_cells_take_the_general_path():
     result = rcwa.solve(rcwa.load_structure("gold2d"), 550.0, 0.0, 0.0, (5, 5), "s")
     assert result.fast_paths == ()
+
+
+@pytest.mark.parametrize("name", CASES)
+def test_lossless_layers_are_found_and_only_they(name):
+    s, wl, theta, orders = CASES[name]
+    fast, general = _core_solutions(s, wl, theta, orders, INCIDENCE_OF["unpolarized"])
+    assert fast.hermitian_solves == HERMITIAN_SOLVES[name] and general.hermitian_solves == 0
+
+
+@pytest.mark.parametrize("name", ["P2 oblique", "lossless next to lossy, metal below", "cd oblique, metal"])
+@pytest.mark.parametrize("phi", [30.0, 90.0])
+def test_hermitian_solves_in_conical_mount_equal_the_general_path(name, phi):
+    """Off the classical mount the layers couple TE and TM (general 2N path), but their
+    eigen-solves are still Hermitian where the layer is lossless."""
+    s, wl, theta, orders = CASES[name]
+    fast, general = _core_solutions(s, wl, theta, orders, INCIDENCE_OF["unpolarized"], phi)
+    assert not fast.decoupled and fast.hermitian_solves == HERMITIAN_SOLVES[name]
+    for got, want in ((fast.reflected, general.reflected), (fast.transmitted, general.transmitted)):
+        assert np.max(np.abs(got - want)) <= TOLERANCE_FAST * max(1.0, float(np.max(np.abs(want))))
+
+
+def _stripe_matrices(eps_background: float, eps_stripe: float, x0: float, x1: float, n: int):
+    """Li's 1D matrices of a stripe [x0, x1] in a unit period: E = [[eps]], Exx = [[1/eps]]^-1
+    (Toeplitz, C[m, n] = c(n - m) with c(k) the Fourier coefficients of a step function)."""
+    def toeplitz(inside: float, outside: float) -> np.ndarray:
+        k = np.arange(-(n - 1), n)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            step = (np.exp(-2j * np.pi * k * x0) - np.exp(-2j * np.pi * k * x1)) / (2j * np.pi * k)
+        step[k == 0] = x1 - x0
+        c = (inside - outside) * step + outside * (k == 0)
+        idx = np.arange(n)
+        return np.ascontiguousarray(c[(idx[None, :] - idx[:, None]) + n - 1])
+    E = toeplitz(eps_stripe, eps_background)
+    return E, np.linalg.inv(toeplitz(1.0 / eps_stripe, 1.0 / eps_background))
+
+
+@pytest.mark.parametrize("phi", [0.0, 30.0])
+def test_lossless_metal_keeps_the_general_tm_solver(phi):
+    """A lossless metal (eps = -9 + 0j in its stripes): its TE matrix is Hermitian, but Exx
+    is not positive definite, so the TM pencil is not definite and TM keeps zgeev."""
+    n = 21
+    E, Exx = _stripe_matrices(1.0, -9.0, 0.2, 0.7, n)
+    layer = _core.LayerInput(_core.LayerKind.LAMELLAR, 2 * np.pi * 0.05 / 0.6, 0j, [E, Exx])
+    kx0, ky0 = incident_tangential_k(1.0, math.radians(20.0), math.radians(phi))
+    dkx = -(np.arange(n) - n // 2) * 0.6
+    args = (kx0 + dkx, np.full(n, ky0), n // 2, 1.0 + 0j, 2.25 + 0j, s_direction(math.radians(phi)), [layer],
+            STACK_METHOD_OF["etm"], _core.Incidence.BOTH)
+    fast, general = _core.solve_stack(*args, fast_paths=True), _core.solve_stack(*args, fast_paths=False)
+    assert fast.hermitian_solves == 1
+    for got, want in ((fast.reflected, general.reflected), (fast.transmitted, general.transmitted)):
+        assert np.max(np.abs(got - want)) <= TOLERANCE_FAST * max(1.0, float(np.max(np.abs(want))))
