@@ -413,7 +413,7 @@ def _generate(spec, scene: str, out: Path, renders: _RenderStore, seed: int, pre
         view_camera = camera if k == 0 else orbit(camera, rng_views.choice([-1, 1]) * rng_views.uniform(6, 12),
                                                    rng_views.uniform(-3, 3))
         fit.set(camera=view_camera)
-        rgb = renders.get(f"view{k}", partial(fit.render, seed=seed * 1000 + k))
+        rgb = renders.get(f"view{k}", partial(fit.render, seed=_frame_seed(seed, k)))
         exposure_s = _auto_exposure(rgb, sensor) * exposure_scale
         writer.capture("photos", f"view{k}", rgb, exposure_s, view_camera, rng_noise)
         if k == 0:
@@ -475,13 +475,18 @@ def _calibration_set(hidden, camera, board: Checkerboard, p: dict, light_scale: 
                 break
             pose = sample_pose(board, camera, rng_board, view=i)
         name = f"board{i:02d}"
-        rgb = renders.get(name, partial(fit.render, seed=seed * 1000 + 500 + i))
+        rgb = renders.get(name, partial(fit.render, seed=_frame_seed(seed, 500 + i)))
         writer.capture("calibration", name, rgb, _auto_exposure(rgb, writer.sensor), camera, rng_noise)
         poses[f"{name}.dng"] = pose
         if i + 1 < p["calibration_views"]:
             pose = sample_pose(board, camera, rng_board, view=i + 1)
         bar.update()
     return poses
+
+
+def _frame_seed(seed: int, frame: int) -> int:
+    """A frame's Mitsuba seed, inside its unsigned 32 bits (``--seed`` reaches 2**32 - 1)."""
+    return (seed * 1000 + frame) % 2**32
 
 
 def _flash(spec, camera) -> dict:

@@ -95,9 +95,11 @@ def render(scene: str | Path, out: str | Path, *, preset: str = "draft", spp: in
     pass_seconds = []
     if executor is None:
         loaded = mi.load_dict(scene_d)
-        images = ((p, timed(lambda p=p: np.array(mi.render(loaded, seed=seed * 100_003 + p)))) for p in range(done, passes))
+        images = ((p, timed(lambda p=p: np.array(mi.render(loaded, seed=pass_seed(seed, p)))))
+                  for p in range(done, passes))
     else:
-        futures = {p: executor.submit(timed, render_pass, spec, pass_spp, integrator, mode, seed * 100_003 + p) for p in range(done, passes)}
+        futures = {p: executor.submit(timed, render_pass, spec, pass_spp, integrator, mode, pass_seed(seed, p))
+                   for p in range(done, passes)}
         images = ((p, futures[p].result()) for p in range(done, passes))
     for p, (image, seconds) in images:
         total = image if total is None else total + image
@@ -133,6 +135,12 @@ def render(scene: str | Path, out: str | Path, *, preset: str = "draft", spp: in
     atomic_write_text(sidecar, json.dumps(info, indent=2))
     partial.unlink(missing_ok=True)
     return info | {"served": False}
+
+
+def pass_seed(seed: int, index: int) -> int:
+    """Pass ``index``'s Mitsuba seed: spread apart per render seed, inside Mitsuba's unsigned
+    32 bits (``--seed`` reaches 2**32 - 1; beyond 32 bits Mitsuba's sampler raises)."""
+    return (seed * 100_003 + index) % 2**32
 
 
 def summary(info: dict) -> str:

@@ -173,3 +173,10 @@ def test_a_dataset_from_before_file_lists_is_replaced_only_with_force(tmp_path, 
     (out / "notes.txt").unlink()
     synth("cornell_cd", out, seed=1, force=True, **tiny)
     assert "files" in json.loads((out / "run.json").read_text()) and (out / "photos" / "view1.dng").is_file()
+
+
+def test_the_largest_seed_makes_a_dataset(tmp_path, tiny):
+    """--seed reaches 2**32 - 1; frame seeds stay inside Mitsuba's 32 bits (before, seeds
+    above 4294967 ended in a TypeError inside Mitsuba's sampler)."""
+    truth = synth("cornell_cd", tmp_path / "ds", seed=2**32 - 1, **tiny)
+    assert truth["seed"] == 2**32 - 1 and (tmp_path / "ds" / "calibration" / "board01.dng").is_file()

@@ -143,3 +143,13 @@ def test_a_named_table_must_exist_be_intact_and_match_the_structure(mitsuba_vari
     sorted(p for p in (tmp_path / "damaged.zarr" / "R" / "c").rglob("*") if p.is_file())[2].unlink()
     with pytest.raises(UserInputError, match=r"cd\[0\].table.path.*chunk 2 .*damaged or missing"):
         scene_dict(mi, load_scene(_scene_with_table(tmp_path, 'table = { path = "damaged.zarr" }')), spp=1)
+
+
+def test_the_largest_seed_the_command_line_takes_renders(mitsuba_variant, tmp_path):
+    """--seed reaches 2**32 - 1; each pass's seed stays inside Mitsuba's 32 bits (before,
+    seeds above 42949 ended in a TypeError inside Mitsuba's sampler)."""
+    from renderer.render import pass_seed
+
+    info = render("cornell_cd", tmp_path / "s.exr", seed=2**32 - 1, **TINY)
+    assert info["seed"] == 2**32 - 1 and np.all(np.isfinite(_exr(tmp_path / "s.exr")))
+    assert pass_seed(3, 1) == 3 * 100_003 + 1  # small seeds keep their passes' seeds (and images)
