@@ -142,7 +142,9 @@ def solve(
     fast_paths: where a 1D stack has every k_y = 0 (classical mount) and the ETM stack is
         used, TE and TM are solved apart on N x N blocks (rcwa/cpp/polarized.hpp), and for
         ``pol="s"`` or ``"p"`` only that one: the other polarization's efficiencies and
-        amplitudes are then NaN. ``SolveResult.fast_paths`` names what was used. False
+        amplitudes are then NaN. Lossless 1D layers (real permittivity everywhere) are
+        solved with Hermitian eigen-solvers (zheevd / zhegvd), their inverses taken from the
+        eigenvectors. ``SolveResult.fast_paths`` names what was used. False
         forces the general path (to check the fast ones: tests/rcwa/test_fast_paths.py);
         the two agree to 1e-12.
     """
@@ -165,9 +167,12 @@ INCIDENCE_OF = {"s": _core.Incidence.S, "p": _core.Incidence.P, "unpolarized": _
 
 def _fast_paths(sol: _core.StackSolution, pol: Polarization) -> tuple[str, ...]:
     """Names of the fast paths the core took (reported in SolveResult.fast_paths)."""
-    if not sol.decoupled:
-        return ()
-    return ("te_tm_decoupled",) + (("single_polarization",) if pol != Polarization.UNPOLARIZED else ())
+    paths: tuple[str, ...] = ()
+    if sol.decoupled:
+        paths += ("te_tm_decoupled",) + (("single_polarization",) if pol != Polarization.UNPOLARIZED else ())
+    if sol.hermitian_solves:
+        paths += ("hermitian_eigensolver",)
+    return paths
 
 
 def check_stack(stack: str) -> None:
@@ -345,22 +350,26 @@ def _result(prep: PreparedStructure, theta_deg, phi_deg, pol, kx, ky, r, t, kz_s
     prop_R = (eps_sup.real - kt**2) > 0
     prop_T = ((eps_sub.real - kt**2) > 0) if lossless_sub else np.zeros(n, dtype=bool)
     azimuth = np.degrees(np.arctan2(ky, kx))
+    # Python scalars in bulk (tolist), not one numpy scalar at a time: the same values.
+    rows = np.flatnonzero(prop_R | prop_T)
+    amp_names = ("r_s_from_s", "r_p_from_s", "r_s_from_p", "r_p_from_p",
+                 "t_s_from_s", "t_p_from_s", "t_s_from_p", "t_p_from_p")
+    amps = np.stack([r[rows, 0], r[n + rows, 0], r[rows, 1], r[n + rows, 1],
+                     t[rows, 0], t[n + rows, 0], t[rows, 1], t[n + rows, 1]], axis=1).tolist()
+    eff = np.stack([R_pol[rows], T_pol[rows], R[rows, 0], R[rows, 1], T[rows, 0], T[rows, 1]], axis=1).tolist()
+    ms, ns, kts, azs = h.m[rows].tolist(), h.n[rows].tolist(), kt[rows].tolist(), azimuth[rows].tolist()
+    flags_R, flags_T = prop_R[rows].tolist(), prop_T[rows].tolist()
     orders = []
-    for i in np.flatnonzero(prop_R | prop_T):
-        direction_R = (_polar_deg(kt[i], eps_sup), float(azimuth[i])) if prop_R[i] else None
-        direction_T = (_polar_deg(kt[i], eps_sub), float(azimuth[i])) if prop_T[i] else None
-        amplitudes = {
-            "r_s_from_s": complex(r[i, 0]), "r_p_from_s": complex(r[n + i, 0]),
-            "r_s_from_p": complex(r[i, 1]), "r_p_from_p": complex(r[n + i, 1]),
-            "t_s_from_s": complex(t[i, 0]), "t_p_from_s": complex(t[n + i, 0]),
-            "t_s_from_p": complex(t[i, 1]), "t_p_from_p": complex(t[n + i, 1]),
-        }
+    for j in range(rows.size):
+        on_R, on_T = flags_R[j], flags_T[j]
+        R_j, T_j, R_s, R_p, T_s, T_p = eff[j]
         orders.append(
             OrderResult(
-                m=int(h.m[i]), n=int(h.n[i]), R=float(R_pol[i]) if prop_R[i] else 0.0, T=float(T_pol[i]) if prop_T[i] else 0.0,
-                R_s=float(R[i, 0]), R_p=float(R[i, 1]), T_s=float(T[i, 0]), T_p=float(T[i, 1]),
-                propagating_R=bool(prop_R[i]), propagating_T=bool(prop_T[i]),
-                direction_R=direction_R, direction_T=direction_T, amplitudes=amplitudes,
+                m=ms[j], n=ns[j], R=R_j if on_R else 0.0, T=T_j if on_T else 0.0,
+                R_s=R_s, R_p=R_p, T_s=T_s, T_p=T_p, propagating_R=on_R, propagating_T=on_T,
+                direction_R=(_polar_deg(kts[j], eps_sup), azs[j]) if on_R else None,
+                direction_T=(_polar_deg(kts[j], eps_sub), azs[j]) if on_T else None,
+                amplitudes=dict(zip(amp_names, amps[j], strict=True)),
             )
         )
     R_total = float(np.sum(R_pol))
