@@ -21,6 +21,9 @@ $(STAMP): $(SOURCES)
 	@# Mitsuba's LLVM backend needs libLLVM 19 (drjit 1.5 crashes with Debian's default 15).
 	@ls /usr/lib/*/libLLVM-19.so* >/dev/null 2>&1 || { echo "installing libllvm19 (Debian)"; \
 	  (apt-get update -q && apt-get install -y -q libllvm19) || echo "warning: libllvm19 not installed; rendering will use the scalar variant"; }
+	@# The report page's browser test drives Debian's chromium (Playwright's own browser download is not available).
+	@command -v chromium >/dev/null || { echo "installing chromium (Debian)"; \
+	  (apt-get update -q && apt-get install -y -q chromium) || echo "warning: chromium not installed; the report page's browser test will fail"; }
 	@test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
 	$(BIN)/python -m pip install -q --upgrade pip
 	$(BIN)/python -m pip install -q "scikit-build-core>=0.10" "nanobind>=2.4" "scipy-openblas32>=0.3.28" cmake ninja

@@ -18,6 +18,8 @@ from workbench.catalog import KINDS
 from workbench.cli_cache import add_cache_option, apply_cache_option
 from workbench.cli_cache import add_parsers as add_cache_parsers
 from workbench.cli_cache import run as run_cache
+from workbench.cli_report import add_parsers as add_report_parsers
+from workbench.cli_report import run as run_report
 from workbench.core.errors import UserInputError
 
 
@@ -196,6 +198,7 @@ def _build_parser() -> argparse.ArgumentParser:
     listing = commands.add_parser("list", help="the built-in structures, scenes, materials and cameras")
     listing.add_argument("kind", choices=list(KINDS), help="what to list")
     add_cache_parsers(commands)
+    add_report_parsers(commands)
     cli_calibrate.add_parsers(commands)
 
     info = rcwa_commands.add_parser("info", help="what a table holds: grid, settings, size, symmetry, integrity")
@@ -289,6 +292,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         apply_cache_option(args)
         if args.command == "cache":
             return run_cache(args)
+        if args.command == "report":
+            return run_report(args)
         if args.command == "rcwa" and args.rcwa_command == "solve":
             return _run_rcwa_solve(args)
         if args.command == "rcwa" and args.rcwa_command == "table":

@@ -1,0 +1,115 @@
+"""The fitted camera a report uses, read from calibration.json.
+
+The form (that of the synthetic dataset's truth.json, which the calibration's output
+shares): ``camera`` = {width, height, fx, fy, cx, cy, dist [k1, k2, p1, p2, k3],
+world_to_camera: {file name: 4 x 4}} (OpenCV's model and axes, metres), optionally a
+``scene`` (the scene's name or file it was made for) and ``camera_std`` (standard
+deviations of fx, fy, cx, cy, dist, and ``rotation_deg``/``translation_m``) when the
+calibration estimated them. The pose is the one listed for the photo's file name, or
+the only one listed.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from renderer.camera import CameraModel
+from workbench.core.errors import UserInputError
+
+INTRINSIC_KEYS = ("width", "height", "fx", "fy", "cx", "cy")
+
+
+@dataclass
+class FittedCamera:
+    """The camera for one photo, where it came from, and its uncertainties (when given)."""
+
+    model: CameraModel
+    source: str
+    pose_key: str
+    scene: str | None
+    std: dict[str, Any] = field(default_factory=dict)
+
+    def summary(self) -> dict[str, Any]:
+        m = self.model
+        fov_x = 2 * math.degrees(math.atan(0.5 * m.width / m.fx))
+        origin = -m.world_to_camera[:3, :3].T @ m.world_to_camera[:3, 3]
+        return {"source": self.source, "pose_of": self.pose_key, "scene": self.scene, "width": m.width,
+                "height": m.height, "fx": m.fx, "fy": m.fy, "cx": m.cx, "cy": m.cy, "dist": list(m.dist),
+                "fov_x_deg": fov_x, "position_m": origin.tolist(), "std": self.std}
+
+
+def _number(value: Any, where: str, source: str) -> float:
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+        raise UserInputError("must be a finite number", file=source, field=where, got=value)
+    return float(value)
+
+
+def _pose(value: Any, where: str, source: str) -> np.ndarray:
+    matrix = np.asarray(value, dtype=object)
+    if matrix.shape != (4, 4):
+        raise UserInputError("must be a 4 x 4 matrix", file=source, field=where, got=value)
+    matrix = np.array([[_number(x, where, source) for x in row] for row in matrix], float)
+    rotation = matrix[:3, :3]
+    if not np.allclose(rotation @ rotation.T, np.eye(3), atol=1e-6) or np.linalg.det(rotation) <= 0:
+        raise UserInputError("its 3 x 3 part is not a rotation", file=source, field=where)
+    return matrix
+
+
+def read_camera(path: str | Path, photo_name: str) -> FittedCamera:
+    """The camera of ``photo_name`` (a file name) from ``path`` (module docstring)."""
+    path = Path(path)
+    source = str(path)
+    try:
+        data = json.loads(path.read_text())
+    except FileNotFoundError:
+        raise UserInputError("no such file", field="--calibration", got=source) from None
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as error:
+        raise UserInputError(f"not a readable JSON file ({error})", field="--calibration", got=source) from None
+    if not isinstance(data, dict) or not isinstance(data.get("camera"), dict):
+        raise UserInputError("has no camera block", file=source, field="camera",
+                             expected="{width, height, fx, fy, cx, cy, dist, world_to_camera: {file: 4x4}}")
+    block = data["camera"]
+    values = {}
+    for key in INTRINSIC_KEYS:
+        if key not in block:
+            raise UserInputError("is missing", file=source, field=f"camera.{key}")
+        values[key] = _number(block[key], f"camera.{key}", source)
+    dist = block.get("dist", [0.0] * 5)
+    if not isinstance(dist, list) or len(dist) != 5:
+        raise UserInputError("must be 5 numbers [k1, k2, p1, p2, k3]", file=source, field="camera.dist", got=dist)
+    poses = block.get("world_to_camera")
+    if isinstance(poses, list):
+        poses = {photo_name: poses}
+    if not isinstance(poses, dict) or not poses:
+        raise UserInputError("is missing", file=source, field="camera.world_to_camera",
+                             expected="{file name: 4 x 4 matrix}")
+    if photo_name in poses:
+        key = photo_name
+    elif len(poses) == 1:
+        key = next(iter(poses))
+    else:
+        raise UserInputError(f"has no pose for the photo {photo_name!r}", file=source, field="camera.world_to_camera",
+                             expected=f"one of {sorted(poses)[:8]}")
+    model = CameraModel(int(values["width"]), int(values["height"]), values["fx"], values["fy"], values["cx"],
+                        values["cy"], tuple(_number(d, "camera.dist", source) for d in dist),  # type: ignore[arg-type]
+                        _pose(poses[key], f"camera.world_to_camera.{key}", source))
+    std = data.get("camera_std") or block.get("std") or {}
+    scene = data.get("scene")
+    return FittedCamera(model, source, key, str(scene) if scene is not None else None,
+                        std if isinstance(std, dict) else {})
+
+
+def check_scene(camera: FittedCamera, spec, scene_argument: str) -> None:
+    """A calibration made for another scene is refused (when it names its scene)."""
+    if camera.scene is None:
+        return
+    names = {spec.name, scene_argument, Path(scene_argument).stem, Path(scene_argument).name}
+    if camera.scene not in names and Path(camera.scene).stem not in names:
+        raise UserInputError(f"the calibration was made for the scene {camera.scene!r}, not {spec.name!r}",
+                             file=camera.source, field="scene", expected=f"a calibration of {spec.name!r}")

@@ -1,0 +1,397 @@
+"""The CD's colour fringes measured in an image: its rim, and the edges of each order's lit band.
+
+What a pixel sees (issue 15): the ceiling light spans about +-7 deg from the CD, so a
+pixel of a diffracted band receives some 300 nm of spectrum and colour changes only
+about 0.5 nm per pixel along a radius. The sharp, comparable features are the edges of
+each order's lit band: where a colour channel's brightness crosses half its band maximum
+(above the local background), along circles about the CD's centre and along radii.
+
+How (per image: photo, render, or the prediction of reports.prediction):
+
+* Profiles: the image is sampled on the polar grids of reports.polar (the same pixel
+  positions for every image) and smoothed by [1, 2, 1] / 4 along the profile.
+* Bands: the prediction says, per profile, order and channel, where the band is (its lit
+  fraction above ``LIT_THRESHOLD`` of its maximum there); a band whose peak lit fraction
+  is below ``MIN_BAND_LIT`` is too dim in that channel to use.
+* Edges: in the image, the band's window (the predicted band widened by
+  ``WINDOW_EXTENSION_PX`` on each side) gives the peak; the background is the median of
+  the window where no order is predicted lit; the half level is their mean. From the peak
+  outward the first crossing of the half level, linearly interpolated, is the edge. The
+  prediction's own edges are the half-maximum crossings of its lit fraction (background 0).
+* Quality: ``missing`` (no crossing inside the window), ``overlap`` (another order's band
+  reaches into the window: the edge is ambiguous), ``clipped`` (saturated photo pixels in
+  the band), ``weak`` (contrast under ``SNR_MIN`` noise sigmas, or the edge's position
+  uncertainty, noise / slope, over ``EDGE_SIGMA_MAX_PX``), else ``ok``. Noise is measured
+  on the profile itself inside the band: the robust spread about a running mean.
+
+The rim: edges of the CD's disk are found along normals of the expected rim (the camera's
+projection of the rim circle), at the strongest brightness gradient (parabolic sub-pixel
+peak), and an ellipse is fitted to them (cv2.fitEllipse, outliers over
+``RIM_OUTLIER_PX`` dropped), so a photo's CD is located from the photo itself and a
+wrong pose shows up as an offset.
+"""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass
+
+import cv2
+import numpy as np
+
+from reports.polar import PolarGrid, sample
+
+SMOOTH_KERNEL = np.array([0.25, 0.5, 0.25])
+LIT_THRESHOLD = 0.02  # fraction of the band's own maximum where the predicted band starts
+OTHER_ORDER_LIT = 0.01  # lit fractions below this (1 % of the light) count as dark
+OTHER_ORDER_SHARE = 0.1  # another order lit in the same channel above this share of the band's peak: an ambiguous edge
+MIN_BAND_LIT = 0.08  # a channel whose predicted lit fraction peaks below this sees too little of the band
+WINDOW_EXTENSION_PX = 6.0  # an image's edge may lie this far outside the predicted band and still be found
+PEAK_PERCENTILE = 90.0  # the band's maximum, robust to outliers
+HOLD_PX = 1.0  # a crossing counts when the profile stays beyond it for this long
+SNR_MIN = 6.0  # contrast over noise sigma below which an edge is weak
+EDGE_SIGMA_MAX_PX = 0.5  # position uncertainty (noise / slope) above which an edge is weak
+MAD_TO_SIGMA = 1.4826
+RIM_SEARCH_PX = 8.0  # how far from the expected rim the photo's rim is looked for
+RIM_NORMALS = 360
+RIM_OUTLIER_PX = 1.5
+RIM_MIN_POINTS = 24
+CHANNELS = ("R", "G", "B")
+
+
+@dataclass
+class Edge:
+    """One band edge found in one image (positions in samples along the profile)."""
+
+    kind: str  # "circle" or "radius"
+    profile: int
+    label: float  # rho (circle) or azimuth in degrees (radius)
+    order: int
+    channel: str
+    band: int  # the band's number along this profile (for this order and channel)
+    side: str  # "start" or "end": where the band begins or ends along the profile
+    position: float
+    coordinate: float  # azimuth in degrees (circle) or rho (radius)
+    x: float
+    y: float
+    sigma_px: float
+    contrast: float
+    snr: float
+    quality: str
+
+    def key(self) -> tuple:
+        return (self.kind, self.profile, self.order, self.channel, self.band, self.side)
+
+    def to_json(self) -> dict:
+        return asdict(self)
+
+
+@dataclass
+class _Band:
+    order_index: int
+    channel: int
+    start: int  # first lit sample (unrolled indices)
+    stop: int  # last lit sample
+    number: int
+
+
+def smooth(profile: np.ndarray, periodic: bool) -> np.ndarray:
+    """[1, 2, 1] / 4 along the last axis (wrapping for periodic profiles; ends kept)."""
+    if periodic:
+        return 0.25 * np.roll(profile, 1, -1) + 0.5 * profile + 0.25 * np.roll(profile, -1, -1)
+    out = profile.copy()
+    out[..., 1:-1] = 0.25 * profile[..., :-2] + 0.5 * profile[..., 1:-1] + 0.25 * profile[..., 2:]
+    return out
+
+
+def _runs(mask: np.ndarray) -> list[tuple[int, int]]:
+    """(first, last) of each run of True."""
+    padded = np.concatenate([[False], mask, [False]]).astype(np.int8)
+    d = np.diff(padded)
+    return list(zip(np.flatnonzero(d == 1), np.flatnonzero(d == -1) - 1, strict=True))
+
+
+def _bands(pred: np.ndarray) -> list[_Band]:
+    """The predicted bands of one profile: pred (orders, 3, n) lit fractions (unrolled)."""
+    out = []
+    for i in range(pred.shape[0]):
+        for c in range(3):
+            line = pred[i, c]
+            top = np.nanmax(line) if np.any(np.isfinite(line)) else 0.0
+            if not top > 0:
+                continue
+            number = 0
+            for first, last in _runs(np.nan_to_num(line) > LIT_THRESHOLD * top):
+                if np.nanmax(line[first:last + 1]) >= MIN_BAND_LIT:
+                    out.append(_Band(i, c, int(first), int(last), number))
+                    number += 1
+    return out
+
+
+def _crossing(values: np.ndarray, peak: int, level: float, step: int, limit: int, hold: int) -> float | None:
+    """Fractional index where ``values`` falls to ``level`` going from ``peak`` by ``step``
+    (within ``limit``) and stays below it for ``hold`` more samples (or to the limit): a
+    dip of noise inside the band is passed over. Linear interpolation at the crossing."""
+    j = peak
+    while True:
+        k = j + step
+        if (step < 0 and k < limit) or (step > 0 and k > limit):
+            return None
+        if not np.isfinite(values[k]):
+            return None
+        if values[k] <= level:
+            following = k + step * np.arange(hold + 1)
+            after = values[following[(following >= 0) & (following < len(values))]]
+            if np.all(after[np.isfinite(after)] <= level):
+                a, b = values[j], values[k]
+                t = (a - level) / (a - b) if a != b else 0.5
+                return j + step * t
+        j = k
+
+
+def _profile_noise(raw: np.ndarray, band: _Band, hold: int) -> float:
+    """Noise sigma of a profile inside a band: the robust spread of the raw profile about its
+    running mean over 2 hold + 1 samples (edges excluded), corrected for that mean's share."""
+    first, last = band.start + hold, band.stop - hold
+    if last - first < 2 * hold + 2:
+        first, last = band.start, band.stop
+    segment = raw[first:last + 1]
+    segment = segment[np.isfinite(segment)]
+    width = 2 * hold + 1
+    if len(segment) < width + 2:
+        return float("inf")
+    mean = np.convolve(segment, np.ones(width) / width, mode="valid")
+    residual = segment[hold:hold + len(mean)] - mean
+    spread = MAD_TO_SIGMA * float(np.median(np.abs(residual - np.median(residual))))
+    return spread / np.sqrt(1.0 - 1.0 / width)
+
+
+def _profile_edges(values: np.ndarray, raw: np.ndarray | None, clipped: np.ndarray | None, pred: np.ndarray,
+                   step_px: np.ndarray, own_prediction: bool) -> list[tuple[_Band, str, float, float, float, float, str]]:
+    """Edges of every predicted band in one profile (unrolled): (band, side, position,
+    sigma_px, contrast, snr, quality). ``values`` (3, n) is the image's smoothed profile and
+    ``raw`` the same before smoothing; for the prediction itself (``own_prediction``) the
+    per-order lit fractions ``pred`` are used instead."""
+    n = pred.shape[-1]
+    lit = np.nan_to_num(pred)
+    lit_anywhere = (lit.max(axis=1) > np.maximum(LIT_THRESHOLD * lit.max(axis=(1, 2))[:, None], OTHER_ORDER_LIT)).any(axis=0)
+    mean_step = float(np.nanmean(step_px)) if np.any(np.isfinite(step_px)) else 1.0
+    extension = int(np.ceil(WINDOW_EXTENSION_PX / max(mean_step, 1e-6)))
+    hold = int(np.ceil(HOLD_PX / max(mean_step, 1e-6)))
+    found = []
+    for band in _bands(pred):
+        line = pred[band.order_index, band.channel] if own_prediction else values[band.channel]
+        w0, w1 = max(band.start - extension, 0), min(band.stop + extension, n - 1)
+        window = line[w0:w1 + 1]
+        if not np.any(np.isfinite(window)):
+            continue
+        inside = line[band.start:band.stop + 1]
+        peak = band.start + int(np.nanargmax(inside))
+        if own_prediction:
+            top, background = float(line[peak]), 0.0
+        else:  # a high percentile, not the maximum: one bright outlier must not raise the half level
+            top = float(np.nanpercentile(inside, PEAK_PERCENTILE)) if len(inside) >= 4 else float(np.nanmax(inside))
+            dark = ~lit_anywhere[w0:w1 + 1] & np.isfinite(window)
+            background = float(np.median(window[dark])) if dark.any() else float(np.nanmin(window))
+        contrast = top - background
+        level = background + 0.5 * contrast
+        band_peak = float(np.max(lit[band.order_index, band.channel, band.start:band.stop + 1]))
+        others = np.delete(lit[:, band.channel, w0:w1 + 1], band.order_index, axis=0)
+        overlapping = bool(others.size) and float(others.max()) > max(OTHER_ORDER_SHARE * band_peak, OTHER_ORDER_LIT)
+        sigma = 0.0 if own_prediction else _profile_noise(raw[band.channel], band, hold)
+        is_clipped = clipped is not None and bool(clipped[band.start:band.stop + 1].any())
+        for side, direction, limit in (("start", -1, w0), ("end", 1, w1)):
+            if (side == "start" and band.start == 0) or (side == "end" and band.stop == n - 1):
+                continue  # the band runs past the profile's end (into the rim or the hole): no edge there
+            position = _crossing(line, peak, level, direction, limit, hold) if contrast > 0 else None
+            if position is None:
+                found.append((band, side, float("nan"), float("nan"), contrast, float("nan"), "missing"))
+                continue
+            j = int(np.clip(round(position), 1, n - 2))
+            slope = abs(line[min(j + 1, n - 1)] - line[max(j - 1, 0)]) / 2.0  # per sample
+            px = float(step_px[j]) if np.isfinite(step_px[j]) else mean_step
+            sigma_px = sigma / slope * px if slope > 0 else float("inf")
+            snr = contrast / sigma if sigma > 0 else float("inf")
+            quality = ("overlap" if overlapping else "clipped" if is_clipped else
+                       "weak" if (snr < SNR_MIN or sigma_px > EDGE_SIGMA_MAX_PX) else "ok")
+            found.append((band, side, float(position), sigma_px, contrast, snr, quality))
+    return found
+
+
+def _seam(total: np.ndarray) -> int:
+    """Where a circle is cut open: a sample where the predicted bands are dimmest."""
+    return int(np.argmin(np.nan_to_num(total, nan=np.inf)))
+
+
+def find_edges(polar: PolarGrid, pred_samples: np.ndarray, orders: list[int], image: np.ndarray | None = None,
+               clipped: np.ndarray | None = None) -> list[Edge]:
+    """Band edges along every profile of ``polar``.
+
+    ``pred_samples`` (orders, 3, radii, azimuths): the prediction sampled on the grid.
+    ``image`` (H, W, 3) linear camera RGB; None measures the prediction's own edges.
+    ``clipped`` (H, W) bool: saturated pixels.
+    """
+    periodic = polar.kind == "circle"
+    pred = smooth(np.moveaxis(pred_samples, 3 if periodic else 2, -1), periodic)  # (orders, 3, profiles, n)
+    if image is not None:
+        raw = np.moveaxis(sample(image, polar, robust=True), (2, 1 if periodic else 0), (0, -1))
+        values = smooth(raw, periodic)
+        clip = (np.moveaxis(sample(clipped.astype(np.float32), polar), 1 if periodic else 0, -1) > 0
+                if clipped is not None else None)
+    steps = polar.step_px()
+    steps = steps if periodic else steps.T  # (profiles, n)
+    edges: list[Edge] = []
+    for p in range(polar.profile_count):
+        roll = _seam(pred[:, :, p].sum(axis=(0, 1))) if periodic else 0
+        unroll = (lambda a, r=roll: np.roll(a, -r, axis=-1))  # noqa: E731
+        found = _profile_edges(unroll(values[:, p]) if image is not None else None,
+                               unroll(raw[:, p]) if image is not None else None,
+                               unroll(clip[p]) if image is not None and clip is not None else None,
+                               unroll(pred[:, :, p]), unroll(steps[p]), own_prediction=image is None)
+        n = pred.shape[-1]
+        for band, side, position, sigma_px, contrast, snr, quality in found:
+            original = (position + roll) % n if periodic and np.isfinite(position) else position
+            xy = polar.point(p, original) if np.isfinite(original) else np.array([np.nan, np.nan])
+            edges.append(Edge(polar.kind, p, polar.profile_label(p), orders[band.order_index], CHANNELS[band.channel],
+                              band.number, side, float(original),
+                              polar.coordinate(original) if np.isfinite(original) else float("nan"),
+                              float(xy[0]), float(xy[1]), float(sigma_px), float(contrast), float(snr), quality))
+    return edges
+
+
+@dataclass
+class EdgePair:
+    """The same edge in two images: its offset along the profile (b minus a), in px and degrees."""
+
+    key: tuple
+    a: Edge
+    b: Edge
+    offset_px: float
+    offset_deg: float  # azimuth on the CD (circles) or the camera's visual angle (radii)
+
+
+def _signed_offset(polar: PolarGrid, a: Edge, b: Edge) -> float:
+    """The position of b minus that of a along the profile, in pixels (arc length through the grid)."""
+    n = polar.pixels.shape[1] if polar.kind == "circle" else polar.pixels.shape[0]
+    d = b.position - a.position
+    if polar.kind == "circle":
+        d = (d + n / 2) % n - n / 2
+    distance = float(np.linalg.norm(np.array([b.x - a.x, b.y - a.y])))
+    return float(np.sign(d) * distance)
+
+
+def pair_edges(polar: PolarGrid, a: list[Edge], b: list[Edge], focal_px: float, *, require_ok: bool = True) -> list[EdgePair]:
+    """Edges of ``a`` and ``b`` that are the same predicted edge, both found (and ``ok`` when asked)."""
+    by_key = {e.key(): e for e in b}
+    pairs = []
+    for ea in a:
+        eb = by_key.get(ea.key())
+        if eb is None or not (np.isfinite(ea.position) and np.isfinite(eb.position)):
+            continue
+        if require_ok and (ea.quality != "ok" or eb.quality != "ok"):
+            continue
+        px = _signed_offset(polar, ea, eb)
+        if polar.kind == "circle":
+            deg = (eb.coordinate - ea.coordinate + 180.0) % 360.0 - 180.0
+        else:
+            deg = float(np.degrees(np.arctan2(px, focal_px)))
+        pairs.append(EdgePair(ea.key(), ea, eb, px, float(deg)))
+    return pairs
+
+
+def offset_summary(pairs: list[EdgePair]) -> dict:
+    """{median, p95, count} of the absolute offsets in pixels (nan when none)."""
+    values = np.abs([p.offset_px for p in pairs])
+    if not len(values):
+        return {"median": float("nan"), "p95": float("nan"), "count": 0}
+    return {"median": float(np.median(values)), "p95": float(np.percentile(values, 95)), "count": int(len(values))}
+
+
+# ---------------------------------------------------------------- the rim
+
+
+@dataclass
+class Rim:
+    """The CD's rim ellipse in an image (cv2.fitEllipse's centre, full axes, angle in degrees)."""
+
+    center: tuple[float, float]
+    axes: tuple[float, float]
+    angle_deg: float
+    points: int
+    rms_px: float
+
+    def to_json(self) -> dict:
+        return asdict(self)
+
+    def affine_to(self, other: "Rim") -> np.ndarray:
+        """The 2 x 3 affine map taking this ellipse onto ``other`` (centre, axes and orientation)."""
+        return _ellipse_matrix(other) @ np.linalg.inv(_ellipse_matrix(self))[:, :]
+
+
+def _ellipse_matrix(rim: Rim) -> np.ndarray:
+    """Unit circle to the ellipse, as a 3 x 3 homogeneous matrix."""
+    a, b = rim.axes[0] / 2, rim.axes[1] / 2
+    t = np.radians(rim.angle_deg)
+    rotation = np.array([[np.cos(t), -np.sin(t)], [np.sin(t), np.cos(t)]])
+    m = np.eye(3)
+    m[:2, :2] = rotation @ np.diag([a, b])
+    m[:2, 2] = rim.center
+    return m
+
+
+def _grey(image: np.ndarray) -> np.ndarray:
+    return np.asarray(image, np.float32)[..., :3].mean(axis=2)
+
+
+def rim_points(image: np.ndarray, expected: np.ndarray, search_px: float = RIM_SEARCH_PX) -> np.ndarray:
+    """Sub-pixel rim points: along the normal of the expected rim curve (pixels (N, 2), closed),
+    the strongest brightness gradient within ``search_px`` (parabolic peak)."""
+    grey = _grey(image)
+    centre = expected.mean(axis=0)
+    tangent = np.roll(expected, -1, axis=0) - np.roll(expected, 1, axis=0)
+    normal = np.stack([tangent[:, 1], -tangent[:, 0]], axis=1)
+    normal /= np.maximum(np.linalg.norm(normal, axis=1, keepdims=True), 1e-12)
+    normal *= np.sign(np.einsum("ij,ij->i", normal, expected - centre))[:, None]  # outward
+    steps = np.arange(-search_px, search_px + 1e-9, 0.25)
+    points = expected[:, None, :] + steps[None, :, None] * normal[:, None, :]
+    values = cv2.remap(grey, points[..., 0].astype(np.float32), points[..., 1].astype(np.float32), cv2.INTER_LINEAR,
+                       borderMode=cv2.BORDER_CONSTANT, borderValue=np.nan)
+    gradient = np.abs(np.gradient(values.astype(float), axis=1))
+    found = []
+    for i in range(len(expected)):
+        g = gradient[i]
+        if not np.all(np.isfinite(g)) or g.max() <= 0:
+            continue
+        k = int(np.argmax(g))
+        if 0 < k < len(g) - 1:
+            denom = g[k - 1] - 2 * g[k] + g[k + 1]
+            k_sub = k + (0.5 * (g[k - 1] - g[k + 1]) / denom if denom != 0 else 0.0)
+        else:
+            continue  # the strongest edge is at the search's end: not the rim
+        found.append(expected[i] + np.interp(k_sub, np.arange(len(steps)), steps) * normal[i])
+    return np.asarray(found).reshape(-1, 2)
+
+
+def _ellipse_residual(points: np.ndarray, rim: Rim) -> np.ndarray:
+    """Approximate distance (px) of points from the ellipse."""
+    inverse = np.linalg.inv(_ellipse_matrix(rim))
+    unit = points @ inverse[:2, :2].T + inverse[:2, 2]
+    r = np.linalg.norm(unit, axis=1)
+    return (r - 1.0) * np.sqrt(rim.axes[0] * rim.axes[1]) / 2
+
+
+def fit_rim(image: np.ndarray, expected: np.ndarray, search_px: float = RIM_SEARCH_PX) -> Rim | None:
+    """The rim ellipse of the CD in ``image`` near the ``expected`` rim (pixels (N, 2)), or None."""
+    points = rim_points(image, expected, search_px)
+    keep = np.ones(len(points), bool)
+    rim = None
+    for _ in range(3):
+        if keep.sum() < RIM_MIN_POINTS:
+            return None
+        (cx, cy), (w, h), angle = cv2.fitEllipse(points[keep].astype(np.float32))
+        rim = Rim((float(cx), float(cy)), (float(w), float(h)), float(angle), int(keep.sum()), 0.0)
+        residual = np.abs(_ellipse_residual(points, rim))
+        keep = residual <= max(RIM_OUTLIER_PX, 3 * MAD_TO_SIGMA * float(np.median(residual[keep])))
+    assert rim is not None
+    rim.rms_px = float(np.sqrt(np.mean(_ellipse_residual(points[keep], rim) ** 2)))
+    rim.points = int(keep.sum())
+    return rim

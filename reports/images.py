@@ -1,0 +1,232 @@
+"""Photo and render brought to one linear camera RGB, region masks, and one display transform.
+
+* Photos: raw files (DNG and other raws rawpy reads) decoded to linear camera RGB by
+  LibRaw (rawpy): bilinear demosaic, no white balance, no gamma, no brightening, the
+  file's own black and white levels, so a value is (raw - black) / (white - black);
+  pixels within ``CLIP_MARGIN`` of the white level in any neighbouring Bayer site are
+  marked clipped. Linear float images (EXR, float TIFF) are read as they are (OpenImageIO).
+  An 8-bit JPEG would need the camera's fitted response (calibration) and is refused.
+* Renders: EXR, linear camera RGB (renderer.render), read with OpenImageIO.
+* Regions: a render of shape ids with the same camera: each pixel's centre ray (through
+  the lens model) cast into the Mitsuba scene (``ray_intersect``) and the shape it meets
+  first named from the scene's keys: cd, wall_left, wall_right, wall_back, ceiling,
+  floor, light, glass. (Mitsuba's ``aov`` integrator's ``shape_index`` is not the index
+  of ``scene.shapes()`` once Mitsuba merges meshes, and its pinhole image would need a
+  nearest-neighbour warp; casting the camera's own rays avoids both.)
+* Photometric alignment: one scale, the median over wall pixels (eroded by one pixel) of
+  photo / render (channel sums), which is robust to the photo's noise and to a few wrong
+  pixels; the CD is left out (it is what is being checked).
+* Display: camera RGB -> CIE XYZ by the 3 x 3 matrix that best maps the camera's
+  sensitivities onto the CIE 1931 2-degree colour matching functions (least squares over
+  wavelength: the Luther condition, met as closely as a linear map can), white-balanced
+  on the scene's light (von Kries in the Bradford cone space, the light's XYZ to D65's),
+  -> linear sRGB (IEC 61966-2-1). One matrix for photo and render.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+from workbench.core.errors import UserInputError
+
+CLIP_MARGIN = 0.002  # of the raw range: values this close to white are treated as clipped
+RAW_SUFFIXES = {".dng", ".cr2", ".cr3", ".nef", ".arw", ".raf", ".orf", ".rw2", ".pef", ".srw"}
+FLOAT_SUFFIXES = {".exr", ".tif", ".tiff", ".hdr", ".pfm"}
+WALL_REGIONS = ("wall_left", "wall_right", "wall_back")
+MIN_WALL_PIXELS = 50
+BRADFORD = np.array([[0.8951, 0.2664, -0.1614], [-0.7502, 1.7135, 0.0367], [0.0389, -0.0685, 1.0296]])
+XYZ_TO_SRGB = np.array([[3.2404542, -1.5371385, -0.4985314], [-0.9692660, 1.8760108, 0.0415560],
+                        [0.0556434, -0.2040259, 1.0572252]])
+D65_XYZ = np.array([0.95047, 1.0, 1.08883])
+
+
+@dataclass
+class Photo:
+    """Linear camera RGB (H, W, 3) and the clipped pixels (H, W)."""
+
+    rgb: np.ndarray
+    clipped: np.ndarray
+    source: str
+    kind: str  # "raw" or "linear"
+
+
+def read_linear(path: str | Path, what: str) -> np.ndarray:
+    """A float image (H, W, 3) through OpenImageIO."""
+    import OpenImageIO as oiio
+
+    path = Path(path)
+    if not path.is_file():
+        raise UserInputError("no such file", field=what, got=str(path))
+    buf = oiio.ImageBuf(str(path))
+    if buf.has_error:
+        raise UserInputError(f"cannot read the image ({buf.geterror().strip()})", field=what, got=str(path))
+    pixels = buf.get_pixels(oiio.FLOAT)
+    if pixels is None or pixels.ndim != 3 or pixels.shape[2] < 3:
+        raise UserInputError("not an RGB image", field=what, expected="3 or more channels",
+                             got=None if pixels is None else list(pixels.shape))
+    rgb = np.asarray(pixels[..., :3], np.float32)
+    if not np.all(np.isfinite(rgb)):
+        raise UserInputError("the image holds NaN or infinite values", field=what, got=str(path))
+    return rgb
+
+
+def read_photo(path: str | Path) -> Photo:
+    """A photo as linear camera RGB (see the module docstring)."""
+    path = Path(path)
+    suffix = path.suffix.lower()
+    if not path.is_file():
+        raise UserInputError("no such file", field="--photo", got=str(path))
+    if suffix in RAW_SUFFIXES:
+        return _read_raw(path)
+    if suffix in FLOAT_SUFFIXES:
+        rgb = read_linear(path, "--photo")
+        return Photo(rgb, np.zeros(rgb.shape[:2], bool), str(path), "linear")
+    raise UserInputError("unsupported photo type", field="--photo",
+                         expected="a raw file (DNG, ...) or a linear float image (EXR, float TIFF); a JPEG needs the "
+                                  "camera's fitted response (the calibration)", got=str(path))
+
+
+def _read_raw(path: Path) -> Photo:
+    import rawpy
+
+    try:
+        with rawpy.imread(str(path)) as raw:
+            black = np.asarray(raw.black_level_per_channel, float)[raw.raw_colors_visible]
+            white = float(raw.white_level)
+            mosaic = raw.raw_image_visible.astype(float)
+            counts = raw.postprocess(gamma=(1, 1), no_auto_bright=True, use_camera_wb=False, use_auto_wb=False,
+                                     user_wb=[1.0, 1.0, 1.0, 1.0], output_bps=16, output_color=rawpy.ColorSpace.raw,
+                                     demosaic_algorithm=rawpy.DemosaicAlgorithm.LINEAR, user_flip=0,
+                                     user_black=int(round(float(np.mean(raw.black_level_per_channel)))),
+                                     user_sat=int(white), adjust_maximum_thr=0.0)
+    except (rawpy.LibRawError, OSError, ValueError) as error:
+        raise UserInputError(f"cannot read the raw file ({error})", field="--photo", got=str(path)) from None
+    clipped_sites = (mosaic - black) >= (1.0 - CLIP_MARGIN) * (white - black)
+    clipped = cv2.dilate(clipped_sites.astype(np.uint8), np.ones((3, 3), np.uint8)) > 0
+    rgb = counts.astype(np.float32) / 65535.0  # LibRaw scales (raw - black) / (white - black) to 16 bits
+    if rgb.shape[:2] != clipped.shape:
+        clipped = np.zeros(rgb.shape[:2], bool)
+    return Photo(rgb, clipped, str(path), "raw")
+
+
+# ---------------------------------------------------------------- regions
+
+
+def _region_name(shape_id: str) -> str | None:
+    """A scene shape's region (renderer.build's keys), or None for shapes that are none of them."""
+    if shape_id.startswith("cd"):
+        return "cd"
+    if shape_id.startswith("glass"):
+        return "glass"
+    if shape_id == "light":
+        return "light"
+    for word in ("left", "right", "back"):
+        if shape_id.startswith(f"{word}_wall"):
+            return f"wall_{word}"
+    for word in ("floor", "ceiling"):
+        if shape_id.startswith(word):
+            return word
+    return None
+
+
+def region_masks(spec, camera=None) -> dict[str, np.ndarray]:
+    """Boolean masks (H, W) by region: which shape each pixel's centre ray meets first, with
+    ``camera`` (the scene's by default), through the lens model (reports.prediction.pixel_rays)."""
+    from dataclasses import replace
+
+    from renderer.variant import set_variant
+
+    set_variant()
+    import drjit as dr
+    import mitsuba as mi
+
+    from renderer.build import scene_dict
+    from reports.prediction import pixel_rays
+
+    if camera is not None:
+        spec = replace(spec, camera=replace(spec.camera, model=camera))
+    camera = spec.camera.model
+    d, _built = scene_dict(mi, spec, spp=1)
+    scene = mi.load_dict(d, optimize=False)  # no merging: one shape per scene key
+    v, u = np.mgrid[0:camera.height, 0:camera.width]
+    origin, rays = pixel_rays(camera, np.stack([u.ravel(), v.ravel()], axis=1).astype(float))
+    ray = mi.Ray3f(mi.Point3f(*[np.full(len(rays), c, np.float32) for c in origin]),
+                   mi.Vector3f(*[np.ascontiguousarray(rays[:, i], np.float32) for i in range(3)]))
+    hit = scene.ray_intersect(ray)
+    masks: dict[str, np.ndarray] = {}
+    for shape in scene.shapes():
+        name = _region_name(shape.id())
+        if name is None:
+            continue
+        mine = np.array(dr.select(hit.is_valid(), hit.shape == mi.ShapePtr(shape), False)).reshape(camera.height, camera.width)
+        masks[name] = masks.get(name, np.zeros(mine.shape, bool)) | mine
+    return masks
+
+
+def photometric_scale(photo: np.ndarray, render: np.ndarray, masks: dict[str, np.ndarray],
+                      clipped: np.ndarray | None = None) -> tuple[float, int]:
+    """One scale s (photo ~ s render) from the walls: the median of the ratio of channel sums
+    over wall pixels (eroded by one pixel, unclipped, lit in both). (scale, pixels used)."""
+    walls = np.zeros(photo.shape[:2], bool)
+    for name in WALL_REGIONS:
+        if name in masks:
+            walls |= masks[name]
+    walls = cv2.erode(walls.astype(np.uint8), np.ones((3, 3), np.uint8)) > 0
+    if clipped is not None:
+        walls &= ~clipped
+    p, r = photo.sum(axis=2), render.sum(axis=2)
+    use = walls & (r > 0) & (p > 0)
+    if use.sum() < MIN_WALL_PIXELS:
+        raise UserInputError("too few wall pixels to align the photo's brightness with the render's",
+                             field="--photo", expected=f"at least {MIN_WALL_PIXELS} wall pixels seen in both",
+                             got=int(use.sum()))
+    return float(np.median(p[use] / r[use])), int(use.sum())
+
+
+# ---------------------------------------------------------------- display
+
+
+def camera_to_xyz(sensitivities: str) -> np.ndarray:
+    """The 3 x 3 matrix taking camera RGB to CIE XYZ that best maps the camera's
+    sensitivities onto the CIE 1931 2-degree observer (least squares over 380-780 nm)."""
+    import colour
+
+    from renderer.build import camera_sensitivities
+
+    cmfs = colour.MSDS_CMFS["CIE 1931 2 Degree Standard Observer"]
+    wl = np.arange(380.0, 781.0, 5.0)
+    xyz = np.stack([np.interp(wl, cmfs.wavelengths, cmfs.values[:, i]) for i in range(3)], axis=1)
+    cam = np.stack([np.interp(wl, w, s, left=0, right=0) for w, s in camera_sensitivities(sensitivities)], axis=1)
+    m, *_ = np.linalg.lstsq(cam, xyz, rcond=None)
+    return m.T
+
+
+def display_matrix(spec) -> np.ndarray:
+    """Camera RGB -> linear sRGB, white-balanced on the scene's light (module docstring);
+    the light's own camera RGB maps to equal sRGB values of luminance 1."""
+    from renderer.build import camera_sensitivities, light_spectrum
+
+    to_xyz = camera_to_xyz(spec.camera.sensitivities)
+    wl, emission = light_spectrum(spec.light.spectrum)
+    light_rgb = np.array([np.trapezoid(np.interp(wl, w, s, left=0, right=0) * emission, wl)
+                          for w, s in camera_sensitivities(spec.camera.sensitivities)])
+    light_xyz = to_xyz @ light_rgb
+    cone_light, cone_d65 = BRADFORD @ light_xyz, BRADFORD @ D65_XYZ
+    adapt = np.linalg.inv(BRADFORD) @ np.diag(cone_d65 / cone_light) @ BRADFORD
+    matrix = XYZ_TO_SRGB @ adapt @ to_xyz
+    return matrix / float((matrix @ light_rgb).mean())
+
+
+def to_display(rgb: np.ndarray, matrix: np.ndarray) -> np.ndarray:
+    """Linear camera RGB (H, W, 3) to linear sRGB (negative values clipped to 0)."""
+    return np.maximum(rgb @ matrix.T, 0.0).astype(np.float32)
+
+
+def srgb_encode(linear: np.ndarray) -> np.ndarray:
+    """The sRGB transfer function (IEC 61966-2-1) on values clipped to [0, 1]."""
+    x = np.clip(linear, 0.0, 1.0)
+    return np.where(x <= 0.0031308, 12.92 * x, 1.055 * np.power(x, 1 / 2.4) - 0.055)

@@ -1,0 +1,247 @@
+"""The report as one self-contained HTML file: works offline, makes no network request.
+
+Everything is embedded: the photo and the render as linear sRGB (after the report's one
+display transform) in float16, base64, tone-mapped in the browser (exposure 2^EV, then
+the sRGB curve) into a canvas; error maps, legends and the fringe plot as data: URIs;
+numbers as JSON in a ``<script type="application/json">`` (with ``<`` escaped, so no text
+from a file can close it). Every text that comes from a file or the command line (scene
+names, file names, metadata, messages) goes through html.escape.
+
+Controls: A/B flip between photo and render (the button, or the F key or space),
+synchronised zoom (mouse wheel, or the + and - buttons) and pan (drag) across the image
+and error-map panels, an exposure slider acting on the linear data, a choice of error map.
+"""
+
+from __future__ import annotations
+
+import base64
+import html
+import io
+import json
+from typing import Any
+
+import numpy as np
+
+COLORMAP = "magma"
+
+
+def float16_base64(image: np.ndarray) -> str:
+    """(H, W, 3) float image as little-endian float16 bytes, base64."""
+    return base64.b64encode(np.ascontiguousarray(image, dtype="<f2").tobytes()).decode("ascii")
+
+
+def png_data_uri(rgb8: np.ndarray) -> str:
+    """An (H, W, 3) or (H, W, 4) uint8 image as a PNG data: URI."""
+    from PIL import Image
+
+    buffer = io.BytesIO()
+    Image.fromarray(np.ascontiguousarray(rgb8)).save(buffer, format="PNG", optimize=True)
+    return "data:image/png;base64," + base64.b64encode(buffer.getvalue()).decode("ascii")
+
+
+def false_colour(values: np.ndarray, vmax: float, mask: np.ndarray | None = None) -> np.ndarray:
+    """``values`` in [0, vmax] through the colour map, uint8 RGB; nan and unmasked pixels black."""
+    from matplotlib import colormaps
+
+    scaled = np.clip(np.nan_to_num(values, nan=0.0) / max(vmax, 1e-12), 0.0, 1.0)
+    rgb = (colormaps[COLORMAP](scaled)[..., :3] * 255).astype(np.uint8)
+    if mask is not None:
+        rgb[~mask] = 0
+    return rgb
+
+
+def legend_data_uri(width: int = 256, height: int = 14) -> str:
+    """The colour map as a horizontal bar (its limits are printed beside it)."""
+    ramp = np.tile(np.linspace(0.0, 1.0, width)[None], (height, 1))
+    return png_data_uri(false_colour(ramp, 1.0))
+
+
+def svg_data_uri(figure) -> str:
+    buffer = io.StringIO()
+    figure.savefig(buffer, format="svg")
+    return "data:image/svg+xml;base64," + base64.b64encode(buffer.getvalue().encode("utf-8")).decode("ascii")
+
+
+def _json_for_script(data: Any) -> str:
+    """JSON safe inside a <script> element: '<', '>' and '&' escaped as unicode."""
+    text = json.dumps(data, allow_nan=False, default=_finite)
+    return text.replace("<", "\\u003c").replace(">", "\\u003e").replace("&", "\\u0026")
+
+
+def _finite(value: Any) -> Any:
+    raise TypeError(f"not JSON serialisable: {type(value).__name__}")
+
+
+def _cell(value: Any) -> str:
+    if isinstance(value, float):
+        return "-" if not np.isfinite(value) else f"{value:.4g}"
+    return html.escape(str(value))
+
+
+def table(rows: list[dict], columns: list[str] | None = None, caption: str | None = None) -> str:
+    """An HTML table of dicts (every value escaped)."""
+    if not rows:
+        return "<p class='none'>(none)</p>"
+    columns = columns or list(rows[0])
+    head = "".join(f"<th>{html.escape(c)}</th>" for c in columns)
+    body = "".join("<tr>" + "".join(f"<td>{_cell(r.get(c, ''))}</td>" for c in columns) + "</tr>" for r in rows)
+    cap = f"<caption>{html.escape(caption)}</caption>" if caption else ""
+    return f"<table>{cap}<thead><tr>{head}</tr></thead><tbody>{body}</tbody></table>"
+
+
+def key_values(pairs: dict[str, Any]) -> str:
+    body = "".join(f"<tr><th>{html.escape(str(k))}</th><td>{_cell(v)}</td></tr>" for k, v in pairs.items())
+    return f"<table class='kv'>{body}</table>"
+
+
+STYLE = """
+body { font: 14px/1.4 system-ui, sans-serif; margin: 16px; background: #f4f4f2; color: #222; }
+h1 { font-size: 20px; margin: 0 0 4px; } h2 { font-size: 16px; margin: 20px 0 6px; }
+.bar { display: flex; gap: 12px; align-items: center; flex-wrap: wrap; margin: 8px 0; }
+.panels { display: flex; gap: 10px; flex-wrap: wrap; }
+.panel { background: #111; }
+.panel .title { color: #eee; font-size: 12px; padding: 2px 6px; }
+.viewport { position: relative; overflow: hidden; cursor: grab; background: #000; }
+.stage { position: absolute; left: 0; top: 0; transform-origin: 0 0; }
+.stage canvas, .stage img { display: block; image-rendering: pixelated; }
+table { border-collapse: collapse; margin: 4px 0; background: #fff; font-size: 12px; }
+th, td { border: 1px solid #ccc; padding: 2px 6px; text-align: right; } th { background: #eee; }
+table.kv th { text-align: left; }
+.note { background: #fff7d6; border: 1px solid #e0c870; padding: 6px 10px; margin: 6px 0; }
+.error { background: #fde2e2; border: 1px solid #d88; padding: 6px 10px; margin: 6px 0; }
+.legend img { vertical-align: middle; height: 14px; width: 256px; }
+.scroll { max-height: 320px; overflow: auto; display: inline-block; }
+"""
+
+SCRIPT = r"""
+(function () {
+  const data = JSON.parse(document.getElementById('report-data').textContent);
+  const W = data.width, H = data.height;
+  function decodeHalf(b64) {
+    const bytes = Uint8Array.from(atob(b64), c => c.charCodeAt(0));
+    const half = new Uint16Array(bytes.buffer);
+    const out = new Float32Array(half.length);
+    for (let i = 0; i < half.length; i++) {
+      const h = half[i], s = (h & 0x8000) ? -1 : 1, e = (h >> 10) & 0x1f, f = h & 0x3ff;
+      out[i] = e === 0 ? s * f * 5.960464477539063e-8 : e === 31 ? (f ? NaN : s * Infinity)
+                       : s * Math.pow(2, e - 15) * (1 + f / 1024);
+    }
+    return out;
+  }
+  const images = {};
+  for (const name of Object.keys(data.linear)) images[name] = decodeHalf(data.linear[name]);
+  const state = { showing: data.order[0], ev: data.exposure_ev, zoom: 1, x: 0, y: 0 };
+  window.reportState = state;
+  const canvas = document.getElementById('ab-canvas');
+  canvas.width = W; canvas.height = H;
+  const ctx = canvas.getContext('2d');
+  const frame = ctx.createImageData(W, H);
+  function srgb(v) { v = v <= 0 ? 0 : v >= 1 ? 1 : v; return v <= 0.0031308 ? 12.92 * v : 1.055 * Math.pow(v, 1 / 2.4) - 0.055; }
+  function draw() {
+    const src = images[state.showing], gain = Math.pow(2, state.ev), px = frame.data;
+    for (let i = 0, j = 0; i < W * H; i++, j += 3) {
+      px[4 * i] = 255 * srgb(src[j] * gain) + 0.5; px[4 * i + 1] = 255 * srgb(src[j + 1] * gain) + 0.5;
+      px[4 * i + 2] = 255 * srgb(src[j + 2] * gain) + 0.5; px[4 * i + 3] = 255;
+    }
+    ctx.putImageData(frame, 0, 0);
+    document.getElementById('ab-label').textContent = state.showing;
+    document.getElementById('ev-value').textContent = state.ev.toFixed(1) + ' EV';
+  }
+  function flip() {
+    const i = data.order.indexOf(state.showing);
+    state.showing = data.order[(i + 1) % data.order.length];
+    draw();
+  }
+  const stages = Array.from(document.querySelectorAll('.stage'));
+  function applyView() {
+    for (const s of stages) s.style.transform = `translate(${state.x}px, ${state.y}px) scale(${state.zoom})`;
+  }
+  function zoomAt(factor, cx, cy) {
+    const z = Math.min(64, Math.max(0.25, state.zoom * factor)), k = z / state.zoom;
+    state.x = cx - k * (cx - state.x); state.y = cy - k * (cy - state.y); state.zoom = z; applyView();
+  }
+  for (const vp of document.querySelectorAll('.viewport')) {
+    vp.addEventListener('wheel', ev => {
+      ev.preventDefault();
+      const r = vp.getBoundingClientRect();
+      zoomAt(ev.deltaY < 0 ? 1.25 : 0.8, ev.clientX - r.left, ev.clientY - r.top);
+    }, { passive: false });
+    let drag = null;
+    vp.addEventListener('mousedown', ev => { drag = { x: ev.clientX - state.x, y: ev.clientY - state.y }; });
+    window.addEventListener('mouseup', () => { drag = null; });
+    window.addEventListener('mousemove', ev => {
+      if (drag) { state.x = ev.clientX - drag.x; state.y = ev.clientY - drag.y; applyView(); }
+    });
+  }
+  document.getElementById('flip').addEventListener('click', flip);
+  document.getElementById('zoom-in').addEventListener('click', () => zoomAt(1.25, 0, 0));
+  document.getElementById('zoom-out').addEventListener('click', () => zoomAt(0.8, 0, 0));
+  document.getElementById('zoom-reset').addEventListener('click', () => {
+    state.zoom = 1; state.x = 0; state.y = 0; applyView();
+  });
+  const slider = document.getElementById('exposure');
+  slider.value = state.ev;
+  slider.addEventListener('input', () => { state.ev = parseFloat(slider.value); draw(); });
+  window.addEventListener('keydown', ev => {
+    if (ev.target && ev.target.tagName === 'INPUT') return;
+    if (ev.key === 'f' || ev.key === 'F' || ev.key === ' ') { ev.preventDefault(); flip(); }
+  });
+  const select = document.getElementById('map-select');
+  const mapImg = document.getElementById('map-img');
+  function showMap() {
+    const m = data.maps[select.value];
+    mapImg.src = document.getElementById('map-src-' + select.value).getAttribute('src');
+    document.getElementById('map-legend').textContent = m.legend;
+  }
+  if (select) { select.addEventListener('change', showMap); showMap(); }
+  draw(); applyView();
+})();
+"""
+
+
+def render_page(*, title: str, width: int, height: int, linear: dict[str, np.ndarray], exposure_ev: float,
+                maps: dict[str, dict], sections: list[tuple[str, str]], notes: list[str], errors: list[str]) -> str:
+    """The whole page. ``linear``: name -> (H, W, 3) linear sRGB (photo first); ``maps``: name ->
+    {"uri": data URI, "legend": text}; ``sections``: (heading, trusted HTML built with table())."""
+    data = {"width": width, "height": height, "exposure_ev": exposure_ev, "order": list(linear),
+            "linear": {name: float16_base64(image) for name, image in linear.items()},
+            "maps": {name: {"legend": m["legend"]} for name, m in maps.items()}}
+    map_sources = "".join(f"<img id='map-src-{html.escape(name)}' src='{m['uri']}' alt='{html.escape(name)}' hidden>"
+                          for name, m in maps.items())
+    options = "".join(f"<option value='{html.escape(name)}'>{html.escape(name)}</option>" for name in maps)
+    first_map = next(iter(maps.values()))["uri"] if maps else ""
+    map_panel = (f"""<div class="panel"><div class="title">error map:
+      <select id="map-select">{options}</select> <span id="map-legend"></span>
+      <span class="legend"><img alt="colour scale" src="{legend_data_uri()}"></span></div>
+      <div class="viewport" style="width:{width}px;height:{height}px"><div class="stage">
+      <img id="map-img" alt="error map" src="{first_map}" width="{width}" height="{height}"></div></div></div>"""
+                 if maps else "")
+    note_html = "".join(f"<div class='note'>{html.escape(n)}</div>" for n in notes)
+    error_html = "".join(f"<div class='error'>{html.escape(e)}</div>" for e in errors)
+    body_sections = "".join(f"<h2>{html.escape(h)}</h2>{content}" for h, content in sections)
+    return f"""<!DOCTYPE html>
+<html lang="en"><head><meta charset="utf-8">
+<meta http-equiv="Content-Security-Policy"
+ content="default-src 'none'; img-src data:; style-src 'unsafe-inline'; script-src 'unsafe-inline'">
+<title>{html.escape(title)}</title><style>{STYLE}</style></head>
+<body>
+<h1>{html.escape(title)}</h1>
+{error_html}{note_html}
+<div class="bar">
+  <button id="flip" title="A/B flip (F or space)">A/B flip</button> showing <b id="ab-label"></b>
+  <label>exposure <input id="exposure" type="range" min="-12" max="12" step="0.1"></label> <span id="ev-value"></span>
+  <button id="zoom-in">+</button><button id="zoom-out">&minus;</button><button id="zoom-reset">1:1</button>
+  <span>(wheel: zoom, drag: pan; the panels move together)</span>
+</div>
+<div class="panels">
+  <div class="panel"><div class="title">photo / render (linear camera RGB, one display transform)</div>
+    <div class="viewport" style="width:{width}px;height:{height}px"><div class="stage">
+    <canvas id="ab-canvas" width="{width}" height="{height}"></canvas></div></div></div>
+  {map_panel}
+</div>
+{map_sources}
+{body_sections}
+<script type="application/json" id="report-data">{_json_for_script(data)}</script>
+<script>{SCRIPT}</script>
+</body></html>
+"""

@@ -1,0 +1,414 @@
+"""``workbench report``: a photo and a render of the same view compared, written to a folder.
+
+DIR/report.json holds every number on the page (``fringe_offset_px``: {median, p95,
+count} of the photo-render band-edge offsets where both show the edge with quality
+``ok``), DIR/fringes.csv every band edge found (photo, render, prediction) and
+DIR/report.html the page (reports.page). Steps:
+
+1. The camera: the calibration's fitted camera for the photo (reports.camera_file); the
+   scene's camera is replaced by it, so prediction, masks and render share its pixels.
+2. Photo (reports.images.read_photo) and render (EXR) as linear camera RGB, same size.
+3. Regions from a shape-id render (reports.images.region_masks); one photometric scale
+   fitted on the walls brings the render to the photo's units.
+4. The CD: rim ellipses found in both images; the grating-equation prediction
+   (reports.prediction); band edges along circles and radii (reports.fringes) in photo,
+   render and prediction, paired, offsets in pixels and degrees. Also relative to each
+   image's own CD: the photo's grid moved by the affine map between the two rim ellipses.
+5. Error maps (reports.metrics) and per-region statistics.
+
+Problems that do not stop the rest (the CD not in view, no fringes visible, no rim found)
+are reported on the page and in report.json under ``messages``.
+"""
+
+from __future__ import annotations
+
+import csv
+import dataclasses
+import io
+import json
+import math
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from reports import fringes, images, metrics, page, polar
+from reports.camera_file import FittedCamera, check_scene, read_camera
+from reports.prediction import Prediction, predict
+from workbench.core.errors import UserInputError
+from workbench.core.files import atomic_write_text
+
+REPORT_FORMAT = "workbench-report"
+CD_MAP_MARGIN_PX = 2
+FLIP_MAX = 1.0
+RELATIVE_MAX = 1.0
+DELTA_E_MAX = 20.0
+UNCERTAINTY_DRAWS = 4  # cameras drawn within the calibration's standard deviations
+MIN_OK_EDGES = 3  # fewer good edges in the photo than this: "no fringes visible"
+OFFSET_LABELS = {"photo_render": "photo vs render", "prediction_photo": "prediction vs photo",
+                 "prediction_render": "prediction vs render",
+                 "photo_render_relative_to_rim": "photo vs render, each relative to its own rim"}
+
+
+@dataclasses.dataclass
+class Inputs:
+    photo: Path
+    render: Path
+    calibration: Path
+    scene: str
+    out: Path
+    studies: tuple[Path, ...] = ()
+
+
+def _scene_with_camera(scene: str, fitted: FittedCamera):
+    from renderer.scene import load_scene
+
+    spec = load_scene(scene)
+    check_scene(fitted, spec, scene)
+    return dataclasses.replace(spec, camera=dataclasses.replace(spec.camera, model=fitted.model))
+
+
+def _check_sizes(photo: np.ndarray, render: np.ndarray, fitted: FittedCamera, inputs: Inputs) -> None:
+    size = (fitted.model.height, fitted.model.width)
+    if photo.shape[:2] != render.shape[:2]:
+        raise UserInputError(f"the photo is {photo.shape[1]} x {photo.shape[0]} but the render is "
+                             f"{render.shape[1]} x {render.shape[0]}: they must share one pixel grid", field="--render",
+                             expected="a render made with the calibration's camera", got=str(inputs.render))
+    if photo.shape[:2] != size:
+        raise UserInputError(f"the photo is {photo.shape[1]} x {photo.shape[0]} but the calibration's camera is "
+                             f"{size[1]} x {size[0]}", field="--calibration", got=str(inputs.calibration))
+
+
+def _edge_rows(source: str, grid_name: str, edges: list[fringes.Edge]) -> list[dict]:
+    return [{"source": source, "grid": grid_name, **e.to_json()} for e in edges]
+
+
+def _pair_rows(pairs: list[fringes.EdgePair]) -> list[dict]:
+    rows = []
+    for p in pairs:
+        kind, profile, order, channel, band, side = p.key
+        rows.append({"kind": kind, "profile": profile, "at": p.a.label, "order": order, "channel": channel, "band": band,
+                     "side": side, "coordinate_a": p.a.coordinate, "coordinate_b": p.b.coordinate,
+                     "offset_px": p.offset_px, "offset_deg": p.offset_deg})
+    return rows
+
+
+def _sampled_prediction(pred: Prediction, grid: polar.PolarGrid) -> np.ndarray:
+    return np.stack([polar.sample(pred.channel_image(m).transpose(1, 2, 0), grid) for m in pred.orders]).transpose(0, 3, 1, 2)
+
+
+def measure_fringes(pred: Prediction, photo: images.Photo, render: np.ndarray, grids: tuple[polar.PolarGrid, ...],
+                    focal_px: float) -> dict[str, Any]:
+    """Band edges in prediction, photo and render on ``grids``; pairs and summaries."""
+    edges: dict[str, list] = {"prediction": [], "photo": [], "render": []}
+    pairs: dict[str, list] = {"photo_render": [], "prediction_photo": [], "prediction_render": []}
+    for grid in grids:
+        sampled = _sampled_prediction(pred, grid)
+        found = {"prediction": fringes.find_edges(grid, sampled, pred.orders),
+                 "photo": fringes.find_edges(grid, sampled, pred.orders, photo.rgb, photo.clipped),
+                 "render": fringes.find_edges(grid, sampled, pred.orders, render)}
+        for name, e in found.items():
+            edges[name] += [(grid.kind, x) for x in e]
+        pairs["photo_render"] += fringes.pair_edges(grid, found["photo"], found["render"], focal_px)
+        pairs["prediction_photo"] += fringes.pair_edges(grid, found["prediction"], found["photo"], focal_px)
+        pairs["prediction_render"] += fringes.pair_edges(grid, found["prediction"], found["render"], focal_px)
+    return {"edges": edges, "pairs": pairs, "summary": {k: fringes.offset_summary(v) for k, v in pairs.items()}}
+
+
+def _quality_counts(edges: list) -> dict[str, int]:
+    counts: dict[str, int] = {}
+    for _, e in edges:
+        counts[e.quality] = counts.get(e.quality, 0) + 1
+    return counts
+
+
+def _prediction_spread(spec, fitted: FittedCamera, grids, reference: list) -> dict[str, Any] | None:
+    """The prediction's band edges for cameras drawn within the calibration's standard
+    deviations: per edge the spread (px) of where it lands, summarised."""
+    std = fitted.std or {}
+    keys = [k for k in ("fx", "fy", "cx", "cy", "rotation_deg", "translation_m") if isinstance(std.get(k), (int, float))]
+    if not keys:
+        return None
+    from scipy.spatial.transform import Rotation
+
+    rng = np.random.default_rng(0)
+    base = fitted.model
+    spreads: dict[tuple, list[float]] = {}
+    ref = {e.key(): e for _, e in reference}
+    for _ in range(UNCERTAINTY_DRAWS):
+        changes: dict[str, Any] = {k: getattr(base, k) + rng.normal(0.0, float(std[k])) for k in ("fx", "fy", "cx", "cy")
+                                   if k in keys}
+        pose = base.world_to_camera.copy()
+        if "rotation_deg" in keys:
+            turn = Rotation.from_rotvec(np.radians(rng.normal(0.0, float(std["rotation_deg"]), 3))).as_matrix()
+            pose[:3, :3], pose[:3, 3] = turn @ pose[:3, :3], turn @ pose[:3, 3]
+        if "translation_m" in keys:
+            pose[:3, 3] += rng.normal(0.0, float(std["translation_m"]), 3)
+        camera = dataclasses.replace(base, world_to_camera=pose, **changes)
+        drawn = predict(spec, camera)
+        for grid in grids:
+            for e in fringes.find_edges(grid, _sampled_prediction(drawn, grid), drawn.orders):
+                r = ref.get(e.key())
+                if r is not None and np.isfinite(e.x) and np.isfinite(r.x):
+                    spreads.setdefault(e.key(), []).append(float(np.hypot(e.x - r.x, e.y - r.y)))
+    values = [float(np.sqrt(np.mean(np.square(v)))) for v in spreads.values() if v]
+    return {"draws": UNCERTAINTY_DRAWS, "varied": keys, "edge_rms_px_median": float(np.median(values)) if values else None,
+            "edge_rms_px_p95": float(np.percentile(values, 95)) if values else None}
+
+
+def analyse_cd(spec, fitted: FittedCamera, photo: images.Photo, render: np.ndarray, messages: list[str],
+               problems: list[str]) -> dict[str, Any]:
+    """Everything about the CD (module docstring, step 4); ``problems`` for what could not be
+    done, ``messages`` for what the reader should know."""
+    from reports.prediction import cd_bbox, cd_geometry
+
+    started = time.perf_counter()
+    camera = fitted.model
+    try:
+        cd = cd_geometry(spec)
+    except UserInputError as error:
+        problems.append(f"CD: {error.reason}")
+        return {"status": "no CD"}
+    if cd_bbox(camera, cd) is None:
+        problems.append("CD: the camera does not see the CD; the rest of the report is complete")
+        return {"status": "not in view"}
+    pred = predict(spec, camera)
+    expected_rim = camera.project(cd.rim_points(on_top=True))
+    photo_rim = fringes.fit_rim(photo.rgb, expected_rim)
+    render_rim = fringes.fit_rim(render, expected_rim)
+    grids = polar.standard_grids(camera, cd)
+    measured = measure_fringes(pred, photo, render, grids, camera.fx)
+    result: dict[str, Any] = {
+        "status": "measured", "orders_predicted": pred.orders, "period_um": cd.period_um,
+        "top_dispersive": cd.top_dispersive, "prediction_seconds": pred.seconds,
+        "rim": {"expected_center_px": expected_rim.mean(axis=0).tolist(),
+                "photo": photo_rim.to_json() if photo_rim else None, "render": render_rim.to_json() if render_rim else None},
+        "edge_quality": {name: _quality_counts(e) for name, e in measured["edges"].items()},
+        "offsets": measured["summary"],
+    }
+    if photo_rim and render_rim:
+        result["rim"]["photo_minus_render_center_px"] = [photo_rim.center[0] - render_rim.center[0],
+                                                         photo_rim.center[1] - render_rim.center[1]]
+        affine = render_rim.affine_to(photo_rim)[:2]
+        own = polar.standard_grids(camera, cd, affine)
+        relative = []
+        for grid_ref, grid_own in zip(grids, own, strict=True):
+            sampled = _sampled_prediction(pred, grid_ref)
+            photo_edges = fringes.find_edges(grid_own, sampled, pred.orders, photo.rgb, photo.clipped)
+            render_edges = fringes.find_edges(grid_ref, sampled, pred.orders, render)
+            by_key = {e.key(): e for e in photo_edges}
+            step = float(np.nanmean(grid_ref.step_px()))
+            for a in render_edges:
+                b = by_key.get(a.key())
+                if b is not None and a.quality == "ok" and b.quality == "ok":
+                    relative.append(abs(b.position - a.position) * step)
+        result["offsets"]["photo_render_relative_to_rim"] = {
+            "median": float(np.median(relative)) if relative else float("nan"),
+            "p95": float(np.percentile(relative, 95)) if relative else float("nan"), "count": len(relative)}
+    else:
+        problems.append("CD: the rim ellipse was not found in " + " and ".join(
+            name for name, rim in (("the photo", photo_rim), ("the render", render_rim)) if rim is None))
+    if not cd.top_dispersive:
+        messages.append("CD: the scene's polycarbonate top is not dispersive (the mean index over 360-830 nm): the "
+                        "render's colours may shift by 2-4 nm against a real CD's; the prediction uses the same top")
+    ok_photo = result["edge_quality"]["photo"].get("ok", 0)
+    if ok_photo < MIN_OK_EDGES:
+        problems.append(f"CD: no fringes visible in the photo where the grating equation puts them ({ok_photo} band "
+                        f"edges of quality ok; {result['edge_quality']['photo']})")
+    spread = _prediction_spread(spec, fitted, grids, measured["edges"]["prediction"])
+    result["prediction_uncertainty"] = spread if spread else "the calibration gives no standard deviations"
+    result["seconds"] = time.perf_counter() - started
+    result["_measured"] = measured
+    result["_radius_px"] = polar.rim_radius_px(camera, cd)
+    return result
+
+
+def _fringe_plot(measured: dict, cd_radius_px: float) -> str:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(figsize=(7.5, 3.6), dpi=80)
+    styles = {"prediction": ("k", "."), "photo": ("tab:blue", "o"), "render": ("tab:orange", "x")}
+    for name, (colour, marker) in styles.items():
+        points = [(e.coordinate if kind == "circle" else e.label, (e.label if kind == "circle" else e.coordinate) * cd_radius_px)
+                  for kind, e in measured["edges"][name] if np.isfinite(e.position) and e.quality in ("ok", "overlap")]
+        if points:
+            azimuth, radius = np.array(points).T
+            ax.scatter(azimuth, radius, s=9 if marker != "." else 4, c=colour, marker=marker, label=name,
+                       linewidths=0.8, alpha=0.8)
+    ax.set_xlabel("azimuth on the CD (deg)")
+    ax.set_ylabel("radius (px, rim = %.0f)" % cd_radius_px)
+    ax.set_title("band edges: radius against azimuth")
+    ax.legend(loc="upper right", fontsize=8)
+    fig.tight_layout()
+    uri = page.svg_data_uri(fig)
+    plt.close(fig)
+    return uri
+
+
+def _cd_crop_mask(masks: dict[str, np.ndarray], shape: tuple[int, int]) -> np.ndarray:
+    return masks.get("cd", np.zeros(shape, bool))
+
+
+def _csv_text(rows: list[dict]) -> str:
+    if not rows:
+        return ""
+    buffer = io.StringIO()
+    writer = csv.DictWriter(buffer, fieldnames=list(rows[0]))
+    writer.writeheader()
+    writer.writerows(rows)
+    return buffer.getvalue()
+
+
+def _clean(value: Any) -> Any:
+    """JSON-safe: nan and inf become None, numpy scalars plain numbers, tuples lists."""
+    if isinstance(value, dict):
+        return {str(k): _clean(v) for k, v in value.items() if not str(k).startswith("_")}
+    if isinstance(value, (list, tuple)):
+        return [_clean(v) for v in value]
+    if isinstance(value, (np.floating, float)):
+        return float(value) if math.isfinite(float(value)) else None
+    if isinstance(value, np.integer):
+        return int(value)
+    if isinstance(value, np.ndarray):
+        return _clean(value.tolist())
+    return value
+
+
+def _studies(paths: tuple[Path, ...]) -> list[tuple[str, str]]:
+    """Accuracy-versus-time figures written by ``workbench study`` (their PNGs, embedded)."""
+    sections = []
+    for folder in paths:
+        if not folder.is_dir():
+            raise UserInputError("no such folder", field="--study", got=str(folder))
+        figures = sorted(folder.glob("study_*.png"))
+        if not figures:
+            raise UserInputError("holds no study figure (study_*.png)", field="--study", got=str(folder))
+        for figure in figures:
+            uri = "data:image/png;base64," + __import__("base64").b64encode(figure.read_bytes()).decode("ascii")
+            sections.append((f"study: {figure.name}", f"<img alt='{page.html.escape(figure.name)}' src='{uri}' "
+                                                      f"style='max-width:900px'>"))
+    return sections
+
+
+def build_report(inputs: Inputs) -> dict[str, Any]:
+    """Write DIR/report.json, DIR/fringes.csv and DIR/report.html; returns report.json's content."""
+    started = time.perf_counter()
+    messages: list[str] = []
+    problems: list[str] = []
+    fitted = read_camera(inputs.calibration, inputs.photo.name)
+    spec = _scene_with_camera(inputs.scene, fitted)
+    photo = images.read_photo(inputs.photo)
+    render = images.read_linear(inputs.render, "--render")
+    _check_sizes(photo.rgb, render, fitted, inputs)
+    study_sections = _studies(inputs.studies)
+    masks = images.region_masks(spec)
+    scale, wall_pixels = images.photometric_scale(photo.rgb, render, masks, photo.clipped)
+    aligned = render * scale
+    cd = analyse_cd(spec, fitted, photo, aligned, messages, problems)
+
+    matrix = images.display_matrix(spec)
+    photo_display, render_display = images.to_display(photo.rgb, matrix), images.to_display(aligned, matrix)
+    walls = np.zeros(photo.rgb.shape[:2], bool)
+    for name in images.WALL_REGIONS:
+        walls |= masks.get(name, False)
+    wall_level = float(np.median(photo_display[walls].mean(axis=1))) if walls.any() else float(np.median(photo_display))
+    exposure = metrics.MID_GREY / max(wall_level, 1e-12)
+    maps = {"relative error": metrics.relative_error(photo.rgb, aligned, float(np.median(photo.rgb[walls])) if walls.any()
+                                                     else float(np.median(photo.rgb))),
+            "CIEDE2000": metrics.ciede2000(photo_display, render_display, exposure)}
+    flip_map, flip_note = metrics.flip(photo_display * exposure, render_display * exposure)
+    if flip_map is not None:
+        maps["FLIP"] = flip_map
+    else:
+        messages.append(f"FLIP: {flip_note}")
+    limits = {"relative error": RELATIVE_MAX, "CIEDE2000": DELTA_E_MAX, "FLIP": FLIP_MAX}
+    statistics = metrics.region_statistics(maps, masks)
+
+    report: dict[str, Any] = {
+        "format": REPORT_FORMAT, "photo": str(inputs.photo), "render": str(inputs.render),
+        "calibration": fitted.summary(), "scene": spec.name, "scene_source": spec.source,
+        "size": [fitted.model.width, fitted.model.height], "photo_kind": photo.kind,
+        "photo_clipped_pixels": int(photo.clipped.sum()),
+        "photometric_scale": {"render_to_photo": scale, "wall_pixels": wall_pixels, "how": "median of photo / render "
+                              "(channel sums) over the walls"},
+        "display": {"camera_rgb_to_linear_srgb": matrix.tolist(), "white": "the scene's light",
+                    "exposure_for_mid_grey_walls": exposure},
+        "regions": {name: int(mask.sum()) for name, mask in masks.items()},
+        "metrics": {"per_region": statistics, "flip": flip_note, "limits_shown": limits},
+        "cd": cd, "problems": problems, "messages": messages,
+    }
+    offsets = cd.get("offsets", {})
+    report["fringe_offset_px"] = offsets.get("photo_render", {"median": None, "p95": None, "count": 0})
+    report["prediction_offset_px"] = {"photo": offsets.get("prediction_photo"), "render": offsets.get("prediction_render")}
+
+    edge_rows, pair_rows = [], []
+    if "_measured" in cd:
+        for name, edges in cd["_measured"]["edges"].items():
+            for kind, e in edges:
+                edge_rows += _edge_rows(name, kind, [e])
+        pair_rows = _pair_rows(cd["_measured"]["pairs"]["photo_render"])
+    report["seconds"] = time.perf_counter() - started
+
+    inputs.out.mkdir(parents=True, exist_ok=True)
+    atomic_write_text(inputs.out / "fringes.csv", _csv_text(edge_rows))
+    html_text = _page(report, inputs, photo_display, render_display, exposure, maps, limits, masks, cd, pair_rows,
+                      study_sections)
+    report["html_bytes"] = len(html_text.encode("utf-8"))
+    clean = _clean(report)
+    atomic_write_text(inputs.out / "report.json", json.dumps(clean, indent=2))
+    atomic_write_text(inputs.out / "report.html", html_text)
+    return clean
+
+
+def _page(report, inputs: Inputs, photo_display, render_display, exposure, maps, limits, masks, cd, pair_rows,
+          study_sections) -> str:
+    height, width = photo_display.shape[:2]
+    map_entries = {}
+    for name, values in maps.items():
+        map_entries[name] = {"uri": page.png_data_uri(page.false_colour(values, limits[name])),
+                             "legend": f"0 to {limits[name]:g} ({'photo / render - 1' if name == 'relative error' else name})"}
+    sections: list[tuple[str, str]] = []
+    fo = report["fringe_offset_px"]
+    summary_rows = []
+    for name, s in (cd.get("offsets") or {}).items():
+        summary_rows.append({"comparison": OFFSET_LABELS.get(name, name), "median px": s.get("median"),
+                             "p95 px": s.get("p95"), "edges": s.get("count")})
+    fringe_html = page.table(summary_rows, caption=f"band-edge offsets (fringe_offset_px: median {fo.get('median')}, "
+                                                   f"p95 {fo.get('p95')}, count {fo.get('count')})")
+    if "_measured" in cd:
+        radius_px = cd["_radius_px"]
+        fringe_html += f"<div><img alt='fringe radius against azimuth' src='{_fringe_plot(cd['_measured'], radius_px)}'></div>"
+        fringe_html += "<div class='scroll'>" + page.table(pair_rows, caption="photo vs render, edge by edge") + "</div>"
+        rim = cd.get("rim", {})
+        fringe_html += page.key_values({"photo rim": rim.get("photo"), "render rim": rim.get("render"),
+                                        "photo - render centre (px)": rim.get("photo_minus_render_center_px"),
+                                        "edge quality": cd.get("edge_quality"),
+                                        "prediction uncertainty": cd.get("prediction_uncertainty")})
+    else:
+        fringe_html += f"<p>{page.html.escape(str(cd.get('status')))}</p>"
+    sections.append(("CD fringes", fringe_html))
+    region_rows = []
+    for region, entry in report["metrics"]["per_region"].items():
+        row: dict[str, Any] = {"region": region, "pixels": entry["pixels"]}
+        for metric in maps:
+            stats = entry.get(metric) or {}
+            row[f"{metric} median"] = stats.get("median", float("nan"))
+            row[f"{metric} p95"] = stats.get("p95", float("nan"))
+        region_rows.append(row)
+    sections.append(("error per region", page.table(region_rows)))
+    sections.append(("calibration (the fitted camera)", page.key_values(report["calibration"])))
+    sections.append(("inputs", page.key_values({"photo": report["photo"], "render": report["render"],
+                                                "scene": report["scene"], "scene file": report["scene_source"],
+                                                "photometric scale": report["photometric_scale"]["render_to_photo"],
+                                                "report built in (s)": report["seconds"]})))
+    sections += study_sections
+    title = f"report: {report['scene']} - {Path(report['photo']).name} vs {Path(report['render']).name}"
+    errors, notes = report["problems"], report["messages"]
+    return page.render_page(title=title, width=width, height=height,
+                            linear={"photo": photo_display, "render": render_display},
+                            exposure_ev=float(np.log2(exposure)), maps=map_entries, sections=sections, notes=notes,
+                            errors=errors)
