@@ -1,0 +1,115 @@
+"""reports/page.py in a real browser: Debian's chromium driven by Playwright.
+
+The page is built from small images (no render needed: the page does not care where its
+pixels came from), loaded from file://, and used as a person would: A/B flip by button
+and key, wheel zoom and drag on one panel, the exposure slider. Chromium comes from the
+Makefile's install rule (Playwright's own browser download is not available here).
+"""
+
+import shutil
+
+import numpy as np
+import pytest
+
+from reports import page
+
+WIDTH, HEIGHT = 96, 72
+PIXEL_CHANGE = 8  # 8-bit levels: a flip or an exposure step must change the canvas by more than this somewhere
+SCREENSHOT = "report_page.png"
+
+
+def _page_html(tmp_path, title="scene <script>alert(1)</script>"):
+    rng = np.random.default_rng(0)
+    photo = rng.uniform(0.05, 0.5, (HEIGHT, WIDTH, 3)).astype(np.float32)
+    render = photo.copy()
+    render[:, : WIDTH // 2] *= 2.0  # the left half differs: the flip must show it
+    error = np.abs(photo - render).mean(axis=2)
+    maps = {"relative error": {"uri": page.png_data_uri(page.false_colour(error, 1.0)), "legend": "0 to 1"},
+            "<b>bold</b>": {"uri": page.png_data_uri(page.false_colour(error, 0.5)), "legend": "0 to 0.5"}}
+    sections = [("a table <script>", page.table([{"name": "<script>alert(2)</script>", "value": 1.5}]))]
+    text = page.render_page(title=title, width=WIDTH, height=HEIGHT, linear={"photo": photo, "render": render},
+                            exposure_ev=0.0, maps=maps, sections=sections, notes=["note <img src=x onerror=alert(3)>"],
+                            errors=[])
+    path = tmp_path / "report.html"
+    path.write_text(text)
+    return path
+
+
+def test_text_from_files_is_escaped(tmp_path):
+    text = _page_html(tmp_path).read_text()
+    assert "<script>alert" not in text
+    assert "&lt;script&gt;alert(1)&lt;/script&gt;" in text
+    assert "<img src=x" not in text
+    assert "<b>bold</b>" not in text
+
+
+@pytest.mark.slow
+def test_page_in_chromium(tmp_path):
+    chromium = shutil.which("chromium")
+    assert chromium, "Debian's chromium is missing: `make install` installs it"
+    sync_api = pytest.importorskip("playwright.sync_api", reason="playwright is in the test extras: `make install`")
+    path = _page_html(tmp_path)
+    console_errors, requests = [], []
+    with sync_api.sync_playwright() as p:
+        browser = p.chromium.launch(executable_path=chromium, args=["--no-sandbox"])
+        view = browser.new_page(viewport={"width": 900, "height": 700})
+        view.on("console", lambda m: console_errors.append(m.text) if m.type == "error" else None)
+        view.on("pageerror", lambda e: console_errors.append(str(e)))
+        view.on("request", lambda r: requests.append(r.url))
+        view.goto(path.as_uri())
+        view.wait_for_load_state("load")
+
+        assert not console_errors, console_errors
+        assert all(url.startswith(("file://", "data:")) for url in requests), requests
+        # every image decodes
+        broken = view.evaluate("Array.from(document.images).filter(i => !(i.complete && i.naturalWidth > 0)).length")
+        assert broken == 0
+        assert view.evaluate("document.images.length") >= 3
+        # the title with <script> in it shows as text
+        assert "<script>alert(1)</script>" in view.inner_text("h1")
+
+        def pixels():
+            return np.array(view.evaluate(
+                "Array.from(document.getElementById('ab-canvas').getContext('2d')"
+                f".getImageData(0, 0, {WIDTH}, {HEIGHT}).data)"), dtype=int).reshape(HEIGHT, WIDTH, 4)
+
+        photo = pixels()
+        assert view.inner_text("#ab-label") == "photo"
+        view.click("#flip")
+        render = pixels()
+        assert view.inner_text("#ab-label") == "render"
+        assert np.abs(render - photo)[:, : WIDTH // 2, :3].max() > PIXEL_CHANGE  # the left half differs
+        assert np.abs(render - photo)[:, WIDTH // 2 + 1:, :3].max() <= 1  # the right half is the same image
+        view.keyboard.press("f")
+        assert view.inner_text("#ab-label") == "photo"
+        assert np.array_equal(pixels(), photo)
+
+        # zoom on the first panel; both panels follow
+        first = view.locator(".viewport").first
+        box = first.bounding_box()
+        view.mouse.move(box["x"] + 30, box["y"] + 20)
+        view.mouse.wheel(0, -200)
+        view.wait_for_timeout(100)
+        transforms = view.evaluate("Array.from(document.querySelectorAll('.stage')).map(s => s.style.transform)")
+        assert len(transforms) == 2 and transforms[0] == transforms[1] and "scale(1.25)" in transforms[0]
+        view.mouse.down()
+        view.mouse.move(box["x"] + 50, box["y"] + 40)
+        view.mouse.up()
+        panned = view.evaluate("Array.from(document.querySelectorAll('.stage')).map(s => s.style.transform)")
+        assert panned[0] == panned[1] and panned[0] != transforms[0]
+
+        # the exposure slider acts on the linear data
+        before = pixels()
+        view.evaluate("const s = document.getElementById('exposure'); s.value = '1.5';"
+                      "s.dispatchEvent(new Event('input'))")
+        after = pixels()
+        assert (after[..., :3] >= before[..., :3]).all() and (after[..., :3] - before[..., :3]).max() > PIXEL_CHANGE
+
+        # the error-map choice changes the map shown
+        first_map = view.get_attribute("#map-img", "src")
+        view.select_option("#map-select", index=1)
+        assert view.get_attribute("#map-img", "src") != first_map
+        view.screenshot(path=str(tmp_path / SCREENSHOT), full_page=True)
+        assert not console_errors, console_errors
+        browser.close()
+    assert (tmp_path / SCREENSHOT).stat().st_size > 1000
