@@ -5,8 +5,16 @@ through ``peer_runner.py`` in a subprocess, so their pinned numpy never meets ou
 
     bash benchmarks/setup_peers.sh           # once (``make bench`` does it)
     .venv/bin/python benchmarks/bench_solve.py [--out build/bench/rcwa_solve.json]
-                     [--repeats 5] [--rounds 5] [--peers meent,grcwa] [--cases a1,a2,b]
-                     [--no-reference] [--peers-only | --no-peers]
+                     [--repeats 5] [--rounds 5] [--peers meent,grcwa] [--cases a1,a2,p2c,p2k,cd0,cd30,b]
+                     [--no-reference] [--peers-only | --no-peers] [--base SITE_DIR]
+
+Cases p2c / p2k: P2 (Moharam et al. 1995, Fig. 2) in classical (phi 0) and conical (phi 30)
+mount; cd0 / cd30: the CD at phi 0 and 30. ``--base DIR`` times another build of our
+solver in the same rounds (a subprocess importing rcwa from DIR first), e.g. the base
+commit: ``git worktree add /tmp/base HEAD; pip wheel --no-build-isolation --no-deps
+/tmp/base -w /tmp/wheel; pip install --no-deps --target /tmp/base_site /tmp/wheel/*.whl``.
+A second table prints ours for s, p and s+p against the eigen-solve floor (eigen_floor)
+and the base build.
 
 Cases (each is one JSON-able dict; ``"structure"`` is exactly the project's structure-file
 format as a dict; lengths in micrometres, wavelength in nm, angles in degrees)::
@@ -24,11 +32,13 @@ What is measured, per case, all on ONE thread (OMP/OPENBLAS/MKL_NUM_THREADS=1 fo
 for the peers):
 
 * ours: ``rcwa.solve(structure, wl, theta, phi, orders=..., pol="s")`` and the same with
-  ``pol="p"``, each the median of ``--repeats`` calls after one warm-up call, with every
+  ``pol="p"`` and ``pol="unpolarized"`` (s+p), interleaved, in CPU time
+  (``time.process_time``: the machine's background load does not count), each the
+  median of all rounds' repeats after one warm-up call, with every
   factorization in ``OUR_FACTORIZATIONS`` (the default, and in 2D also Li 1997, which is
   what meent uses). The structure is built once, outside the timing (the peers'
-  rasterization is outside theirs too). One call of ours returns both polarizations
-  (``OrderResult.R_s``/``R_p``/``T_s``/``T_p``), so "ours s+p" is one call.
+  rasterization is outside theirs too). "ours s+p" is one unpolarized call; a 1D
+  classical-mount s or p call solves only that polarization (rcwa/cpp/polarized.hpp).
 * each peer: the median time to get the efficiencies of both polarizations (meent gets
   both from one solve; grcwa re-solves the excitation), model and Fourier matrices
   included.
@@ -78,6 +88,24 @@ AIR = {"n": 1.0, "k": 0.0}
 GLASS = {"n": 1.5, "k": 0.0}
 GOLD_600NM = {"n": 0.2, "k": 3.4}  # fixed gold-like index at 600 nm (no dispersion needed here)
 
+P2_BASE = {
+    "wavelength_nm": 1000.0, "theta_deg": 10.0, "orders": [61],
+    "structure": {
+        "period": [10.0], "superstrate": AIR, "substrate": {"n": 2.04, "k": 0.0},
+        "layers": [{"thickness": 1.0, "material": AIR, "shapes": [{"material": {"n": 2.04, "k": 0.0}, "x": [0.0, 3.0]}]}],
+    },
+}
+POLYCARBONATE_633NM = {"n": 1.5805, "k": 0.0}
+ALUMINIUM_633NM = {"n": 1.3406, "k": 7.3015}
+CD_BASE = {
+    "wavelength_nm": 633.0, "theta_deg": 20.0, "orders": [61],
+    "structure": {
+        "period": [1.6], "superstrate": POLYCARBONATE_633NM, "substrate": ALUMINIUM_633NM,
+        "layers": [{"thickness": 0.11, "material": POLYCARBONATE_633NM,
+                    "shapes": [{"material": ALUMINIUM_633NM, "x": [0.5, 1.1]}]}],
+    },
+}
+
 CASES: dict[str, dict] = {
     "a1": {
         "name": "lamellar_dielectric_conical",
@@ -97,6 +125,15 @@ CASES: dict[str, dict] = {
                         "shapes": [{"material": GOLD_600NM, "x": [0.0, 0.5]}]}],
         },
     },
+    # P2: the dielectric binary grating of Moharam, Grann, Pommet & Gaylord 1995 (JOSA A 12,
+    # 1068, Fig. 2: period 10 lambda, n = 2.04, fill 0.3, 10 deg), one wavelength deep. The
+    # substrate index is given as 2.04 + 0j (k = 0.0): meent takes a wrong kz branch in
+    # classical mount for 2.04 - 0j (issue 17).
+    "p2c": {"name": "P2_classical", **P2_BASE, "phi_deg": 0.0},
+    "p2k": {"name": "P2_conical", **P2_BASE, "phi_deg": 30.0},
+    # The CD of rcwa/structures/cd.toml with its materials' indices at 633 nm.
+    "cd0": {"name": "cd_phi0", **CD_BASE, "phi_deg": 0.0},
+    "cd30": {"name": "cd_phi30", **CD_BASE, "phi_deg": 30.0},
     "b": {
         "name": "square_pillars_2d",
         "wavelength_nm": 600.0, "theta_deg": 30.0, "phi_deg": 30.0, "orders": [11, 11],
@@ -168,18 +205,14 @@ def both_pols_in_one(res) -> bool:
 
 
 def our_efficiencies(res_s, res_p) -> dict[tuple[int, int], dict[str, float]]:
-    """(m, n) -> {R_s, R_p, T_s, T_p} of the listed orders, from rcwa.solve results."""
+    """(m, n) -> {R_s, R_p, T_s, T_p} of the listed orders: s values from the pol="s"
+    result, p values from the pol="p" one (a single-polarization solve leaves the other NaN)."""
     out: dict[tuple[int, int], dict[str, float]] = {}
-    if both_pols_in_one(res_s):
-        for o in res_s.orders:
-            out[(int(o.m), int(o.n))] = {k: float(getattr(o, k)) for k in KEYS}
-        return out
     for pol, res in (("s", res_s), ("p", res_p)):
         for o in res.orders:
-            key = (int(o.m), int(getattr(o, "n", 0) or 0))
-            entry = out.setdefault(key, {k: 0.0 for k in KEYS})
-            entry["R_" + pol] = float(o.R)
-            entry["T_" + pol] = float(o.T)
+            entry = out.setdefault((int(o.m), int(getattr(o, "n", 0) or 0)), {k: 0.0 for k in KEYS})
+            for k in ("R_", "T_"):
+                entry[k + pol] = float(getattr(o, k + pol)) if hasattr(o, k + pol) else float(getattr(o, k[0]))
     return out
 
 
@@ -191,46 +224,94 @@ def our_power_into_substrate(res) -> dict[str, float] | None:
     return {"T_s": float(t[:, 0].sum()), "T_p": float(t[:, 1].sum())}
 
 
+def cpu_time() -> float:
+    """CPU time of this process (one BLAS thread): background load on the machine does not count."""
+    return time.process_time()
+
+
+POLS = (("s", "s"), ("p", "p"), ("both", "unpolarized"))
+
+
 def time_ours(rcwa, structure, case: dict, factorization: str, repeats: int) -> dict:
-    """One round: warm-up + ``repeats`` timed calls for pol s and for pol p."""
+    """One round: a warm-up, then ``repeats`` interleaved timed calls for pol s, p and
+    unpolarized (s+p), each in CPU seconds."""
     args = (structure, case["wavelength_nm"], case["theta_deg"], case["phi_deg"])
     kw = {"orders": orders_arg(case)}
     if factorization != "auto":
         kw["factorization"] = factorization
-    timings, results = {}, {}
-    for pol in ("s", "p"):
-        results[pol] = rcwa.solve(*args, pol=pol, **kw)  # warm-up
-        ts = []
-        for _ in range(repeats):
-            t0 = time.perf_counter()
-            results[pol] = rcwa.solve(*args, pol=pol, **kw)
-            ts.append(time.perf_counter() - t0)
-        timings[pol] = ts
-    return {"times_s": timings["s"], "times_p": timings["p"], "res_s": results["s"], "res_p": results["p"]}
+    timings: dict[str, list[float]] = {key: [] for key, _ in POLS}
+    results = {key: rcwa.solve(*args, pol=pol, **kw) for key, pol in POLS}  # warm-up
+    for _ in range(repeats):
+        for key, pol in POLS:
+            t0 = cpu_time()
+            results[key] = rcwa.solve(*args, pol=pol, **kw)
+            timings[key].append(cpu_time() - t0)
+    return {"times_s": timings["s"], "times_p": timings["p"], "times_both": timings["both"],
+            "res_s": results["s"], "res_p": results["p"]}
 
 
 def summarize_ours(case: dict, factorization: str, rounds: list[dict], t_build: float) -> dict:
     res = rounds[-1]["res_s"]
     kind = len(case["structure"]["period"])
     rule = str(getattr(res, "factorization", factorization))
-    one_call = both_pols_in_one(res)
-    med_s = min(statistics.median(r["times_s"]) for r in rounds)
-    med_p = min(statistics.median(r["times_p"]) for r in rounds)
-    per_call = min(statistics.median(r["times_s"] + r["times_p"]) for r in rounds)
+    med = {key: statistics.median([t for r in rounds for t in r["times_" + key]]) for key, _ in POLS}
     return {
         "factorization": rule,
         "formulation": OUR_FORMULATION.get((kind, rule), rule),
-        "seconds_s": med_s,
-        "seconds_p": med_p,
-        # time to get BOTH polarizations: one call when a result carries both
-        "seconds_both_pols": per_call if one_call else med_s + med_p,
-        "both_pols_per_call": one_call,
+        "fast_paths": {key: list(getattr(rounds[-1]["res_" + key], "fast_paths", ())) for key in ("s", "p")},
+        "seconds_s": med["s"],
+        "seconds_p": med["p"],
+        "seconds_both_pols": med["both"],  # one pol="unpolarized" call
+        "both_pols_per_call": True,
         "seconds_all_s": [t for r in rounds for t in r["times_s"]],
         "seconds_all_p": [t for r in rounds for t in r["times_p"]],
+        "seconds_all_both": [t for r in rounds for t in r["times_both"]],
         "seconds_structure_build": t_build,
         "efficiencies": our_efficiencies(res, rounds[-1]["res_p"]),
-        "power_into_substrate": our_power_into_substrate(res) if one_call else None,
+        "power_into_substrate": None,
     }
+
+
+def eigen_floor(rcwa, structure, case: dict, repeats: int) -> dict[str, float] | None:
+    """CPU seconds of the eigen-decompositions a 1D case needs, timed alone with the best
+    LAPACK routine that applies (scipy): per lamellar layer, TE: E - Kx^2 (zheevd when the
+    layer is lossless, else zgeev), TM: Exx (I - Kx E^-1 Kx) (zhegvd on the pencil
+    (Exx B Exx, Exx) when lossless, else zgeev). Classical mount: s needs TE, p needs TM;
+    conical: both for either. None for 2D cases (not measured here)."""
+    import numpy as np
+    import scipy.linalg as sla
+
+    from rcwa.solver import prepare
+
+    if len(case["structure"]["period"]) != 1:
+        return None
+    prep = prepare(structure, case["wavelength_nm"], orders_arg(case))
+    theta, phi = (float(np.radians(case[k])) for k in ("theta_deg", "phi_deg"))
+    kx = np.sqrt(prep.eps_sup.real) * np.sin(theta) * np.cos(phi) + prep.dkx
+    work: dict[str, list] = {"te": [], "tm": []}
+    for layer in prep.layers:
+        if not layer.matrices:
+            continue
+        E, Exx = layer.matrices
+        lossless = np.allclose(E, E.conj().T, rtol=0, atol=1e-14 * np.abs(E).max())
+        MA = E - np.diag(kx**2)
+        B = np.eye(kx.size) - kx[:, None] * np.linalg.inv(E) * kx[None, :]
+        if lossless:
+            work["te"].append(lambda MA=MA: sla.eigh(MA, driver="evd"))
+            work["tm"].append(lambda A=Exx @ B @ Exx, Exx=Exx: sla.eigh(A, Exx, driver="gvd"))
+        else:
+            work["te"].append(lambda MA=MA: sla.eig(MA, left=False, right=True))
+            work["tm"].append(lambda M=Exx @ B: sla.eig(M, left=False, right=True))
+    times: dict[str, list[float]] = {"te": [], "tm": []}
+    for _ in range(repeats):
+        for key in times:
+            t0 = cpu_time()
+            for job in work[key]:
+                job()
+            times[key].append(cpu_time() - t0)
+    te, tm = (statistics.median(times[k]) for k in ("te", "tm"))
+    classical = case["phi_deg"] == 0.0
+    return {"s": te if classical else te + tm, "p": tm if classical else te + tm, "both": te + tm}
 
 
 # --------------------------------------------------------------------------------------------
@@ -355,9 +436,9 @@ def print_table(rows: list[dict]) -> None:
                       f"{fmt_e(ours and ours.get('err_vs_reference'))} {fmt_e(peer.get('err_vs_reference'))}  "
                       f"{(cmp or {}).get('formulations_match', '-')}")
     print("ours: our factorization rule (* = the default, factorization='auto').")
-    print("Times: ms, one thread, min over rounds of the median of the repeats. ours s / ours p: one")
-    print("rcwa.solve call with pol=s / p; ours s+p: the time to get both polarizations (one call when a")
-    print("result carries both, as ours does); peer s+p: the same for the peer. ratio = peer s+p / ours s+p")
+    print("Times: ms, one thread. ours: CPU time, the median of all rounds' repeats; ours s / p / s+p: one")
+    print("rcwa.solve call with pol=s / p / unpolarized. peer s+p: the peer's time to get both polarizations")
+    print("(peer_runner, min over rounds of the median). ratio = peer s+p / ours s+p")
     print("(> 1: we are faster). max|dDE|: ours vs peer over all listed orders, R and T, s and p (R only")
     print("over an absorbing substrate). err: the same against meent at 3x the orders (1D) / 21x21 (2D).")
 
@@ -382,11 +463,18 @@ def run_case(cid: str, rcwa, peers: list[str], args) -> dict:
     peer_rounds: dict[str, list[dict]] = {p: [] for p in peers}
     # Rounds interleave our solver and the peers, so a burst of background load hits both;
     # each side keeps the best (min) of its per-round medians.
+    base_rounds: list[dict] = []
     for _ in range(args.rounds):
         for f in factorizations:
             ours_rounds[f].append(time_ours(rcwa, structure, case, f, args.repeats))
+        if args.base and rcwa is not None:
+            base_rounds.append(run_base(cid, args))
         for p in peers:
             peer_rounds[p].append(run_peer(case, p, args.repeats))
+    if rcwa is not None:
+        row["floor"] = eigen_floor(rcwa, structure, case, args.repeats * args.rounds)
+    if base_rounds:
+        row["base"] = {key: statistics.median([t for r in base_rounds for t in r[key]]) for key, _ in POLS}
     ours: list[dict] = []
     for f in factorizations:
         o = summarize_ours(case, f, ours_rounds[f], t_build)
@@ -419,6 +507,61 @@ def run_case(cid: str, rcwa, peers: list[str], args) -> dict:
     return row
 
 
+def run_base(cid: str, args) -> dict[str, list[float]]:
+    """One round of our-side timings (CPU seconds per s, p, both) with another build of the
+    solver, the site directory ``args.base`` (e.g. the base commit's wheel installed with
+    ``pip install --no-deps --target``): this script in a subprocess that imports rcwa from
+    there first (no site, no editable finder) and numpy from this environment."""
+    import numpy
+
+    site = Path(numpy.__file__).resolve().parent.parent
+    env = dict(os.environ, PYTHONPATH=f"{args.base}{os.pathsep}{site}")
+    proc = subprocess.run([sys.executable, "-S", str(Path(__file__).resolve()), "--emit-ours", "--cases", cid,
+                           "--repeats", str(args.repeats)], capture_output=True, text=True, env=env, cwd=tempfile.gettempdir(),
+                          timeout=3600)
+    if proc.returncode != 0:
+        raise BenchError(f"the base build failed on {cid} (exit {proc.returncode}):\n{proc.stderr.strip()}")
+    return json.loads(proc.stdout)
+
+
+def emit_ours(cid: str, repeats: int) -> int:
+    """--emit-ours: one round of our timings of case ``cid`` as JSON on stdout (for run_base)."""
+    rcwa = import_rcwa()
+    case = CASES[cid]
+    structure = rcwa.Structure.from_dict(case["structure"], source=f"<bench case {case['name']}>")
+    t = time_ours(rcwa, structure, case, "auto", repeats)
+    print(json.dumps({"s": t["times_s"], "p": t["times_p"], "both": t["times_both"], "rcwa": rcwa.__file__}))
+    return 0
+
+
+def _ratios(num: dict | None, den: dict | None) -> str:
+    return " ".join(f"{num[k] / den[k]:5.2f}" if (num and den) else f"{'-':>5s}" for k in ("s", "p", "both"))
+
+
+def print_floor_table(rows: list[dict]) -> None:
+    """Ours per polarization against the eigen-solve floor and, with --base, another build."""
+    head = (f"{'case':22s} {'ours s':>8s} {'p':>7s} {'s+p':>7s} | {'floor s':>8s} {'p':>7s} {'s+p':>7s} | "
+            f"{'/floor s':>8s} {'p':>5s} {'s+p':>5s} | {'base s':>7s} {'p':>7s} {'s+p':>7s} | "
+            f"{'gain s':>6s} {'p':>5s} {'s+p':>5s}")
+    print()
+    print(head)
+    print("-" * len(head))
+    for r in rows:
+        ours = (r.get("ours") or [None])[0]
+        if ours is None:
+            continue
+        mine = {"s": ours["seconds_s"], "p": ours["seconds_p"], "both": ours["seconds_both_pols"]}
+        floor, base = r.get("floor"), r.get("base")
+        print(f"{r['name']:22s} {fmt_ms(mine['s'])} {fmt_ms(mine['p'], 7)} {fmt_ms(mine['both'], 7)} | "
+              f"{fmt_ms(floor and floor['s'])} {fmt_ms(floor and floor['p'], 7)} {fmt_ms(floor and floor['both'], 7)} | "
+              f"   {_ratios(mine, floor)} | {fmt_ms(base and base['s'], 7)} {fmt_ms(base and base['p'], 7)} "
+              f"{fmt_ms(base and base['both'], 7)} | {' ' if base else ''}{_ratios(base, mine)}")
+    print("CPU ms (time.process_time, one thread), medians over all rounds' repeats, pol s / p / unpolarized")
+    print("(s+p) interleaved. floor: the eigen-decompositions the case needs, timed alone with the best")
+    print("LAPACK routine (zheevd/zhegvd lossless, zgeev lossy; eigen_floor). /floor: ours over the floor")
+    print("(goal <= 1.3). base: the --base build in the same run; gain = base / ours.")
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--out", type=Path, default=DEFAULT_OUT,
@@ -431,7 +574,13 @@ def main(argv: list[str] | None = None) -> int:
     side = ap.add_mutually_exclusive_group()
     side.add_argument("--peers-only", action="store_true", help="do not run our solver")
     side.add_argument("--no-peers", action="store_true", help="do not run the peers")
+    ap.add_argument("--base", type=Path, default=None,
+                    help="a site directory with another build of rcwa (e.g. the base commit's wheel, pip install "
+                         "--no-deps --target DIR) timed in the same rounds")
+    ap.add_argument("--emit-ours", action="store_true", help=argparse.SUPPRESS)
     args = ap.parse_args(argv)
+    if args.emit_ours:
+        return emit_ours(args.cases, args.repeats)
 
     try:
         if args.repeats < 1 or args.rounds < 1:
@@ -456,6 +605,7 @@ def main(argv: list[str] | None = None) -> int:
         return 2
 
     print_table(rows)
+    print_floor_table(rows)
     for r in rows:
         for o in r["ours"]:
             o["efficiencies"] = jsonable(o["efficiencies"])
