@@ -33,7 +33,8 @@ def select(values, index):
 
 
 class DeltaLobesBSDF(mi.BSDF):
-    """Base of a BSDF made of delta lobes only: eval and pdf are zero, nothing to traverse."""
+    """Base of a BSDF made of delta lobes only: eval and pdf are zero; nothing to traverse
+    unless a subclass exposes settings (renderer.bwdf does)."""
 
     def eval(self, ctx, si, wo, active=True):
         return mi.Spectrum(0.0)
