@@ -359,6 +359,8 @@ def _result(prep: PreparedStructure, theta_deg, phi_deg, pol, kx, ky, r, t, kz_s
     eff = np.stack([R_pol[rows], T_pol[rows], R[rows, 0], R[rows, 1], T[rows, 0], T[rows, 1]], axis=1).tolist()
     ms, ns, kts, azs = h.m[rows].tolist(), h.n[rows].tolist(), kt[rows].tolist(), azimuth[rows].tolist()
     flags_R, flags_T = prop_R[rows].tolist(), prop_T[rows].tolist()
+    # Polar angle of a propagating order (degrees from the normal): asin(kt / n) in its medium.
+    root_sup, root_sub = math.sqrt(eps_sup.real), math.sqrt(eps_sub.real) if lossless_sub else 1.0
     orders = []
     for j in range(rows.size):
         on_R, on_T = flags_R[j], flags_T[j]
@@ -367,8 +369,8 @@ def _result(prep: PreparedStructure, theta_deg, phi_deg, pol, kx, ky, r, t, kz_s
             OrderResult(
                 m=ms[j], n=ns[j], R=R_j if on_R else 0.0, T=T_j if on_T else 0.0,
                 R_s=R_s, R_p=R_p, T_s=T_s, T_p=T_p, propagating_R=on_R, propagating_T=on_T,
-                direction_R=(_polar_deg(kts[j], eps_sup), azs[j]) if on_R else None,
-                direction_T=(_polar_deg(kts[j], eps_sub), azs[j]) if on_T else None,
+                direction_R=(math.degrees(math.asin(min(1.0, kts[j] / root_sup))), azs[j]) if on_R else None,
+                direction_T=(math.degrees(math.asin(min(1.0, kts[j] / root_sub))), azs[j]) if on_T else None,
                 amplitudes=dict(zip(amp_names, amps[j], strict=True)),
             )
         )
@@ -382,8 +384,3 @@ def _result(prep: PreparedStructure, theta_deg, phi_deg, pol, kx, ky, r, t, kz_s
                     "kz_substrate": kz_sub},
         fast_paths=fast_paths,
     )
-
-
-def _polar_deg(kt: float, eps: complex) -> float:
-    """Polar angle (degrees from the normal) of a propagating order with tangential kt / k0 in a medium of eps."""
-    return math.degrees(math.asin(min(1.0, kt / math.sqrt(eps.real))))
