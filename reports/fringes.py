@@ -148,21 +148,16 @@ def _crossing(values: np.ndarray, peak: int, level: float, step: int, limit: int
         j = k
 
 
-def _profile_noise(raw: np.ndarray, band: _Band, hold: int) -> float:
-    """Noise sigma of a profile inside a band: the robust spread of the raw profile about its
-    running mean over 2 hold + 1 samples (edges excluded), corrected for that mean's share."""
-    first, last = band.start + hold, band.stop - hold
-    if last - first < 2 * hold + 2:
-        first, last = band.start, band.stop
-    segment = raw[first:last + 1]
+def _profile_noise(raw: np.ndarray, band: _Band, lag: int) -> float:
+    """Noise sigma of a profile inside a band: the robust spread of second differences of
+    samples ``lag`` apart (two pixels, so that interpolation and the median across the
+    profile do not correlate them; a linear ramp of the signal cancels), over sqrt(6)."""
+    segment = raw[band.start:band.stop + 1]
     segment = segment[np.isfinite(segment)]
-    width = 2 * hold + 1
-    if len(segment) < width + 2:
+    if len(segment) < 2 * lag + 4:
         return float("inf")
-    mean = np.convolve(segment, np.ones(width) / width, mode="valid")
-    residual = segment[hold:hold + len(mean)] - mean
-    spread = MAD_TO_SIGMA * float(np.median(np.abs(residual - np.median(residual))))
-    return spread / np.sqrt(1.0 - 1.0 / width)
+    d = segment[2 * lag:] - 2.0 * segment[lag:-lag] + segment[:-2 * lag]
+    return MAD_TO_SIGMA * float(np.median(np.abs(d - np.median(d)))) / np.sqrt(6.0)
 
 
 def _profile_edges(values: np.ndarray, raw: np.ndarray | None, clipped: np.ndarray | None, pred: np.ndarray,
@@ -186,10 +181,12 @@ def _profile_edges(values: np.ndarray, raw: np.ndarray | None, clipped: np.ndarr
             continue
         inside = line[band.start:band.stop + 1]
         peak = band.start + int(np.nanargmax(inside))
+        # the band's maximum as a high percentile (the same for images and prediction): one bright
+        # outlier must not raise the half level
+        top = float(np.nanpercentile(inside, PEAK_PERCENTILE)) if len(inside) >= 4 else float(np.nanmax(inside))
         if own_prediction:
-            top, background = float(line[peak]), 0.0
-        else:  # a high percentile, not the maximum: one bright outlier must not raise the half level
-            top = float(np.nanpercentile(inside, PEAK_PERCENTILE)) if len(inside) >= 4 else float(np.nanmax(inside))
+            background = 0.0
+        else:
             dark = ~lit_anywhere[w0:w1 + 1] & np.isfinite(window)
             background = float(np.median(window[dark])) if dark.any() else float(np.nanmin(window))
         contrast = top - background
@@ -197,7 +194,7 @@ def _profile_edges(values: np.ndarray, raw: np.ndarray | None, clipped: np.ndarr
         band_peak = float(np.max(lit[band.order_index, band.channel, band.start:band.stop + 1]))
         others = np.delete(lit[:, band.channel, w0:w1 + 1], band.order_index, axis=0)
         overlapping = bool(others.size) and float(others.max()) > max(OTHER_ORDER_SHARE * band_peak, OTHER_ORDER_LIT)
-        sigma = 0.0 if own_prediction else _profile_noise(raw[band.channel], band, hold)
+        sigma = 0.0 if own_prediction else _profile_noise(raw[band.channel], band, max(2 * hold, 1))
         is_clipped = clipped is not None and bool(clipped[band.start:band.stop + 1].any())
         for side, direction, limit in (("start", -1, w0), ("end", 1, w1)):
             if (side == "start" and band.start == 0) or (side == "end" and band.stop == n - 1):
@@ -226,7 +223,8 @@ def find_edges(polar: PolarGrid, pred_samples: np.ndarray, orders: list[int], im
                clipped: np.ndarray | None = None) -> list[Edge]:
     """Band edges along every profile of ``polar``.
 
-    ``pred_samples`` (orders, 3, radii, azimuths): the prediction sampled on the grid.
+    ``pred_samples`` (orders, 3, radii, azimuths): the prediction sampled on the grid as the
+    images are (reports.polar.sample with ``robust=True``), so that its own edges are comparable.
     ``image`` (H, W, 3) linear camera RGB; None measures the prediction's own edges.
     ``clipped`` (H, W) bool: saturated pixels.
     """

@@ -95,7 +95,8 @@ def _pair_rows(pairs: list[fringes.EdgePair]) -> list[dict]:
 
 
 def _sampled_prediction(pred: Prediction, grid: polar.PolarGrid) -> np.ndarray:
-    return np.stack([polar.sample(pred.channel_image(m).transpose(1, 2, 0), grid) for m in pred.orders]).transpose(0, 3, 1, 2)
+    return np.stack([polar.sample(pred.channel_image(m).transpose(1, 2, 0), grid, robust=True)
+                     for m in pred.orders]).transpose(0, 3, 1, 2)
 
 
 def measure_fringes(pred: Prediction, photo: images.Photo, render: np.ndarray, grids: tuple[polar.PolarGrid, ...],
