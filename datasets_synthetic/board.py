@@ -30,13 +30,14 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 BOARD_KEY = "calibration_board"
-BOX_INTERIOR_M = ((0.005, 0.551), (0.05, 0.54), (-0.25, 0.55))  # x, y, z the board stays in (m): above the glass, at most 25 cm out of the open front
+# x, y, z the board stays in (m): above the glass, at most 25 cm out of the open front
+BOX_INTERIOR_M = ((0.005, 0.551), (0.05, 0.54), (-0.25, 0.55))
 
 
 @dataclass(frozen=True)
 class Checkerboard:
     inner_corners: tuple[int, int] = (9, 6)   # (cols, rows), OpenCV's patternSize
-    square_size_m: float = 0.020              # 24 x 18 cm with the margin: small enough to go into the image corners inside the box
+    square_size_m: float = 0.020              # 24 x 18 cm with the margin: fits into the image corners inside the box
     margin_squares: float = 1.0               # white border around the squares (the detector's quiet zone)
     texels_per_square: int = 16
     black: float = 0.04                        # diffuse reflectances of the printed board
@@ -138,7 +139,8 @@ def _inside(board: Checkerboard, board_to_world: np.ndarray, camera, margin_px: 
     if np.any(in_box & ((x < x_lo) | (x > x_hi) | (y < y_lo))):
         return False
     box = _outline_box(board, board_to_world, camera)
-    return bool(np.all(box[:2] >= margin_px) and box[2] <= camera.width - 1 - margin_px and box[3] <= camera.height - 1 - margin_px)
+    return bool(np.all(box[:2] >= margin_px) and box[2] <= camera.width - 1 - margin_px
+                and box[3] <= camera.height - 1 - margin_px)
 
 
 def _well_seen(pose: np.ndarray, camera) -> bool:
@@ -173,7 +175,10 @@ def sample_pose(board: Checkerboard, camera, rng: np.random.Generator, view: int
     size = np.array([camera.width, camera.height], float)
     for attempt in range(attempts):
         cell = np.array([view % 3, (view // 3) % 3]) if attempt < 2 * attempts // 3 else rng.integers(0, 3, 2)
-        towards = 360.0 * ((view * GOLDEN_TURN) % 1.0) + rng.normal(0.0, 5.0) if attempt < attempts // 3 else rng.uniform(0.0, 360.0)
+        if attempt < attempts // 3:
+            towards = 360.0 * ((view * GOLDEN_TURN) % 1.0) + rng.normal(0.0, 5.0)
+        else:
+            towards = rng.uniform(0.0, 360.0)
         corner_cell = cell[0] != 1 and cell[1] != 1
         fraction = rng.uniform(0.50, 0.70) if corner_cell else rng.uniform(0.65, 0.90)
         distance = camera.fx * board.size_m[0] / (fraction * camera.width)

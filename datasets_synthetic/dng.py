@@ -79,5 +79,7 @@ def write_dng(path: str | Path, raw: np.ndarray, meta: DngMetadata) -> Path:
         (33434, 5, 1, _rational(meta.exposure_time_s, signed=False), True),  # ExposureTime
         (34855, 3, 1, (int(meta.iso),), True),                              # ISOSpeedRatings
     ]
-    return atomic_write(path, lambda tmp: tifffile.imwrite(tmp, raw, photometric=32803, extratags=tags, subfiletype=0,
-                                                          metadata=None, compression=None))
+    def write(tmp: Path) -> None:
+        tifffile.imwrite(tmp, raw, photometric=32803, extratags=tags, subfiletype=0, metadata=None, compression=None)
+
+    return atomic_write(path, write)

@@ -45,7 +45,7 @@ def hidden_response(rng: np.random.Generator) -> ResponseCurve:
     y = x ** (1.0 / gamma)
     f = y + c * np.sin(2 * math.pi * y) / (2 * math.pi)
     f[0], f[-1] = 0.0, 1.0
-    return ResponseCurve("points", 1.0, tuple((float(a), float(b)) for a, b in zip(x, f)))
+    return ResponseCurve("points", 1.0, tuple((float(a), float(b)) for a, b in zip(x, f, strict=True)))
 
 
 def demosaic(raw: np.ndarray, cfa_pattern: str) -> np.ndarray:

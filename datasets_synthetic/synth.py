@@ -239,7 +239,8 @@ def _check_output(out: Path, force: bool) -> None:
     listed = _listed_files(out) or _legacy_dataset(out, present)
     if listed is None:
         raise UserInputError(f"the output folder holds files that no dataset of this workbench listed "
-                             f"({_names(present)}); it is never replaced, not even with --force", file=out, expected="a new or empty folder")
+                             f"({_names(present)}); it is never replaced, not even with --force", file=out,
+                             expected="a new or empty folder")
     foreign = [rel for rel in present if rel != "run.json" and rel not in listed]
     changed = [rel for rel in present if rel in listed and not _unchanged(out / rel, listed[rel])]
     if foreign or changed:

@@ -72,9 +72,12 @@ class TableSettings:
 
 PRESETS: dict[str, dict] = {
     # the paper's table: 2 deg steps over 0-90 deg, 31 wavelengths, 61 orders, 11 kept
-    "paper": {"wavelengths": (400.0, 700.0, 31), "theta_step": 2.0, "phi_step": 2.0, "orders": {1: 61, 2: 11}, "keep": {1: 11, 2: 5}},
-    "draft": {"wavelengths": (400.0, 700.0, 11), "theta_step": 5.0, "phi_step": 10.0, "orders": {1: 31, 2: 7}, "keep": {1: 11, 2: 5}},
-    "fine": {"wavelengths": (380.0, 780.0, 81), "theta_step": 1.0, "phi_step": 1.0, "orders": {1: 81, 2: 15}, "keep": {1: 15, 2: 7}},
+    "paper": {"wavelengths": (400.0, 700.0, 31), "theta_step": 2.0, "phi_step": 2.0,
+              "orders": {1: 61, 2: 11}, "keep": {1: 11, 2: 5}},
+    "draft": {"wavelengths": (400.0, 700.0, 11), "theta_step": 5.0, "phi_step": 10.0,
+              "orders": {1: 31, 2: 7}, "keep": {1: 11, 2: 5}},
+    "fine": {"wavelengths": (380.0, 780.0, 81), "theta_step": 1.0, "phi_step": 1.0,
+             "orders": {1: 81, 2: 15}, "keep": {1: 15, 2: 7}},
 }
 
 
@@ -127,7 +130,7 @@ def settings_for(structure: Structure, preset: str = "paper", *, theta_step: flo
     wl = parse_wavelengths(wavelengths) if wavelengths else tuple(float(v) for v in np.linspace(start, stop, count))
     counts = _counts(orders if orders is not None else p["orders"][dim], dim, "--orders")
     kept = _counts(keep if keep is not None else min(p["keep"][dim], counts[0]), dim, "--keep-orders")
-    if any(k > c for k, c in zip(kept, counts)):
+    if any(k > c for k, c in zip(kept, counts, strict=True)):
         raise UserInputError("cannot keep more orders than are retained", field="--keep-orders",
                              expected=f"at most {list(counts)}", got=list(kept))
     sym = symmetry.detect(structure) if use_symmetry else symmetry.MirrorSymmetry(False, False)
@@ -135,7 +138,8 @@ def settings_for(structure: Structure, preset: str = "paper", *, theta_step: flo
     t_lo, t_hi = _range(theta_range, (0.0, 90.0), "--theta-range")
     p_lo, p_hi = _range(phi_range, (lo, hi), "--phi-range")
     theta = angle_grid(theta_step if theta_step is not None else p["theta_step"], t_lo, t_hi, "--theta-step")
-    phi = angle_grid(phi_step if phi_step is not None else p["phi_step"], p_lo, p_hi - (1e-9 if p_hi - p_lo == 360 else 0.0), "--phi-step")
+    full_turn = 1e-9 if p_hi - p_lo == 360 else 0.0  # 360 deg is 0 deg again
+    phi = angle_grid(phi_step if phi_step is not None else p["phi_step"], p_lo, p_hi - full_turn, "--phi-step")
     return TableSettings(wl, theta, phi, counts, kept, pol, reflection_only, both_sides, factorization, use_symmetry)
 
 
@@ -151,7 +155,8 @@ def _range(value: tuple[float, float] | None, bounds: tuple[float, float], name:
 
 def _counts(value, dim: int, name: str) -> tuple[int, ...]:
     values = (value,) * dim if isinstance(value, (int, np.integer)) else tuple(value)
-    if len(values) != dim or any(isinstance(v, bool) or not isinstance(v, (int, np.integer)) or v < 1 or v % 2 == 0 for v in values):
+    odd = all(not isinstance(v, bool) and isinstance(v, (int, np.integer)) and v >= 1 and v % 2 == 1 for v in values)
+    if len(values) != dim or not odd:
         raise UserInputError("order counts must be positive odd integers, one per periodic direction", field=name,
                              expected="N" if dim == 1 else "NX,NY", got=value)
     return tuple(int(v) for v in values)
@@ -402,14 +407,16 @@ def _open_store(out: Path, structure: Structure, settings: TableSettings, key: s
         group.create_array(name, shape=shape, chunks=(1,) + shape[1:], dtype="float32", fill_value=np.nan)
     from rcwa.factorization import resolve_rule
 
+    kept_m, kept_n = _kept_indices(settings.keep)
     meta = {
         "format": "workbench-efficiency-table", "format_version": FORMAT_VERSION, "key": key,
         "structure_name": structure.name, "structure_source": structure.source, "structure_text": structure.text,
         "structure_sha256": structure.content_hash, "settings": settings.to_json(), "arrays": names,
         "axes": ["wavelength_nm", "theta_deg", "phi_deg", "order", "pol"], "pol_names": pol_names(settings.pol),
-        "orders_m": [int(m) for m in _kept_indices(settings.keep)[0]], "orders_n": [int(n) for n in _kept_indices(settings.keep)[1]],
+        "orders_m": [int(m) for m in kept_m], "orders_n": [int(n) for n in kept_n],
         "symmetry": {"mirror_x": sym.x, "mirror_y": sym.y, "phi_range_deg": list(sym.azimuth_range())},
-        "grazing_theta_deg": GRAZING_THETA_DEG, "factorization": resolve_rule(settings.factorization, structure.dimension, structure.layers),
+        "grazing_theta_deg": GRAZING_THETA_DEG,
+        "factorization": resolve_rule(settings.factorization, structure.dimension, structure.layers),
         "solver_version": workbench_version, "complete": False,
     }
     group.attrs.update(meta)
@@ -522,7 +529,7 @@ class Table:
 
     @property
     def orders(self) -> list[tuple[int, int]]:
-        return list(zip(self.meta["orders_m"], self.meta["orders_n"]))
+        return list(zip(self.meta["orders_m"], self.meta["orders_n"], strict=True))
 
     def fold_azimuth(self, phi_deg: float) -> tuple[float, bool, bool]:
         """Map an azimuth into the stored range: (phi, flip m, flip n) (rcwa.symmetry)."""

@@ -61,7 +61,8 @@ def camera_sensitivities(name: str) -> list[tuple[np.ndarray, np.ndarray]]:
 
 
 def _write_ply(vertices: np.ndarray, faces: np.ndarray, uv: np.ndarray | None = None) -> Path:
-    lines = ["ply", "format ascii 1.0", f"element vertex {len(vertices)}", "property float x", "property float y", "property float z"]
+    lines = ["ply", "format ascii 1.0", f"element vertex {len(vertices)}",
+             "property float x", "property float y", "property float z"]
     if uv is not None:
         lines += ["property float u", "property float v"]
     lines += [f"element face {len(faces)}", "property list uchar int vertex_indices", "end_header"]
@@ -237,11 +238,12 @@ def light_dict(mi, light) -> dict:
     emitter = ({"type": "area", "radiance": radiance} if light.cos_power is None
                else {"type": "cospower_area", "cos_power": float(light.cos_power), "radiance": radiance})
     down = frame_to([0.0, -1.0, 0.0], 0.0)
-    return {"type": "rectangle", "emitter": emitter,
-            "to_world": mi.ScalarTransform4f(transform(light.center, down, (light.size[0] / 2, light.size[1] / 2, 1)).tolist())}
+    placed = transform(light.center, down, (light.size[0] / 2, light.size[1] / 2, 1))
+    return {"type": "rectangle", "emitter": emitter, "to_world": mi.ScalarTransform4f(placed.tolist())}
 
 
-def scene_dict(mi, spec: SceneSpec, *, spp: int, integrator: str = "path", mode: str = "improved", max_depth: int = 8) -> tuple[dict, dict]:
+def scene_dict(mi, spec: SceneSpec, *, spp: int, integrator: str = "path", mode: str = "improved",
+               max_depth: int = 8) -> tuple[dict, dict]:
     """The Mitsuba scene dict and what was built for it (tables, the pinhole plan)."""
     register_plugins()
     from renderer.dielectric import bsdf_dict
@@ -253,7 +255,8 @@ def scene_dict(mi, spec: SceneSpec, *, spp: int, integrator: str = "path", mode:
         if colour in spec.box:
             spectra[colour] = {"type": "uniform", "value": spec.box[colour]}
     # Mitsuba's direct integrator has no max_depth (it refuses unknown properties).
-    scene: dict = {"type": "scene", "integrator": {"type": integrator, **({"max_depth": max_depth} if integrator == "path" else {})}}
+    depth = {"max_depth": max_depth} if integrator == "path" else {}
+    scene: dict = {"type": "scene", "integrator": {"type": integrator, **depth}}
     for name, quad in data["geometry"].items():
         if name in ("units", "notes", "light") or ("block" in name and not spec.box["blocks"]):
             continue
@@ -277,23 +280,25 @@ def scene_dict(mi, spec: SceneSpec, *, spp: int, integrator: str = "path", mode:
                            "bsdf": {"type": "bwdf", "filename": str(table), "mapping": "radial", "mode": mode}}
         if cd.top_surface:
             top = np.asarray(cd.center) + CD_TOP_THICKNESS_M * np.asarray(cd.normal)
-            scene[f"cd{i}_top"] = {"type": "ply", "filename": mesh, "to_world": mi.ScalarTransform4f(transform(top, R).tolist()),
+            scene[f"cd{i}_top"] = {"type": "ply", "filename": mesh,
+                                   "to_world": mi.ScalarTransform4f(transform(top, R).tolist()),
                                    "bsdf": bsdf_dict(polycarbonate, dispersion=cd.dispersion)}
     for i, g in enumerate(spec.gratings):
         table = element_table(g, sens, f"grating[{i}]", spec.source)
         built["tables"].append(str(table))
         R = frame_to(g.normal, g.rotation_deg)
-        scene[f"grating{i}"] = {"type": "rectangle", "to_world": mi.ScalarTransform4f(transform(g.center, R, (g.size[0] / 2, g.size[1] / 2, 1.0)).tolist()),
+        plate = transform(g.center, R, (g.size[0] / 2, g.size[1] / 2, 1.0))
+        scene[f"grating{i}"] = {"type": "rectangle", "to_world": mi.ScalarTransform4f(plate.tolist()),
                                 "bsdf": {"type": "bwdf", "filename": str(table), "mapping": "constant", "mode": mode}}
-    for i, g in enumerate(spec.glass):
-        bsdf = bsdf_dict(material_from_spec(g.material), dispersion=g.dispersion)
-        if g.shape == "sphere":
-            scene[f"glass{i}"] = {"type": "sphere", "center": list(g.center), "radius": g.size, "bsdf": bsdf}
+    for i, glass in enumerate(spec.glass):
+        bsdf = bsdf_dict(material_from_spec(glass.material), dispersion=glass.dispersion)
+        if glass.shape == "sphere":
+            scene[f"glass{i}"] = {"type": "sphere", "center": list(glass.center), "radius": glass.size, "bsdf": bsdf}
         else:
-            R = frame_to([0, 0, 1], 0.0) @ np.array([[math.cos(math.radians(g.rotation_deg)), 0, math.sin(math.radians(g.rotation_deg))],
-                                                      [0, 1, 0], [-math.sin(math.radians(g.rotation_deg)), 0, math.cos(math.radians(g.rotation_deg))]])
-            scene[f"glass{i}"] = {"type": "cube", "bsdf": bsdf,
-                                  "to_world": mi.ScalarTransform4f(transform(g.center, R, (g.size / 2,) * 3).tolist())}
+            c, s = math.cos(math.radians(glass.rotation_deg)), math.sin(math.radians(glass.rotation_deg))
+            R = frame_to([0, 0, 1], 0.0) @ np.array([[c, 0, s], [0, 1, 0], [-s, 0, c]])  # about y
+            cube = transform(glass.center, R, (glass.size / 2,) * 3)
+            scene[f"glass{i}"] = {"type": "cube", "bsdf": bsdf, "to_world": mi.ScalarTransform4f(cube.tolist())}
     scene["sensor"], built["plan"] = sensor_dict(mi, spec.camera, spp)
     return scene, built
 
@@ -303,7 +308,8 @@ def sensor_dict(mi, camera, spp: int):
     spectral film whose three channels are the camera's sensitivities (camera RGB).
     """
     plan = camera.model.pinhole_plan()
-    film = {f"channel_{c}": irregular(w, v) for c, (w, v) in zip("rgb", camera_sensitivities(camera.sensitivities))}
+    curves = camera_sensitivities(camera.sensitivities)
+    film = {f"channel_{c}": irregular(w, v) for c, (w, v) in zip("rgb", curves, strict=True)}
     sensor = plan.sensor_dict(mi, spp)
     sensor["film"] = {"type": "specfilm", "width": plan.width, "height": plan.height, "rfilter": {"type": "box"},
                       "component_format": "float32", **film}

@@ -55,7 +55,8 @@ def render_pass(spec: SceneSpec, pass_spp: int, integrator: str, mode: str, pass
     from renderer.build import scene_dict
 
     scene_d, _ = scene_dict(mi, spec, spp=pass_spp, integrator=integrator, mode=mode)
-    return np.array(mi.render(mi.load_dict(scene_d), seed=pass_seed))
+    # Mitsuba's stub types seed as UInt32; a Python int is what it takes at run time
+    return np.array(mi.render(mi.load_dict(scene_d), seed=pass_seed))  # type: ignore[arg-type]
 
 
 def render(scene: str | Path, out: str | Path, *, preset: str = "draft", spp: int | None = None,
@@ -95,7 +96,8 @@ def render(scene: str | Path, out: str | Path, *, preset: str = "draft", spp: in
     pass_seconds = []
     if executor is None:
         loaded = mi.load_dict(scene_d)
-        images = ((p, timed(lambda p=p: np.array(mi.render(loaded, seed=pass_seed(seed, p)))))
+        # Mitsuba's stub types seed as UInt32; a Python int is what it takes at run time
+        images = ((p, timed(lambda p=p: np.array(mi.render(loaded, seed=pass_seed(seed, p)))))  # type: ignore[arg-type]
                   for p in range(done, passes))
     else:
         futures = {p: executor.submit(timed, render_pass, spec, pass_spp, integrator, mode, pass_seed(seed, p))

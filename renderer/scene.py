@@ -139,7 +139,8 @@ def load_scene(name_or_path: str | Path) -> SceneSpec:
         return parse_scene(text, source=f"<built-in {name}>", base_dir=None)
     path = Path(name)
     if not path.exists() and not v.looks_like_path(name):
-        raise UserInputError("no such scene", field="scene", expected=f"a built-in name ({', '.join(BUILTIN_SCENES)}) or a TOML file", got=name)
+        raise UserInputError("no such scene", field="scene",
+                             expected=f"a built-in name ({', '.join(BUILTIN_SCENES)}) or a TOML file", got=name)
     return parse_scene(v.read_text_file(path, "scene"), source=str(path), base_dir=path.parent)
 
 
@@ -191,14 +192,16 @@ def _parse_light(d: Any) -> LightSpec:
     v.reject_unknown(d, {"center", "size", "power_w", "spectrum", "emission_profile"}, "light.")
     spectrum = d.get("spectrum", "flat")
     if spectrum not in ("flat", "cornell", *LED_SPECTRA):
-        raise UserInputError("unknown light spectrum", field="light.spectrum", expected=f"flat, cornell or one of {LED_SPECTRA}", got=spectrum)
+        raise UserInputError("unknown light spectrum", field="light.spectrum",
+                             expected=f"flat, cornell or one of {LED_SPECTRA}", got=spectrum)
     geometry = cornell_data()["geometry"]["light"]
     pts = np.asarray(geometry) * MM
-    default_center = tuple(pts.mean(axis=0) - [0, 1e-4, 0])  # the measured light (in a measured-size box)
+    cx, cy, cz = (float(c) for c in pts.mean(axis=0) - [0, 1e-4, 0])  # the measured light (in a measured-size box)
+    default_center = (cx, cy, cz)
     default_size = (float(np.ptp(pts[:, 0])), float(np.ptp(pts[:, 2])))
     return LightSpec(
-        center=v.vector(d["center"], "light.center", 3) if "center" in d else default_center,
-        size=v.vector(d["size"], "light.size", 2, positive=True) if "size" in d else default_size,
+        center=v.point(d["center"], "light.center") if "center" in d else default_center,
+        size=v.pair(d["size"], "light.size", positive=True) if "size" in d else default_size,
         power_w=v.number(d.get("power_w", 10.0), "light.power_w", positive=True),
         spectrum=spectrum,
         cos_power=_emission_profile(d.get("emission_profile", "lambertian")),
@@ -235,11 +238,12 @@ def _parse_cd(d: Any, where: str, base_dir: Path | None) -> CDSpec:
     outer = v.number(d.get("outer_radius", 0.060), f"{where}.outer_radius", positive=True)
     inner = v.number(d.get("inner_radius", 0.0075), f"{where}.inner_radius", nonnegative=True)
     if inner >= outer:
-        raise UserInputError("the hole must be smaller than the disc", field=f"{where}.inner_radius", expected=f"< {outer}", got=inner)
+        raise UserInputError("the hole must be smaller than the disc", field=f"{where}.inner_radius",
+                             expected=f"< {outer}", got=inner)
     structure = _structure_reference(d.get("structure", "cd"), f"{where}.structure", base_dir)
     normal = _normal(d.get("normal", [0.0, 1.0, 0.0]), f"{where}.normal")
     table = _table_options(d.get("table", {"preset": "draft"}), f"{where}.table", base_dir)
-    return CDSpec(v.vector(v.required(d, "center", f"{where}."), f"{where}.center", 3), normal,
+    return CDSpec(v.point(v.required(d, "center", f"{where}."), f"{where}.center"), normal,
                   v.number(d.get("rotation_deg", 0.0), f"{where}.rotation_deg"), outer, inner, structure, table,
                   _flag(d, "top_surface", where, True), _flag(d, "dispersion", where, True))
 
@@ -253,7 +257,8 @@ def _structure_reference(value: Any, where: str, base_dir: Path | None) -> str:
     path = (base_dir / structure) if base_dir is not None else Path(structure)
     if not path.exists():
         raise UserInputError("the structure file does not exist", field=where,
-                             expected=f"a built-in structure ({', '.join(BUILTIN_STRUCTURES)}) or an existing TOML file", got=structure)
+                             expected=f"a built-in structure ({', '.join(BUILTIN_STRUCTURES)}) or an existing TOML file",
+                             got=structure)
     return str(path)
 
 
@@ -325,9 +330,9 @@ def _parse_grating(d: Any, where: str, base_dir: Path | None) -> GratingSpec:
     if not isinstance(d, dict):
         raise UserInputError("must be a table", field=where, got=d)
     v.reject_unknown(d, {"center", "normal", "size", "rotation_deg", "structure", "table"}, f"{where}.")
-    return GratingSpec(v.vector(v.required(d, "center", f"{where}."), f"{where}.center", 3),
+    return GratingSpec(v.point(v.required(d, "center", f"{where}."), f"{where}.center"),
                        _normal(d.get("normal", [0.0, 0.0, -1.0]), f"{where}.normal"),
-                       v.vector(v.required(d, "size", f"{where}."), f"{where}.size", 2, positive=True),
+                       v.pair(v.required(d, "size", f"{where}."), f"{where}.size", positive=True),
                        v.number(d.get("rotation_deg", 0.0), f"{where}.rotation_deg"),
                        _structure_reference(v.required(d, "structure", f"{where}."), f"{where}.structure", base_dir),
                        _table_options(d.get("table", {"preset": "draft"}), f"{where}.table", base_dir))
@@ -340,7 +345,8 @@ def _parse_glass(d: Any, where: str) -> GlassSpec:
     shape = d.get("shape", "cube")
     if shape not in ("cube", "sphere"):
         raise UserInputError("unknown glass shape", field=f"{where}.shape", expected='"cube" or "sphere"', got=shape)
-    size = v.number(v.required(d, "size" if shape == "cube" else "radius", f"{where}."), f"{where}.{'size' if shape == 'cube' else 'radius'}", positive=True)
+    size_key = "size" if shape == "cube" else "radius"
+    size = v.number(v.required(d, size_key, f"{where}."), f"{where}.{size_key}", positive=True)
     material = d.get("material", "n-bk7")
     from rcwa.materials import material_from_spec
 
@@ -348,7 +354,7 @@ def _parse_glass(d: Any, where: str) -> GlassSpec:
         material_from_spec(material)
     except UserInputError as exc:
         raise exc.located(field_prefix=f"{where}.material") from None
-    return GlassSpec(shape, v.vector(v.required(d, "center", f"{where}."), f"{where}.center", 3), size,
+    return GlassSpec(shape, v.point(v.required(d, "center", f"{where}."), f"{where}.center"), size,
                      v.number(d.get("rotation_deg", 0.0), f"{where}.rotation_deg"), material,
                      _flag(d, "dispersion", where, True))
 
@@ -448,5 +454,6 @@ def _check_camera_placement(camera: CameraModel, box: dict) -> None:
     in_front = origin[2] < lo[2] - clearance and lo[0] - 1.0 < origin[0] < hi[0] + 1.0
     if not (inside or in_front):
         raise UserInputError("the camera is inside or behind a wall of the box", field="camera.look_at.origin",
-                             expected=f"inside the box ({lo.round(3).tolist()} to {hi.round(3).tolist()} m) or in front of its open side (z < 0)",
+                             expected=f"inside the box ({lo.round(3).tolist()} to {hi.round(3).tolist()} m) "
+                                      "or in front of its open side (z < 0)",
                              got=origin.round(4).tolist())

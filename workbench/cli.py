@@ -10,8 +10,9 @@ import argparse
 import json
 import signal
 import sys
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from pathlib import Path
+from typing import Any
 
 from workbench import cli_calibrate
 from workbench.catalog import KINDS
@@ -75,12 +76,12 @@ class _HelpFormatter(argparse.RawDescriptionHelpFormatter):
 class _Parser(argparse.ArgumentParser):
     """Every (sub)command's parser shows defaults and keeps the description's line breaks."""
 
-    def __init__(self, *args, **kwargs) -> None:  # type: ignore[no-untyped-def]
+    def __init__(self, *args: Any, **kwargs: Any) -> None:
         kwargs.setdefault("formatter_class", _HelpFormatter)
         super().__init__(*args, **kwargs)
 
 
-def _count_argument(minimum: int, maximum: int | None = None):  # type: ignore[no-untyped-def]
+def _count_argument(minimum: int, maximum: int | None = None) -> Callable[[str], int]:
     """An argparse type: an integer in [minimum, maximum], with the range in the error."""
 
     def parse(text: str) -> int:
@@ -164,11 +165,13 @@ def _build_parser() -> argparse.ArgumentParser:
 
     synth = commands.add_parser("synth", help="synthetic raw photographs (DNG) with known truth")
     synth.add_argument("scene", help=SCENE_HELP)
-    synth.add_argument("--out", required=True, metavar="DIR", help="the dataset folder (photos/, brackets/, calibration/, truth.json)")
+    synth.add_argument("--out", required=True, metavar="DIR",
+                       help="the dataset folder (photos/, brackets/, calibration/, truth.json)")
     synth.add_argument("--seed", type=_count_argument(0, SEED_MAX), default=0,
                        help="seed of the hidden camera and the noise: same seed, same bytes")
     synth.add_argument("--preset", choices=["draft", "full"], default="draft",
-                       help="draft: 640 x 480, 2 views, 20 board views (about a minute); full: 978 x 734, 3 views (about 14 minutes)")
+                       help="draft: 640 x 480, 2 views, 20 board views (about a minute); "
+                            "full: 978 x 734, 3 views (about 14 minutes)")
     synth.add_argument("--force", action="store_true", help="replace an existing dataset in DIR")
     add_cache_option(synth)
 
@@ -179,7 +182,8 @@ def _build_parser() -> argparse.ArgumentParser:
     study_rcwa.add_argument("--out", required=True, metavar="DIR", help="folder for the JSON, CSV and figures")
 
     study_render = study_commands.add_parser("render", help="render error versus time, paper against improved BWDF")
-    study_render.add_argument("scene", nargs="?", default="cornell_cd", help="a built-in scene name or a TOML file; its camera must see a CD or grating")
+    study_render.add_argument("scene", nargs="?", default="cornell_cd",
+                              help="a built-in scene name or a TOML file; its camera must see a CD or grating")
     study_render.add_argument("--out", required=True, metavar="DIR", help="folder for the JSON, CSV and figures")
 
     demo = commands.add_parser("demo", help="the main job on the built-in defaults: the CD's orders, then a synthetic dataset "

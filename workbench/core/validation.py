@@ -39,8 +39,15 @@ def vector(value: Any, where: str, length: int, *, positive: bool = False) -> tu
     return tuple(number(v, f"{where}[{i}]", positive=positive) for i, v in enumerate(value))
 
 
-def pair(value: Any, where: str) -> tuple[float, float]:
-    return vector(value, where, 2)  # type: ignore[return-value]
+def pair(value: Any, where: str, *, positive: bool = False) -> tuple[float, float]:
+    a, b = vector(value, where, 2, positive=positive)
+    return a, b
+
+
+def point(value: Any, where: str) -> tuple[float, float, float]:
+    """A position or direction ``[x, y, z]``."""
+    x, y, z = vector(value, where, 3)
+    return x, y, z
 
 
 def read_text_file(path: str | Path, what: str) -> str:
