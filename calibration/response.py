@@ -33,12 +33,21 @@ y = k / 255, per channel:
   Math. Programming 45, 1989) within bounds on the slopes. Weights y^2 make the terms'
   variances about equal for a constant noise in y (d ln g / dy ~ s / y).
 
-What makes the fit accurate on camera JPEGs (measured on the synthetic datasets, where the
-first version of this fit missed by 2-8 %): pixels are taken only where the image is
-smooth over a JPEG block in every exposure (compression rings and demosaicking bleeds
-next to edges and to the saturated light), and whether a value is usable, and its weight,
-are decided from its neighbourhood's mean, not from the value itself (a value kept
-because its own noise took it below the saturation threshold biases the top of the curve).
+What makes the fit accurate on camera JPEGs (measured on the draft synthetic datasets,
+where earlier versions of this fit missed the hidden curve by 2-8 %):
+* the knots span only the values the bracket shows, the slope held constant beyond them:
+  f(1) = 1 sets the irradiance scale, and a free knot above the brightest usable value let
+  the fit slide the whole curve along a direction the data cannot see;
+* whether a value is usable, and its weight, come from its neighbourhood's mean (5 x 5),
+  not from the value itself: values kept because their own noise took them below the
+  saturation threshold bias the top of the curve;
+* pixels at edges (local spread over SMOOTH_WINDOW_PX, a JPEG block, above EDGE_FACTOR
+  times the median) are left out, and Tukey-biweight reweighting drops the values no other
+  exposure of their pixel agrees with (JPEG ringing, demosaicked neighbours of clipped
+  raw pixels, anything that moved).
+
+Exposure times come from ``times_s`` (``--times``) or each file's EXIF
+(calibration.decode.read_exif; LibRaw's shutter time for raw formats without TIFF tags).
 
 Colour images are fitted per channel (a camera applies its curve to each channel, and the
 mean of three non-linear values is no value of any curve), and once on the pooled pixels
@@ -64,15 +73,12 @@ import cv2
 import numpy as np
 from scipy.interpolate import PchipInterpolator
 
+from calibration.decode import is_raw, read_exif
 from workbench.core.errors import UserInputError
 from workbench.core.files import atomic_write_text
 from workbench.core.version import __version__
 
-RAW_SUFFIXES = frozenset({".dng", ".nef", ".nrw", ".cr2", ".cr3", ".crw", ".arw", ".srf", ".sr2", ".orf", ".rw2",
-                          ".raf", ".pef", ".srw", ".3fr", ".erf", ".kdc", ".mrw", ".x3f", ".iiq", ".rwl", ".raw"})
 IMAGE_SUFFIXES = frozenset({".jpg", ".jpeg", ".png", ".tif", ".tiff"})
-EXPOSURE_TIME_TAG = 0x829A  # EXIF ExposureTime (seconds, rational)
-EXIF_IFD_TAG = 0x8769
 
 CURVE_VALUES = np.linspace(0.0, 1.0, 256)   # where every method reports its inverse response
 MID_RANGE = (0.05, 0.95)                     # the values over which curves are compared
@@ -141,62 +147,20 @@ class InverseCurves:
         return self.log_irradiance[:, self.channels.index(name)]
 
 
-def is_raw(path: str | Path) -> bool:
-    return Path(path).suffix.lower() in RAW_SUFFIXES
+def _exposure_time(path: Path) -> float | None:
+    """The file's EXIF ExposureTime (calibration.decode.read_exif), else, for raw formats
+    whose tags it cannot read, LibRaw's shutter time."""
+    seconds = read_exif(path)["exposure_time_s"]
+    if seconds is None and is_raw(path):
+        import rawpy
 
-
-def _exposure_time_from_exif(path: Path) -> float | None:
-    """ExposureTime from a JPEG/PNG/TIFF's EXIF (IFD 0 or the Exif IFD), with Pillow;
-    tifffile for TIFFs Pillow cannot open (16-bit colour)."""
-    from PIL import Image, UnidentifiedImageError
-
-    try:
-        with Image.open(path) as image:
-            exif = image.getexif()
-            value = exif.get(EXPOSURE_TIME_TAG, exif.get_ifd(EXIF_IFD_TAG).get(EXPOSURE_TIME_TAG))
-    except (UnidentifiedImageError, OSError):
-        value = None
-        if path.suffix.lower() in (".tif", ".tiff"):
-            value = _tiff_exposure_time(path)
-    return _positive_seconds(value)
-
-
-def _tiff_exposure_time(path: Path):
-    import tifffile
-
-    try:
-        with tifffile.TiffFile(path) as tif:
-            page = tif.pages[0]
-            if not isinstance(page, tifffile.TiffPage):
-                return None
-            tags = page.tags
-            if EXPOSURE_TIME_TAG in tags:
-                return tags[EXPOSURE_TIME_TAG].value
-            exif = tags.get(34665)
-            return None if exif is None else exif.value.get("ExposureTime")
-    except (tifffile.TiffFileError, OSError):
-        return None
-
-
-def _positive_seconds(value) -> float | None:
-    if isinstance(value, tuple) and len(value) == 2:  # tifffile's (numerator, denominator)
-        value = value[0] / value[1] if value[1] else 0.0
-    try:
-        seconds = float(value)
-    except (TypeError, ValueError):
-        return None
-    return seconds if math.isfinite(seconds) and seconds > 0 else None
-
-
-def _raw_exposure_time(path: Path) -> float | None:
-    """LibRaw's shutter time (rawpy ``other.shutter_speed``), which it reads from any raw format."""
-    import rawpy
-
-    try:
-        with rawpy.imread(str(path)) as raw:
-            return _positive_seconds(raw.other.shutter_speed)
-    except (rawpy.LibRawError, OSError) as error:
-        raise UserInputError(f"cannot read the raw file ({error})", file=path) from None
+        try:
+            with rawpy.imread(str(path)) as raw:
+                shutter = float(raw.other.shutter_speed)
+        except (rawpy.LibRawError, OSError) as error:
+            raise UserInputError(f"cannot read the raw file ({error})", file=path) from None
+        seconds = shutter if math.isfinite(shutter) and shutter > 0 else None
+    return seconds
 
 
 def exposure_times(paths: Sequence[str | Path], times_s: Sequence[float] | None = None) -> np.ndarray:
@@ -212,7 +176,7 @@ def exposure_times(paths: Sequence[str | Path], times_s: Sequence[float] | None 
         return times
     found = []
     for path in map(Path, paths):
-        seconds = _raw_exposure_time(path) if is_raw(path) else _exposure_time_from_exif(path)
+        seconds = _exposure_time(path)
         if seconds is None:
             raise UserInputError("no exposure time in the file's EXIF", file=path, field="ExposureTime",
                                  expected="EXIF ExposureTime, or the bracket's times with --times T,...")
@@ -228,7 +192,7 @@ def _check_paths(paths: Sequence[str | Path]) -> list[Path]:
     for path in checked:
         if not path.is_file():
             raise UserInputError("no such file", file=path)
-        if path.suffix.lower() not in RAW_SUFFIXES | IMAGE_SUFFIXES:
+        if not (is_raw(path) or path.suffix.lower() in IMAGE_SUFFIXES):
             raise UserInputError("unknown image type", file=path,
                                  expected="a raw file LibRaw reads (DNG, NEF, CR2, ...) or a JPEG, PNG or TIFF",
                                  got=path.suffix)
@@ -345,9 +309,9 @@ def _opencv_curves(method: str, calibrator, bracket: Bracket) -> InverseCurves:
     return InverseCurves(method, bracket.channels, log_e, {"masked_values": int((~occurs).sum())})
 
 
-def response_debevec(bracket: Bracket, samples: int = 200, smoothness: float = 10.0) -> InverseCurves:
+def response_debevec(bracket: Bracket, samples: int = 70, smoothness: float = 10.0) -> InverseCurves:
     """Debevec & Malik 1997 (Eq. 3) through OpenCV's CalibrateDebevec: ``samples`` pixels on
-    a grid, ``smoothness`` is their lambda. Values that never occur are masked."""
+    a grid (OpenCV's defaults), ``smoothness`` is their lambda. Values that never occur are masked."""
     return _opencv_curves("debevec", cv2.createCalibrateDebevec(samples, smoothness, False), bracket)
 
 
@@ -421,27 +385,34 @@ def select_samples(bracket: Bracket, channels: Sequence[int], seed: int = 0) -> 
     over the bracket (monotone in irradiance), at most SAMPLES_PER_BIN per bin, and only
     where the image is locally smooth (JPEG and demosaicking mix neighbours)."""
     rng = np.random.default_rng(seed)
-    n = len(bracket.times_s)
-    smooth = _smooth_pixels(bracket.values.sum(0)).ravel()
+    n, top = len(bracket.times_s), float(2**bracket.bits - 1)
+    smooth = _smooth_pixels(bracket.codes.sum(0, dtype=np.float32) / top).ravel()
     picked_values, picked_weights = [], []
     for k in channels:
-        y = bracket.values[..., k].reshape(n, -1).T                     # (pixels, exposures)
-        level = bracket.levels[..., k].reshape(n, -1).T
+        level = bracket.levels[..., k].reshape(n, -1).T                  # (pixels, exposures)
         usable = bracket.usable[..., k].reshape(n, -1).T & smooth[:, None]
         informative = np.flatnonzero(usable.sum(1) >= 2)
-        if len(informative) == 0:
-            continue
-        total = level[informative].sum(1)
-        bins = np.minimum((SAMPLE_BINS * (total - total.min()) / max(np.ptp(total), 1e-12)).astype(int),
-                          SAMPLE_BINS - 1)
-        chosen = np.concatenate([rng.permutation(informative[bins == b])[:SAMPLES_PER_BIN] for b in range(SAMPLE_BINS)])
-        picked_values.append(y[chosen])
+        chosen = informative[_evenly_binned(level[informative].sum(1), rng)]
+        picked_values.append(bracket.codes[..., k].reshape(n, -1).T[chosen] / top)
         picked_weights.append(np.where(usable[chosen], _weight(level[chosen]), 0.0))
-    if not picked_values:
+    values, weights = np.concatenate(picked_values), np.concatenate(picked_weights)
+    if len(values) == 0:
         raise UserInputError("no pixel keeps a usable value in two exposures", field="IMAGE",
                              expected="a bracket whose exposures overlap (values neither black nor saturated in two of them)",
                              got=list(bracket.files))
-    return PixelSamples(np.concatenate(picked_values), np.concatenate(picked_weights), np.log(bracket.times_s))
+    return PixelSamples(values, weights, np.log(bracket.times_s))
+
+
+def _evenly_binned(total: np.ndarray, rng: np.random.Generator) -> np.ndarray:
+    """Indices of at most SAMPLES_PER_BIN random entries in each of SAMPLE_BINS equal bins of ``total``."""
+    if len(total) == 0:
+        return np.zeros(0, dtype=int)
+    bins = np.minimum((SAMPLE_BINS * (total - total.min()) / max(np.ptp(total), 1e-12)).astype(int), SAMPLE_BINS - 1)
+    shuffled = rng.permutation(len(bins))
+    by_bin = np.argsort(bins[shuffled].astype(np.uint8), kind="stable")    # a radix sort: by bin, randomly within one
+    order, sorted_bins = shuffled[by_bin], bins[shuffled][by_bin]
+    rank = np.arange(len(order)) - np.searchsorted(sorted_bins, np.arange(SAMPLE_BINS))[sorted_bins]
+    return np.sort(order[rank < SAMPLES_PER_BIN])
 
 
 EDGE_FACTOR = 3.0

@@ -316,6 +316,24 @@ def test_other_bad_brackets(tmp_path):
 # The draft synthetic dataset: camera JPEGs against the hidden truth
 # ---------------------------------------------------------------------------------------
 
+def log_curve_of(points, inverse: bool = False) -> np.ndarray:
+    """ln(normalised irradiance) at R.CURVE_VALUES of a curve given as [irradiance, value]
+    pairs: read at its own values, or (``inverse``, for a truth table sampled in irradiance)
+    by inverting its monotone cubic."""
+    x, y = np.asarray(points, dtype=float).T
+    if inverse:
+        from scipy.interpolate import PchipInterpolator
+
+        grid = np.linspace(0.0, 1.0, 8193)
+        x, y = grid, PchipInterpolator(x, y)(grid)
+        with np.errstate(divide="ignore"):
+            return np.log(np.interp(R.CURVE_VALUES, y, x))
+    out = np.full(len(R.CURVE_VALUES), np.nan)
+    index = np.rint(y * 255).astype(int)
+    out[index[x > 0]] = np.log(x[x > 0])
+    return out
+
+
 @pytest.fixture(scope="module")
 def dataset(tmp_path_factory):
     from datasets_synthetic.synth import synth
@@ -334,7 +352,13 @@ def test_draft_dataset_jpeg_bracket_meets_the_issue_bar(dataset, tmp_path):
     assert rms < RESPONSE_RMS_TOLERANCE, rms
     names = [p.rsplit("/", 1)[-1] for p in jpegs]
     assert result["times_s"] == pytest.approx([truth["exposure_time_s"][n] for n in names], rel=1e-6)
-    assert set(result["others"]) == {"debevec", "robertson"}
+    # In the log domain too (shape only: each curve's offset removed), the workbench's curve is
+    # nearer the truth than OpenCV's on any channel (measured 0.013-0.017 against 0.03-0.18).
+    truth_log = log_curve_of(truth["response"]["points"], inverse=True)
+    ours = R.log_domain_difference(log_curve_of(result["points"]), truth_log)["rms"]
+    for method in ("debevec", "robertson"):
+        for channel, entry in result["others"][method]["channels"].items():
+            assert ours < R.log_domain_difference(log_curve_of(entry["points"]), truth_log)["rms"], (method, channel)
 
 
 @pytest.mark.slow
