@@ -20,7 +20,8 @@ How (per image: photo, render, or the prediction of reports.prediction):
   prediction's own edges are the half-maximum crossings of its lit fraction (background 0).
 * Quality: ``missing`` (no crossing inside the window), ``overlap`` (another order's band
   reaches into the window: the edge is ambiguous), ``clipped`` (saturated photo pixels in
-  the band), ``weak`` (contrast under ``SNR_MIN`` noise sigmas, or the edge's position
+  the band), ``weak`` (contrast under ``SNR_MIN`` noise sigmas or under ``MIN_RELATIVE_CONTRAST``
+  of the background, or the edge's position
   uncertainty, noise / slope, over ``EDGE_SIGMA_MAX_PX``), else ``ok``. Noise is measured
   on the profile itself inside the band: the robust spread about a running mean.
 
@@ -49,6 +50,7 @@ WINDOW_EXTENSION_PX = 6.0  # an image's edge may lie this far outside the predic
 PEAK_PERCENTILE = 90.0  # the band's maximum, robust to outliers
 HOLD_PX = 1.0  # a crossing counts when the profile stays beyond it for this long
 SNR_MIN = 6.0  # contrast over noise sigma below which an edge is weak
+MIN_RELATIVE_CONTRAST = 0.25  # a band of the light is far brighter than the CD's wall-lit background (10-30x here)
 EDGE_SIGMA_MAX_PX = 0.5  # position uncertainty (noise / slope) above which an edge is weak
 MAD_TO_SIGMA = 1.4826
 RIM_SEARCH_PX = 8.0  # how far from the expected rim the photo's rim is looked for
@@ -208,8 +210,9 @@ def _profile_edges(values: np.ndarray, raw: np.ndarray | None, clipped: np.ndarr
             px = float(step_px[j]) if np.isfinite(step_px[j]) else mean_step
             sigma_px = sigma / slope * px if slope > 0 else float("inf")
             snr = contrast / sigma if sigma > 0 else float("inf")
+            faint = not own_prediction and contrast < MIN_RELATIVE_CONTRAST * abs(background)
             quality = ("overlap" if overlapping else "clipped" if is_clipped else
-                       "weak" if (snr < SNR_MIN or sigma_px > EDGE_SIGMA_MAX_PX) else "ok")
+                       "weak" if (snr < SNR_MIN or sigma_px > EDGE_SIGMA_MAX_PX or faint) else "ok")
             found.append((band, side, float(position), sigma_px, contrast, snr, quality))
     return found
 
