@@ -82,24 +82,30 @@ IMAGE_SUFFIXES = frozenset({".jpg", ".jpeg", ".png", ".tif", ".tiff"})
 
 CURVE_VALUES = np.linspace(0.0, 1.0, 256)   # where every method reports its inverse response
 MID_RANGE = (0.05, 0.95)                     # the values over which curves are compared
-# A pixel value this close to the top may be clipped, or a demosaicked or compressed
-# neighbour of a clipped one; values at or below DARK_CODES codes may be clipped at black.
+# Which values are used. A value whose neighbourhood mean reaches SATURATED may be clipped,
+# or a demosaicked or compressed neighbour of a clipped one, and so may every value within
+# SATURATION_RADIUS_PX of one; below DARK_CODES (of 255) it may be clipped at black.
 SATURATED = 0.98
+SATURATION_RADIUS_PX = 2
 DARK_CODES = 2
-SATURATION_RADIUS_PX = 2     # a value is unusable within this distance of a saturated one (bilinear demosaic, JPEG)
 USABLE_FRACTION_MIN = 1e-3   # below this fraction of usable values an image is "all black" or "all saturated"
 MAX_PIXELS = 1_000_000       # larger images are read at a stride (the curve needs values, not detail)
+# Which pixels are sampled: at most SAMPLES_PER_BIN in each of SAMPLE_BINS irradiance bins,
+# away from edges (local spread over SMOOTH_WINDOW_PX, a JPEG block, within EDGE_FACTOR
+# times the image's median spread).
+SAMPLE_BINS, SAMPLES_PER_BIN = 64, 60
+SMOOTH_WINDOW_PX = 9
+EDGE_FACTOR = 3.0
+# The parametric fit.
 DEFAULT_KNOTS = 6
 SLOPE_BOUNDS = (0.05, 30.0)  # d ln g / d ln y: from a strong toe to a hard shoulder
-SMOOTH_WINDOW_PX = 9
+TAPER_FROM = 0.9             # weights fall to 0 between this value and SATURATED
 ROBUST_ITERATIONS = 3
 TUKEY_C = 4.685
-TAPER_FROM = 0.9             # weights fall to 0 between this value and SATURATED
-SAMPLE_BINS, SAMPLES_PER_BIN = 64, 60
-# Raw linearity: a raw value is used between these fractions of the black-to-white range,
-# and the bracket is called linear when |slope - 1| is below LINEARITY_TOLERANCE.
-RAW_USABLE = (0.02, 0.9)
 COVERAGE_WARNING = (0.15, 0.9)  # a bracket whose usable values do not span these is warned about
+# Raw linearity: a raw value is used where its neighbourhood lies between these fractions
+# of the black-to-white range, and the bracket is linear when |slope - 1| < LINEARITY_TOLERANCE.
+RAW_USABLE = (0.02, 0.9)
 LINEARITY_TOLERANCE = 0.02
 
 
@@ -127,10 +133,6 @@ class Bracket:
     files: tuple[str, ...]
     channels: tuple[str, ...]
     stride: int = 1
-
-    @property
-    def values(self) -> np.ndarray:
-        return self.codes.astype(np.float64) / float(2**self.bits - 1)
 
 
 @dataclass(frozen=True)
@@ -413,9 +415,6 @@ def _evenly_binned(total: np.ndarray, rng: np.random.Generator) -> np.ndarray:
     order, sorted_bins = shuffled[by_bin], bins[shuffled][by_bin]
     rank = np.arange(len(order)) - np.searchsorted(sorted_bins, np.arange(SAMPLE_BINS))[sorted_bins]
     return np.sort(order[rank < SAMPLES_PER_BIN])
-
-
-EDGE_FACTOR = 3.0
 
 
 def _smooth_pixels(image: np.ndarray) -> np.ndarray:

@@ -19,6 +19,7 @@ import pytest
 from PIL import Image, TiffImagePlugin
 
 from calibration import response as R
+from renderer.response import ResponseCurve
 from workbench.core.errors import UserInputError
 
 # The issue's bar: response curve RMS < 1 % (of the value range) over values 0.05-0.95.
@@ -121,6 +122,7 @@ def test_parametric_recovers_a_known_curve(tmp_path, name):
     for channel, points in result["channels"].items():  # each channel went through the same curve
         assert R.response_rms(points, curve_truth(CURVES[name])) < RESPONSE_RMS_TOLERANCE, channel
     assert is_monotone(result["points"]) and result["points"][0] == [0.0, 0.0] and result["points"][-1] == [1.0, 1.0]
+    assert ResponseCurve.from_spec({"points": result["points"]}).kind == "points"  # what the renderer and decode read
     assert result["times_s"] == pytest.approx(list(times)) and result["files"] == files
 
 
@@ -298,6 +300,15 @@ def test_all_saturated_or_all_black_image(tmp_path, value, word):
     write_png(tmp_path / "ev-1.png", np.full((120, 160, 3), value, np.uint8))
     error = refused(tmp_path, files, f"{word} everywhere", times_s=times)
     assert error.file == files[1]
+
+
+def test_exposures_that_never_overlap(tmp_path):
+    """Each image has usable values, but never at the same pixel: nothing ties them together."""
+    dark, bright = np.zeros((120, 160, 3), np.uint8), np.full((120, 160, 3), 255, np.uint8)
+    dark[:, :40], bright[:, 120:] = 128, 128
+    files = [write_png(tmp_path / "a.png", dark), write_png(tmp_path / "b.png", bright)]
+    error = refused(tmp_path, files, "no pixel keeps a usable value in two exposures", times_s=[0.01, 0.02])
+    assert error.got == files
 
 
 def test_other_bad_brackets(tmp_path):
