@@ -162,7 +162,7 @@ def _profile_noise(raw: np.ndarray, band: _Band, lag: int) -> float:
     return MAD_TO_SIGMA * float(np.median(np.abs(d - np.median(d)))) / np.sqrt(6.0)
 
 
-def _profile_edges(values: np.ndarray, raw: np.ndarray | None, clipped: np.ndarray | None, pred: np.ndarray,
+def _profile_edges(values: np.ndarray | None, raw: np.ndarray | None, clipped: np.ndarray | None, pred: np.ndarray,
                    step_px: np.ndarray, own_prediction: bool) -> list[tuple[_Band, str, float, float, float, float, str]]:
     """Edges of every predicted band in one profile (unrolled): (band, side, position,
     sigma_px, contrast, snr, quality). ``values`` (3, n) is the image's smoothed profile and
@@ -176,7 +176,7 @@ def _profile_edges(values: np.ndarray, raw: np.ndarray | None, clipped: np.ndarr
     hold = int(np.ceil(HOLD_PX / max(mean_step, 1e-6)))
     found = []
     for band in _bands(pred):
-        line = pred[band.order_index, band.channel] if own_prediction else values[band.channel]
+        line = pred[band.order_index, band.channel] if own_prediction or values is None else values[band.channel]
         w0, w1 = max(band.start - extension, 0), min(band.stop + extension, n - 1)
         window = line[w0:w1 + 1]
         if not np.any(np.isfinite(window)):
@@ -196,7 +196,7 @@ def _profile_edges(values: np.ndarray, raw: np.ndarray | None, clipped: np.ndarr
         band_peak = float(np.max(lit[band.order_index, band.channel, band.start:band.stop + 1]))
         others = np.delete(lit[:, band.channel, w0:w1 + 1], band.order_index, axis=0)
         overlapping = bool(others.size) and float(others.max()) > max(OTHER_ORDER_SHARE * band_peak, OTHER_ORDER_LIT)
-        sigma = 0.0 if own_prediction else _profile_noise(raw[band.channel], band, max(2 * hold, 1))
+        sigma = 0.0 if raw is None else _profile_noise(raw[band.channel], band, max(2 * hold, 1))
         is_clipped = clipped is not None and bool(clipped[band.start:band.stop + 1].any())
         for side, direction, limit in (("start", -1, w0), ("end", 1, w1)):
             if (side == "start" and band.start == 0) or (side == "end" and band.stop == n - 1):
