@@ -109,15 +109,50 @@ def _load_grey(path: Path) -> np.ndarray:
     return grey_unit(decode(path).pixels, where=str(path))
 
 
+@dataclass
+class _View:
+    report: ViewReport
+    corners: np.ndarray               # (N, 1, 2) pixels (N = 0 where the board was not found)
+    points: np.ndarray                # (N, 3) board points, metres
+    continues: bool = False           # the checker pattern goes on past the grid
+
+    @property
+    def usable(self) -> bool:
+        return self.report.found and not self.continues
+
+
+def _find_in_view(grey: np.ndarray, path: Path, board_size: tuple[int, int], checker_points: np.ndarray | None,
+                  board: cv2.aruco.CharucoBoard | None) -> _View:
+    continues: tuple[str, ...] = ()
+    if board is not None:
+        charuco = find_charuco_corners(grey, board)
+        ok, corners, points = charuco.found, charuco.corners, charuco.object_points
+        detector, unrefined = charuco.detector, charuco.unrefined
+    else:
+        checker = find_board_corners(grey, board_size)
+        ok, corners, points, continues = checker.found, checker.corners, checker_points, checker.continues
+        detector, unrefined = checker.detector, checker.unrefined
+    notes = []
+    if continues:
+        notes.append("the checker pattern goes on past the grid's " + " and ".join(continues))
+    if unrefined:
+        notes.append(f"{unrefined} corners kept at the detector's estimate")
+    if corners is None or points is None:
+        corners, points = np.zeros((0, 1, 2), np.float32), np.zeros((0, 3), np.float32)
+    report = ViewReport(str(path), ok, detector=detector, corners=len(corners), note="; ".join(notes))
+    return _View(report, corners, points, bool(continues))
+
+
 def _detect_views(paths: Sequence[Path], board_size: tuple[int, int], square_size_m: float,
-                  charuco: CharucoSpec | None, image_size: tuple[int, int] | None, progress: bool):
-    """Per view: (report, corners, object points); and the common image size."""
+                  charuco: CharucoSpec | None, image_size: tuple[int, int] | None,
+                  progress: bool) -> tuple[list[_View], tuple[int, int]]:
+    """Every view's corners, and the views' common size (width, height)."""
     from tqdm import tqdm
 
     board = charuco_board(board_size, square_size_m, charuco) if charuco else None
     checker_points = None if charuco else board_points(board_size, square_size_m).astype(np.float32)
     size = image_size
-    found = []
+    views = []
     for path in tqdm(paths, desc="board views", unit="view", disable=not progress):
         grey = _load_grey(path)
         shape = (grey.shape[1], grey.shape[0])
@@ -126,30 +161,50 @@ def _detect_views(paths: Sequence[Path], board_size: tuple[int, int], square_siz
         elif shape != tuple(size):
             raise UserInputError("the views differ in size: all must come from one camera at one resolution",
                                  file=path, expected=f"{size[0]} x {size[1]} pixels", got=f"{shape[0]} x {shape[1]}")
-        continues: tuple[str, ...] = ()
-        if board is not None:
-            charuco_result = find_charuco_corners(grey, board)
-            ok, corners, points = charuco_result.found, charuco_result.corners, charuco_result.object_points
-            detector, unrefined = charuco_result.detector, charuco_result.unrefined
-        else:
-            checker = find_board_corners(grey, board_size)
-            ok, corners, points, continues = checker.found, checker.corners, checker_points, checker.continues
-            detector, unrefined = checker.detector, checker.unrefined
-        report = ViewReport(str(path), ok, detector=detector, corners=0 if corners is None else len(corners))
-        notes = []
-        if continues:
-            notes.append("the checker pattern goes on past the grid's " + " and ".join(continues))
-        if unrefined:
-            notes.append(f"{unrefined} corners kept at the detector's estimate")
-        report.note = "; ".join(notes)
-        found.append((report, corners, points, bool(continues)))
-    return found, size
+        views.append(_find_in_view(grey, path, board_size, checker_points, board))
+    assert size is not None
+    return views, (int(size[0]), int(size[1]))
 
 
-def _calibrate(object_points, image_points, size, flags):
+def _check_enough_views(views: list[_View], what: str) -> None:
+    """A wrong board size (the pattern goes on in many views) or too few usable views is the user's error."""
+    found = [v for v in views if v.report.found]
+    continuing = [Path(v.report.file).name for v in found if v.continues]
+    if continuing and len(continuing) > WRONG_SIZE_FRACTION * len(found):
+        raise UserInputError(f"the board has more squares than {what}: in {len(continuing)} of {len(found)} views the "
+                             "checker pattern goes on past the corners found", field="--board",
+                             expected="the board's inner corners, COLSxROWS", got=continuing)
+    usable = sum(v.usable for v in views)
+    if usable < MIN_VIEWS:
+        missed = [Path(v.report.file).name for v in views if not v.report.found]
+        raise UserInputError(f"the board ({what}) was found in {usable} of {len(views)} views; calibration needs "
+                             f"at least {MIN_VIEWS} (check --board and --square-mm)", field="IMAGE",
+                             got={"not found": missed} if missed else None)
+
+
+def _calibrate(views: list[_View], size: tuple[int, int], flags: int):
     rms, K, dist, _, _, std_intrinsics, _, per_view = cv2.calibrateCameraExtended(
-        object_points, image_points, size, np.eye(3), np.zeros(5), flags=flags, criteria=CRITERIA)
+        [v.points for v in views], [v.corners for v in views], size, np.eye(3), np.zeros(5), flags=flags,
+        criteria=CRITERIA)
     return float(rms), K, dist.ravel()[:5], std_intrinsics.ravel(), per_view.ravel()
+
+
+def _calibrate_without_outliers(views: list[_View], size: tuple[int, int], flags: int):
+    """Calibrate; while the worst view's RMS exceeds OUTLIER_FACTOR x the median's (and OUTLIER_FLOOR_PX), drop it
+    and calibrate again, keeping at least MIN_VIEWS. Returns the result and the views used."""
+    used = list(views)
+    while True:
+        rms, K, dist, std, per_view = _calibrate(used, size, flags)
+        worst = int(np.argmax(per_view))
+        threshold = max(OUTLIER_FACTOR * float(np.median(per_view)), OUTLIER_FLOOR_PX)
+        if per_view[worst] <= threshold or len(used) <= MIN_VIEWS:
+            break
+        dropped = used.pop(worst)
+        dropped.report.note = (f"outlier: RMS {per_view[worst]:.2f} px, over {threshold:.2f} px "
+                               f"({OUTLIER_FACTOR:g} x the median view's, at least {OUTLIER_FLOOR_PX} px)")
+    for view, error in zip(used, per_view, strict=True):
+        view.report.used, view.report.rms_px = True, float(error)
+    return rms, K, dist, std, used
 
 
 def calibrate_board_views(paths: Sequence[str | Path], board_size: tuple[int, int], square_size_m: float,
@@ -171,45 +226,21 @@ def calibrate_board_views(paths: Sequence[str | Path], board_size: tuple[int, in
     files = [Path(p) for p in paths]
     if not files:
         raise UserInputError("no views given", field="IMAGE")
-    detections, size = _detect_views(files, board_size, square_size_m, charuco, image_size, progress)
+    views, size = _detect_views(files, board_size, square_size_m, charuco, image_size, progress)
     detected_s = time.perf_counter() - start
-    reports = [d[0] for d in detections]
-    found = [d for d in detections if d[0].found]
-    continuing = [d[0].file for d in found if d[3]]
     what = (f"{board_size[0]} x {board_size[1]} squares (ChArUco)" if charuco
             else f"{board_size[0]} x {board_size[1]} inner corners")
-    if continuing and len(continuing) > WRONG_SIZE_FRACTION * len(found):
-        raise UserInputError(f"the board has more squares than {what}: in {len(continuing)} of {len(found)} views the "
-                             "checker pattern goes on past the corners found", field="--board",
-                             expected="the board's inner corners, COLSxROWS", got=[Path(f).name for f in continuing])
-    usable = [i for i, d in enumerate(detections) if d[0].found and not d[3]]
-    if len(usable) < MIN_VIEWS:
-        missed = [Path(r.file).name for r in reports if not r.found]
-        raise UserInputError(f"the board ({what}) was found in {len(usable)} of {len(files)} views; calibration needs "
-                             f"at least {MIN_VIEWS} (check --board and --square-mm)", field="IMAGE",
-                             got={"not found": missed} if missed else None)
-    dropped: list[int] = []
-    while True:
-        used = [i for i in usable if i not in dropped]
-        objects = [detections[i][2] for i in used]
-        images = [detections[i][1] for i in used]
-        rms, K, dist, std, per_view = _calibrate(objects, images, size, flags)
-        worst = int(np.argmax(per_view))
-        threshold = max(OUTLIER_FACTOR * float(np.median(per_view)), OUTLIER_FLOOR_PX)
-        if per_view[worst] <= threshold or len(used) <= MIN_VIEWS:
-            break
-        dropped.append(used[worst])
-        reports[used[worst]].note = (f"outlier: RMS {per_view[worst]:.2f} px, over {threshold:.2f} px "
-                                     f"({OUTLIER_FACTOR:g} x the median view's, at least {OUTLIER_FLOOR_PX} px)")
-    for i, error in zip(used, per_view, strict=True):
-        reports[i].used, reports[i].rms_px = True, float(error)
-    for i in dropped:
-        reports[i].rms_px = _view_rms(detections[i][2], detections[i][1], K, dist)
+    _check_enough_views(views, what)
+    rms, K, dist, std, used = _calibrate_without_outliers([v for v in views if v.usable], size, flags)
+    for view in views:
+        if view.usable and not view.report.used:
+            view.report.rms_px = _view_rms(view.points, view.corners, K, dist)
     std_json = {"fx": float(std[0]), "fy": float(std[1]), "cx": float(std[2]), "cy": float(std[3]),
                 "dist": [float(s) for s in std[4:9]]}
     timings = {"detection_s": detected_s, "calibration_s": time.perf_counter() - start - detected_s,
                "total_s": time.perf_counter() - start}
-    return Calibration(K, dist, std_json, rms, int(size[0]), int(size[1]), reports, flags, images, objects, timings)
+    return Calibration(K, dist, std_json, rms, size[0], size[1], [v.report for v in views], flags,
+                       [v.corners for v in used], [v.points for v in used], timings)
 
 
 def _view_rms(object_points: np.ndarray, image_points: np.ndarray, K: np.ndarray, dist: np.ndarray) -> float:
