@@ -37,7 +37,17 @@ import time
 from pathlib import Path
 
 from calibration.photo import RAW_SUFFIXES, read_photo
-from calibration.pose import PHOTOMETRY_NOTE, PoseSettings, Unknowns, fit_photo, fit_renderer, result_json, start_camera, versions
+from calibration.pose import (
+    FREE_RADIAL_TERMS,
+    PHOTOMETRY_NOTE,
+    PoseSettings,
+    Unknowns,
+    fit_photo,
+    fit_renderer,
+    result_json,
+    start_camera,
+    versions,
+)
 from calibration.scene_model import scene_model
 from workbench.core.errors import UserInputError
 from workbench.core.files import atomic_write_text
@@ -151,7 +161,7 @@ def _fit_photos(photos: list[Path], spec, intrinsics: dict | None, response: dic
         start = start_camera(spec, photo, known)
         if renderer is None and settings.render_check:
             renderer = fit_renderer(spec, start, settings.render_spp)
-        unknowns = Unknowns(intrinsics=known is None, distortion=known is None)
+        unknowns = Unknowns(intrinsics=known is None, radial=FREE_RADIAL_TERMS if known is None else 0)
         result = fit_photo(photo, model, start, unknowns, settings, renderer, bar, known.get("std") if known else None)
         if known is None:  # no boards: this photo's intrinsics hold for the rest
             c = result.camera

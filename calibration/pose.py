@@ -56,6 +56,8 @@ POSE_FORMAT = "workbench-calibrate-pose"
 MIN_EDGE_POINTS = 40          # fewer measured edge points than this: the photo does not show the scene
 BLACK_LEVEL_FRACTION = 1e-3   # a photo whose 99th percentile is below this (of the white level) is black
 SATURATED_SHARE = 0.98        # a photo with more saturated pixels than this share is white
+RESTART_SHIFT = 0.01          # with intrinsics free, restarts move the principal point by 1 % of the image
+FREE_RADIAL_TERMS = 1         # without intrinsics: k1 only (k2 trades with the focal length and principal point)
 HUBER_PX = 0.5                # residuals beyond this (pixels) count linearly: hidden or foreign edges
 
 
@@ -80,24 +82,24 @@ class PoseSettings:
 @dataclass(frozen=True)
 class Unknowns:
     """The fitted parameters: the pose (rotation vector, translation of world_to_camera),
-    and optionally the focal length (fx and fy together, their ratio kept), the principal
-    point, and the radial distortion k1, k2."""
+    and optionally the focal length (fx and fy together, their ratio kept: square pixels
+    when the start has them), the principal
+    point, and the first ``radial`` radial distortion terms (k1; k1, k2)."""
 
     intrinsics: bool
-    distortion: bool
+    radial: int = 0
 
     @property
     def names(self) -> tuple[str, ...]:
         return (("rx", "ry", "rz", "tx", "ty", "tz") + (("f", "cx", "cy") if self.intrinsics else ())
-                + (("k1", "k2") if self.distortion else ()))
+                + ("k1", "k2")[: self.radial])
 
     def vector(self, camera: CameraModel) -> np.ndarray:
         rvec, _ = cv2.Rodrigues(camera.world_to_camera[:3, :3])
         x = list(rvec.ravel()) + list(camera.world_to_camera[:3, 3])
         if self.intrinsics:
             x += [camera.fx, camera.cx, camera.cy]
-        if self.distortion:
-            x += [camera.dist[0], camera.dist[1]]
+        x += list(camera.dist[: self.radial])
         return np.asarray(x, float)
 
     def camera(self, x: np.ndarray, template: CameraModel) -> CameraModel:
@@ -110,8 +112,8 @@ class Unknowns:
             aspect = template.fy / template.fx
             changes |= {"fx": float(x[i]), "fy": float(x[i] * aspect), "cx": float(x[i + 1]), "cy": float(x[i + 2])}
             i += 3
-        if self.distortion:
-            changes["dist"] = (float(x[i]), float(x[i + 1])) + tuple(template.dist[2:])
+        if self.radial:
+            changes["dist"] = tuple(float(v) for v in x[i:i + self.radial]) + tuple(template.dist[self.radial:])
         return dataclasses.replace(template, **changes)
 
     def steps(self, camera: CameraModel) -> np.ndarray:
@@ -119,8 +121,7 @@ class Unknowns:
         s = [math.radians(1.0)] * 3 + [0.01] * 3
         if self.intrinsics:
             s += [0.02 * camera.fx, 0.01 * camera.width, 0.01 * camera.height]
-        if self.distortion:
-            s += [0.02, 0.01]
+        s += [0.02, 0.01][: self.radial]
         return np.asarray(s)
 
     def columns(self, jac: np.ndarray, camera: CameraModel) -> np.ndarray:
@@ -128,8 +129,7 @@ class Unknowns:
         cols = [jac[:, :6]]
         if self.intrinsics:
             cols += [(jac[:, 6] + jac[:, 7] * camera.fy / camera.fx)[:, None], jac[:, 8:10]]
-        if self.distortion:
-            cols.append(jac[:, 10:12])
+        cols.append(jac[:, 10:10 + self.radial])
         return np.concatenate(cols, axis=1)
 
 
@@ -156,7 +156,7 @@ def coarse_fit(photo_grey: np.ndarray, model: SceneModel, start: CameraModel, un
     """Stage 1: minimise the capped chamfer cost with nlopt (BOBYQA), level by level."""
     import nlopt
 
-    coarse = Unknowns(unknowns.intrinsics, False)
+    coarse = Unknowns(unknowns.intrinsics, 0)
     camera = start
     log = []
     for scale, cap in settings.coarse_levels:
@@ -364,6 +364,33 @@ def _blocks(shape: tuple[int, int], n: int) -> list[np.ndarray]:
 # ----------------------------------------------------------------------------------- uncertainty
 
 
+FEATURE_BIAS_FLOOR_PX = 0.02  # the edge finder's systematic error per feature is at least this (0.034 px at worst on exact steps)
+
+
+def _feature_bias_covariance(match: EdgeMatch, r: np.ndarray, J: np.ndarray, w: np.ndarray, normal: np.ndarray) -> np.ndarray:
+    """What a systematic error per feature does to the solution: every feature's residuals
+    may be off by an unknown offset and an unknown tilt along it (shading across a crease,
+    clipping, a mis-modelled object), of standard deviation sigma_b (the RMS of the
+    features' median residuals, at least FEATURE_BIAS_FLOOR_PX). Each such error moves the
+    solution by (J^T W J)^-1 J^T W b; their covariances add. Random pixel noise alone (the
+    s^2 term) averages down over thousands of points; these do not, and where a single
+    photo constrains some unknowns weakly (free intrinsics) they dominate."""
+    features = match.samples.feature
+    names = np.unique(features)
+    medians = np.array([np.median(r[features == f]) for f in names])
+    sigma_b = max(float(np.sqrt(np.mean(medians**2))), FEATURE_BIAS_FLOOR_PX)
+    cov = np.zeros((J.shape[1], J.shape[1]))
+    for f in names:
+        mask = features == f
+        tangent = np.stack([-match.normals[mask, 1], match.normals[mask, 0]], 1)
+        along = np.einsum("ij,ij->i", match.pixels[mask] - match.pixels[mask].mean(0), tangent)
+        span = max(float(np.max(np.abs(along))), 1e-9)
+        for pattern in (np.ones(mask.sum()), along / span, 2 * (along / span) ** 2 - 1):
+            g = normal @ (J[mask].T @ (w[mask] * pattern))
+            cov += sigma_b**2 * np.outer(g, g)
+    return cov
+
+
 FIXED_INTRINSICS = ("fx", "fy", "cx", "cy", "k1", "k2", "p1", "p2", "k3")  # cv2.projectPoints' columns 6..14
 
 
@@ -382,7 +409,7 @@ def covariance(match: EdgeMatch, unknowns: Unknowns, camera: CameraModel,
     dof = max(len(r) - len(x), 1)
     s2 = float(np.sum(w * r**2) / dof)
     normal = np.linalg.pinv(J.T @ (w[:, None] * J))
-    cov = s2 * normal
+    cov = s2 * normal + _feature_bias_covariance(match, r, J, w, normal)
     if fixed_std is not None and not unknowns.intrinsics:
         _, jac = project(camera, match.samples.points, with_jacobian=True)
         J_K = np.einsum("ikj,ik->ij", jac[:, 6:15].reshape(-1, 2, 9), match.normals)
@@ -402,23 +429,31 @@ def per_feature_residuals(match: EdgeMatch, unknowns: Unknowns, camera: CameraMo
                      "rms_px": float(np.sqrt(np.mean(r[names == n] ** 2)))} for n in sorted(set(names))}
 
 
-def derived_std(camera: CameraModel, unknowns: Unknowns, cov: np.ndarray, fixed_std: dict | None = None) -> dict:
+def readout(camera: CameraModel, reference: CameraModel) -> np.ndarray:
+    """What a user reads of ``camera``: its rotation relative to ``reference`` (small-angle
+    vector, degrees), centre (m), fx, fy, cx, cy, the two FOVs (degrees) and dist."""
+    R, t = camera.world_to_camera[:3, :3], camera.world_to_camera[:3, 3]
+    dR = R @ reference.world_to_camera[:3, :3].T
+    small = 0.5 * np.array([dR[2, 1] - dR[1, 2], dR[0, 2] - dR[2, 0], dR[1, 0] - dR[0, 1]])
+    return np.concatenate([np.degrees(small), -R.T @ t, [camera.fx, camera.fy, camera.cx, camera.cy, fov_x_deg(camera),
+                                                         fov_y_deg(camera)], camera.dist_array])
+
+
+def derived_std(camera: CameraModel, unknowns: Unknowns, cov: np.ndarray, fixed_std: dict | None = None,
+                repeats: list[CameraModel] | None = None) -> dict:
     """Standard deviations of what a user reads (rotation in degrees, camera centre in metres,
-    FOV in degrees, the intrinsics) by first-order propagation of ``cov``."""
+    FOV in degrees, the intrinsics) by first-order propagation of ``cov``; with ``repeats``
+    (solutions from other starts), their spread about ``camera`` is added in quadrature."""
     x0 = unknowns.vector(camera)
     steps = unknowns.steps(camera) * 1e-4
-
-    def readout(x: np.ndarray) -> np.ndarray:
-        c = unknowns.camera(x, camera)
-        R, t = c.world_to_camera[:3, :3], c.world_to_camera[:3, 3]
-        dR = R @ camera.world_to_camera[:3, :3].T  # rotation relative to the fit: its small-angle vector
-        small = 0.5 * np.array([dR[2, 1] - dR[1, 2], dR[0, 2] - dR[2, 0], dR[1, 0] - dR[0, 1]])
-        return np.concatenate([np.degrees(small), -R.T @ t, [c.fx, c.fy, c.cx, c.cy, fov_x_deg(c), fov_y_deg(c)],
-                               c.dist_array])
-
-    base = readout(x0)
-    D = np.stack([(readout(x0 + steps[i] * np.eye(len(x0))[i]) - base) / steps[i] for i in range(len(x0))], 1)
-    std = np.sqrt(np.maximum(np.diag(D @ cov @ D.T), 0.0))
+    base = readout(camera, camera)
+    D = np.stack([(readout(unknowns.camera(x0 + steps[i] * np.eye(len(x0))[i], camera), camera) - base) / steps[i]
+                  for i in range(len(x0))], 1)
+    variance = np.maximum(np.diag(D @ cov @ D.T), 0.0)
+    if repeats:
+        spread = np.stack([readout(c, camera) - base for c in repeats])
+        variance = variance + np.mean(spread**2, axis=0)
+    std = np.sqrt(variance)
     if fixed_std is not None and not unknowns.intrinsics:  # held fixed: their own uncertainty, as given
         std[6:10] = [fixed_std.get(k, float("nan")) for k in ("fx", "fy", "cx", "cy")]
         std[10] = std[6] * abs(_dfov(camera.width, camera.fx))
@@ -514,11 +549,32 @@ def fit_photo(photo: Photo, model: SceneModel, start: CameraModel, unknowns: Unk
                      "bias_median_px": {str(n): float(np.median(check.bias[usable][names == n])) for n in sorted(set(names))}}
         timings["render_check_s"] = time.perf_counter() - tick - timings["fine_s"]
     _advance(bar)
+    repeats = restarts(image, model, camera, unknowns, settings) if unknowns.intrinsics else None
     cov, stats = covariance(match, unknowns, camera, intrinsics_std)
     residuals = stats | {"per_feature": per_feature_residuals(match, unknowns, camera)}
-    std = derived_std(camera, unknowns, cov, intrinsics_std)
+    std = derived_std(camera, unknowns, cov, intrinsics_std, repeats)
     return PoseResult(photo.path, camera, unknowns, std, residuals, scale, scale_std, photo.exposure_time_s,
                       {"coarse": coarse_log, "fine": fine_log, "render_check": check_log}, timings)
+
+
+def restarts(image: np.ndarray, model: SceneModel, camera: CameraModel, unknowns: Unknowns,
+             settings: PoseSettings) -> list[CameraModel]:
+    """The fine fit again from the solution with its principal point moved by
+    RESTART_SHIFT of the image each way: with intrinsics free, one photo of the box leaves
+    a long, shallow valley (principal point, tilt, focal length and distance trade
+    against each other at the level of the edge finder's systematic error, ~0.05 px), and
+    where a fit ends in it depends on where it starts; the spread of these ends is the
+    uncertainty the curvature alone understates."""
+    ends = []
+    for dx, dy in ((1, 0), (-1, 0), (0, 1), (0, -1)):
+        start = dataclasses.replace(camera, cx=camera.cx + dx * RESTART_SHIFT * camera.width,
+                                    cy=camera.cy + dy * RESTART_SHIFT * camera.height)
+        try:
+            end, _, _ = fine_fit(image, model, start, unknowns, settings)
+        except UserInputError:  # lost the edges from this start: no spread to learn from it
+            continue
+        ends.append(end)
+    return ends
 
 
 def _subset(match: EdgeMatch, keep: np.ndarray) -> EdgeMatch:
@@ -576,7 +632,8 @@ def load_inverse_response(path: str | Path):
 
 
 def start_camera(spec, photo: Photo, intrinsics: dict | None) -> CameraModel:
-    """The scene's camera at the photo's resolution, with the given intrinsics when there are."""
+    """The scene's camera at the photo's resolution, with the given intrinsics when there are
+    (else with square pixels)."""
     from renderer.render import with_resolution
 
     if intrinsics is not None and (intrinsics["width"], intrinsics["height"]) != (photo.width, photo.height):
@@ -585,9 +642,12 @@ def start_camera(spec, photo: Photo, intrinsics: dict | None) -> CameraModel:
                              got=f"{photo.width} x {photo.height}")
     camera = with_resolution(spec, (photo.width, photo.height)).camera.model
     if intrinsics is not None:
-        camera = dataclasses.replace(camera, fx=intrinsics["fx"], fy=intrinsics["fy"], cx=intrinsics["cx"],
-                                     cy=intrinsics["cy"], dist=intrinsics["dist"])
-    return camera
+        return dataclasses.replace(camera, fx=intrinsics["fx"], fy=intrinsics["fy"], cx=intrinsics["cx"],
+                                   cy=intrinsics["cy"], dist=intrinsics["dist"])
+    # To be fitted: square pixels (fy = fx; the fit keeps the ratio), which a resolution's
+    # rounding in the scene file (326 x 245 for 25 x 18.8 mm) would otherwise bend by 0.4 %.
+    focal = math.sqrt(camera.fx * camera.fy)
+    return dataclasses.replace(camera, fx=focal, fy=focal)
 
 
 def fit_renderer(spec, camera: CameraModel, spp: int):
@@ -635,7 +695,7 @@ def calibrate_pose(photo_path: str | Path, scene: str | Path, out: str | Path | 
     inverse = load_inverse_response(response) if response is not None else None
     photo = read_photo(photo_path, inverse)
     start = start_camera(spec, photo, known)
-    unknowns = Unknowns(intrinsics=known is None, distortion=known is None)
+    unknowns = Unknowns(intrinsics=known is None, radial=FREE_RADIAL_TERMS if known is None else 0)
     bar = tqdm(total=3, desc="calibrate pose", unit="stage", disable=not progress)
     renderer = fit_renderer(spec, start, settings.render_spp) if settings.render_check else None
     result = fit_photo(photo, scene_model(spec), start, unknowns, settings, renderer, bar,

@@ -1,0 +1,326 @@
+"""Pose and field of view of a scene photo (calibration/pose.py, edges.py, scene_model.py).
+
+Fast checks, on images made here:
+* the sub-pixel edge finder on exactly area-sampled steps at every orientation;
+* the whole fit on an exactly rasterised Cornell box (each pixel the mean of 8 x 8
+  sub-samples of flat-shaded walls seen through the true camera, distortion included):
+  from a start 1.5 deg and 2 cm off it must come back to the truth, with the intrinsics held
+  and with them fitted;
+* occlusion by the glass objects; fitted_scene.toml reproduces the fitted camera exactly;
+  bad input (black, saturated, wrong size, no camera, a bad intrinsics file) is a
+  UserInputError naming the file.
+
+Slow (the draft dataset of `workbench synth cornell_cd --seed 0`, made once per session
+and calibrated with `calibrate DATASET` from a copy holding only photos/, brackets/ and
+calibration/, so nothing can read its truth.json): view0's and view1's pose and field of
+view against truth.json, to the issue's tolerances, and the reported standard deviations
+against the actual errors.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import math
+from pathlib import Path
+
+import cv2
+import numpy as np
+import pytest
+
+from calibration.edges import edge_offsets, smoothed
+from calibration.pose import PoseSettings, Unknowns, calibrate_pose, fit_photo, load_intrinsics
+from calibration.scene_model import box_walls, light_corners, scene_model, visible
+from renderer.camera import CameraModel
+from renderer.render import with_resolution
+from renderer.scene import load_scene, parse_scene
+from workbench.core.errors import UserInputError
+
+SEED = 0
+STEP_PX = 0.04              # measured 0.034 px at worst (axis-aligned steps): the 0.1-of-peak floor of the lobe
+# An exact image of the box at 320 x 240 (the edge finder's bias there is 0.001-0.01 px per edge): measured
+# 0.0016 deg and 0.03 mm with the intrinsics held, 0.010 deg, 0.10 mm, 0.010 deg of FOV and 0.07 px of principal
+# point with them fitted (k1 fitted, the truth's k2 = 0.02 not).
+RASTER_ROTATION_DEG = 0.03
+RASTER_CENTER_M = 3e-4
+RASTER_FOV_DEG = 0.03
+RASTER_PRINCIPAL_PX = 0.3
+RASTER_RESIDUAL_PX = 0.05   # measured 0.019 px: the edges of an exact image agree to a twentieth of a pixel
+# The issue's targets (issue 14, "What it must show"), asserted as they are:
+ROTATION_DEG = 0.1
+TRANSLATION_M = 1e-3
+FOV_DEG = 0.05
+PRINCIPAL_POINT_SHARE = 0.005
+STD_FACTOR = 4.0            # an error beyond 4 reported standard deviations means the std is not honest
+
+
+# --------------------------------------------------------------------------------------- helpers
+
+
+def rotation_error_deg(a: np.ndarray, b: np.ndarray) -> float:
+    return math.degrees(math.acos(np.clip((np.trace(a[:3, :3] @ b[:3, :3].T) - 1) / 2, -1.0, 1.0)))
+
+
+def center_error_m(a: np.ndarray, b: np.ndarray) -> float:
+    return float(np.linalg.norm(-a[:3, :3].T @ a[:3, 3] + b[:3, :3].T @ b[:3, 3]))
+
+
+def fov_deg(width: int, fx: float) -> float:
+    return 2 * math.degrees(math.atan(width / (2 * fx)))
+
+
+def perturbed(camera: CameraModel, rotation_deg: float, shift_m: float, seed: int = 1) -> CameraModel:
+    rng = np.random.default_rng(seed)
+    axis = rng.normal(size=3)
+    dR = cv2.Rodrigues(math.radians(rotation_deg) * axis / np.linalg.norm(axis))[0]
+    T = camera.world_to_camera.copy()
+    center = -T[:3, :3].T @ T[:3, 3] + shift_m * rng.normal(size=3) / math.sqrt(3)
+    T[:3, :3] = dR @ T[:3, :3]
+    T[:3, 3] = -T[:3, :3] @ center
+    return dataclasses.replace(camera, world_to_camera=T)
+
+
+def area_sampled_step(offset: float, angle_deg: float, size: int = 64, sub: int = 16) -> tuple[np.ndarray, np.ndarray]:
+    """A step of 0.1 -> 0.9 whose edge passes ``offset`` px from the image centre along its
+    normal at ``angle_deg``; each pixel the mean of sub x sub samples."""
+    normal = np.array([math.cos(math.radians(angle_deg)), math.sin(math.radians(angle_deg))])
+    ys, xs = np.mgrid[0:size * sub, 0:size * sub]
+    x, y = (xs + 0.5) / sub - 0.5 - size / 2, (ys + 0.5) / sub - 0.5 - size / 2
+    fine = np.where(x * normal[0] + y * normal[1] > offset, 0.9, 0.1).astype(np.float32)
+    return fine.reshape(size, sub, size, sub).mean(axis=(1, 3)), normal
+
+
+SHADES = {"floor_white": 0.55, "back_wall_white": 0.45, "left_wall_red": 0.2, "right_wall_green": 0.3,
+          "ceiling_white": 0.65}
+SUB = 8
+
+
+def rasterised_box(spec, camera: CameraModel) -> np.ndarray:
+    """Flat-shaded walls and the light seen by ``camera`` (distortion included), each pixel
+    the mean of SUB x SUB samples: edges exactly where the camera model puts them."""
+    from matplotlib.path import Path as Outline
+
+    shape = (camera.height * SUB, camera.width * SUB)
+    fine = np.zeros(shape, np.float32)
+    polygons = [(box_walls(spec)[name], shade) for name, shade in SHADES.items()] + [(light_corners(spec), 1.0)]
+    band_kernel = np.ones((5, 5), np.uint8)
+    for quad, shade in polygons:  # a sub-sample takes the shade of the polygon its centre lies in (exact, no dilation)
+        t = np.linspace(0, 1, 64, endpoint=False)[:, None]
+        outline = camera.project(np.concatenate([quad[i] + t * (quad[(i + 1) % 4] - quad[i]) for i in range(4)]))
+        sub = (outline + 0.5) * SUB - 0.5  # sub-sample centres at integers
+        inside = np.zeros(shape, np.uint8)
+        cv2.fillPoly(inside, [np.rint(sub * 16).astype(np.int32)], 1, lineType=cv2.LINE_8, shift=4)
+        band = (cv2.dilate(inside, band_kernel) > 0) & (cv2.erode(inside, band_kernel) == 0)  # where fillPoly may err
+        rows, cols = np.nonzero(band)
+        exact = inside.astype(bool)
+        exact[rows, cols] = Outline(sub).contains_points(np.stack([cols, rows], 1))
+        fine[exact] = shade
+    return fine.reshape(camera.height, SUB, camera.width, SUB).mean(axis=(1, 3))
+
+
+class _Photo:
+    """The parts of calibration.photo.Photo fit_photo reads."""
+
+    def __init__(self, grey: np.ndarray) -> None:
+        self.rgb = np.repeat(grey[..., None], 3, axis=2)
+        self.grey = grey
+        self.saturated = np.zeros(grey.shape, bool)
+        self.path = "rasterised"
+        self.exposure_time_s = None
+        self.cfa = None
+        self.width, self.height = grey.shape[1], grey.shape[0]
+
+
+@pytest.fixture(scope="module")
+def box_scene():
+    spec = with_resolution(load_scene("cornell_cd"), (320, 240))
+    return dataclasses.replace(spec, cds=(), glass=())  # the rasterised box shows neither
+
+
+# ----------------------------------------------------------------------------------------- fast
+
+
+@pytest.mark.parametrize("angle_deg", [0.0, 5.0, 17.0, 45.0, 90.0, 133.0])
+def test_edge_finder_locates_area_sampled_steps(angle_deg: float) -> None:
+    errors = []
+    for offset in np.linspace(-0.5, 0.5, 11):
+        image, normal = area_sampled_step(offset, angle_deg)
+        centre = np.array([32.0, 32.0])
+        along = np.array([-normal[1], normal[0]])
+        points = np.stack([centre, centre + 5 * along, centre - 3 * along])
+        found = edge_offsets(smoothed(image), points, np.repeat(normal[None], 3, 0), 4.0, noise=1e-3)
+        assert found.valid.all()
+        assert np.all(found.polarity == 1)
+        errors.append(np.abs(found.offset - offset).max())
+    assert max(errors) < STEP_PX
+
+
+@pytest.mark.parametrize("free_intrinsics", [False, True])
+def test_fit_recovers_the_camera_of_an_exact_box_image(box_scene, free_intrinsics: bool) -> None:
+    nominal = box_scene.camera.model
+    focal = nominal.fx * 1.02
+    truth = dataclasses.replace(nominal, fx=focal, fy=focal, cx=nominal.cx + 3.5, cy=nominal.cy - 2.5,
+                                dist=(-0.08, 0.02, 0.0, 0.0, 0.0))  # square pixels, as the free fit assumes
+    truth = perturbed(truth, 1.0, 0.01, seed=7)
+    image = rasterised_box(box_scene, truth)
+    start = perturbed(truth, 1.5, 0.02, seed=3)
+    if free_intrinsics:  # from the scene's nominal intrinsics, without distortion (k2 = 0.02 stays unmodelled)
+        start = dataclasses.replace(start, fx=nominal.fx, fy=nominal.fx, cx=nominal.cx, cy=nominal.cy, dist=(0.0,) * 5)
+    result = fit_photo(_Photo(image), scene_model(box_scene), start, Unknowns(free_intrinsics, 1 if free_intrinsics else 0),
+                       PoseSettings(render_check=False))
+    fitted = result.camera
+    assert rotation_error_deg(fitted.world_to_camera, truth.world_to_camera) < RASTER_ROTATION_DEG
+    assert center_error_m(fitted.world_to_camera, truth.world_to_camera) < RASTER_CENTER_M
+    assert result.residuals["robust_sigma_px"] < RASTER_RESIDUAL_PX
+    if free_intrinsics:
+        assert abs(fov_deg(truth.width, fitted.fx) - fov_deg(truth.width, truth.fx)) < RASTER_FOV_DEG
+        assert abs(fitted.cx - truth.cx) < RASTER_PRINCIPAL_PX and abs(fitted.cy - truth.cy) < RASTER_PRINCIPAL_PX
+    # the reported uncertainty covers the error (conservative: it allows for per-edge biases of 0.02 px)
+    assert rotation_error_deg(fitted.world_to_camera, truth.world_to_camera) < STD_FACTOR * result.std["rotation_total_deg"]
+
+
+def test_glass_hides_the_crease_behind_it() -> None:
+    spec = load_scene("cornell_cd")
+    model = scene_model(spec)
+    camera = spec.camera.model
+    eye = -camera.world_to_camera[:3, :3].T @ camera.world_to_camera[:3, 3]
+    cube = np.asarray(spec.glass[0].center)
+    behind = eye + eye[1] / (eye[1] - cube[1]) * (cube - eye)  # where the line of sight through the cube meets the floor
+    beside = behind + np.array([-0.08, 0.0, 0.0])
+    assert visible(np.stack([behind, beside]), eye, model.occluders).tolist() == [False, True]
+
+
+def test_fitted_scene_reproduces_the_camera_exactly() -> None:
+    from calibration.fitted_scene import fitted_scene_text
+
+    spec = load_scene("cornell_cd")
+    camera = dataclasses.replace(perturbed(spec.camera.model, 2.0, 0.03), fx=301.25, fy=302.5, cx=160.1, cy=121.7,
+                                 dist=(-0.1, 0.03, 1e-4, -2e-4, 0.0))
+    again = parse_scene(fitted_scene_text(spec, camera, 1.75), source="fitted", base_dir=None)
+    model = again.camera.model
+    assert (model.fx, model.fy, model.dist) == (camera.fx, camera.fy, camera.dist)
+    assert model.cx == pytest.approx(camera.cx, abs=1e-9) and model.cy == pytest.approx(camera.cy, abs=1e-9)
+    assert np.allclose(model.world_to_camera, camera.world_to_camera, atol=1e-12)
+    assert again.camera.exposure == 1.75
+
+
+@pytest.mark.parametrize(("camera_toml", "field"), [
+    ('world_to_camera = [[1, 0, 0, 0], [0, 2, 0, 0], [0, 0, 1, 0], [0, 0, 0, 1]]\nfov_deg = 40', "camera.world_to_camera"),
+    ('world_to_camera = [[1, 0, 0, 0], [0, 1, 0, 0], [0, 0, 1, 0]]\nfov_deg = 40', "camera.world_to_camera"),
+    ('look_at = { origin = [0.28, 0.3, -0.5], target = [0.28, 0.3, 0] }\nfocal_px = [300, 300]\nfov_deg = 40',
+     "camera.focal_px"),
+])
+def test_explicit_camera_fields_are_checked(camera_toml: str, field: str) -> None:
+    text = f'[box]\n[light]\n[camera]\nresolution = [64, 48]\n{camera_toml}\n'
+    with pytest.raises(UserInputError) as info:
+        parse_scene(text, source="bad.toml", base_dir=None)
+    assert info.value.field == field and info.value.file == "bad.toml"
+
+
+def _write_dng(path: Path, raw: np.ndarray) -> Path:
+    from datasets_synthetic.dng import DngMetadata, write_dng
+
+    return write_dng(path, raw.astype(np.uint16), DngMetadata())
+
+
+@pytest.mark.parametrize(("level", "words"), [(512, "black"), (16383, "saturated")])
+def test_black_or_saturated_photo_is_a_clear_error(tmp_path: Path, level: int, words: str) -> None:
+    photo = _write_dng(tmp_path / "flat.dng", np.full((240, 320), level))
+    with pytest.raises(UserInputError, match=words) as info:
+        calibrate_pose(photo, "cornell_cd", tmp_path / "out", progress=False)
+    assert info.value.file == str(photo)
+    assert not (tmp_path / "out").exists()  # nothing written
+
+
+def test_photo_of_another_size_than_the_intrinsics_is_refused(tmp_path: Path) -> None:
+    photo = _write_dng(tmp_path / "small.dng", np.full((240, 320), 4000))
+    intrinsics = tmp_path / "intrinsics.json"
+    intrinsics.write_text(json.dumps({"width": 640, "height": 480, "fx": 900.0, "fy": 900.0, "cx": 319.5, "cy": 239.5,
+                                      "dist": [0, 0, 0, 0, 0]}))
+    with pytest.raises(UserInputError, match="size differs") as info:
+        calibrate_pose(photo, "cornell_cd", tmp_path / "out", intrinsics=intrinsics, progress=False)
+    assert info.value.file == str(photo) and "640 x 480" in str(info.value)
+
+
+def test_scene_without_a_camera_is_refused(tmp_path: Path) -> None:
+    scene = tmp_path / "nocamera.toml"
+    scene.write_text("[box]\nmodel = \"cornell\"\n[light]\npower_w = 10.0\n")
+    photo = _write_dng(tmp_path / "p.dng", np.full((240, 320), 4000))
+    with pytest.raises(UserInputError, match="missing") as info:
+        calibrate_pose(photo, scene, tmp_path / "out", progress=False)
+    assert info.value.file == str(scene) and info.value.field == "camera"
+
+
+def test_intrinsics_file_without_a_field_names_it(tmp_path: Path) -> None:
+    path = tmp_path / "intrinsics.json"
+    path.write_text(json.dumps({"width": 640, "height": 480, "fx": 900.0, "cx": 319.5, "cy": 239.5, "dist": [0] * 5}))
+    with pytest.raises(UserInputError) as info:
+        load_intrinsics(path)
+    assert info.value.file == str(path) and info.value.field == "fy"
+
+
+# ------------------------------------------------------------------------------ slow: the dataset
+
+
+def synthetic_dataset(tmp_path_factory) -> Path:
+    """`workbench synth cornell_cd --seed 0` (draft), once per session (shared with test_dataset.py)."""
+    from datasets_synthetic.synth import synth
+
+    folder = tmp_path_factory.getbasetemp() / f"calibration-cornell_cd-seed{SEED}" / "dataset"
+    if not (folder / "truth.json").exists():
+        synth("cornell_cd", folder, seed=SEED, progress=False)
+    return folder
+
+
+def calibrated_dataset(tmp_path_factory) -> tuple[Path, dict, dict]:
+    """`calibrate DATASET` on a copy of the dataset without its truth: (out, calibration.json, truth.json)."""
+    from calibration.dataset import calibrate_dataset
+
+    dataset = synthetic_dataset(tmp_path_factory)
+    out = dataset.parent / "calibrated"
+    if not (out / "calibration.json").exists():
+        blind = dataset.parent / "photos-only"
+        blind.mkdir(exist_ok=True)
+        for sub in ("photos", "brackets", "calibration"):
+            if not (blind / sub).exists():
+                (blind / sub).symlink_to(dataset / sub, target_is_directory=True)
+        calibrate_dataset(blind, "cornell_cd", out, progress=False)
+    return out, json.loads((out / "calibration.json").read_text()), json.loads((dataset / "truth.json").read_text())
+
+
+@pytest.fixture(scope="module")
+def calibrated(tmp_path_factory):
+    return calibrated_dataset(tmp_path_factory)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("photo", ["view0.dng", "view1.dng"])
+def test_pose_against_truth(calibrated, photo: str) -> None:
+    _, result, truth = calibrated
+    fitted = np.array(result["camera"]["world_to_camera"][photo])
+    true = np.array(truth["camera"]["world_to_camera"][photo])
+    assert rotation_error_deg(fitted, true) < ROTATION_DEG
+    assert center_error_m(fitted, true) < TRANSLATION_M
+
+
+@pytest.mark.slow
+def test_field_of_view_and_principal_point_against_truth(calibrated) -> None:
+    _, result, truth = calibrated
+    c, t = result["camera"], truth["camera"]
+    assert abs(fov_deg(c["width"], c["fx"]) - fov_deg(t["width"], t["fx"])) < FOV_DEG
+    assert abs(fov_deg(c["height"], c["fy"]) - fov_deg(t["height"], t["fy"])) < FOV_DEG
+    assert abs(c["cx"] - t["cx"]) < PRINCIPAL_POINT_SHARE * t["width"]
+    assert abs(c["cy"] - t["cy"]) < PRINCIPAL_POINT_SHARE * t["height"]
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("photo", ["view0.dng", "view1.dng"])
+def test_reported_uncertainty_covers_the_error(calibrated, photo: str) -> None:
+    _, result, truth = calibrated
+    fitted = np.array(result["camera"]["world_to_camera"][photo])
+    true = np.array(truth["camera"]["world_to_camera"][photo])
+    std = result["std"]["poses"][photo]
+    assert rotation_error_deg(fitted, true) < STD_FACTOR * std["rotation_total_deg"]
+    assert center_error_m(fitted, true) < STD_FACTOR * float(np.linalg.norm(std["camera_center_m"]))
+    assert abs(result["camera"]["cx"] - truth["camera"]["cx"]) < STD_FACTOR * result["std"]["cx"]
+    assert abs(result["camera"]["cy"] - truth["camera"]["cy"]) < STD_FACTOR * result["std"]["cy"]
