@@ -43,6 +43,7 @@ MAX_STEP_PX = 1.0          # a Gauss-Newton step longer than this is shortened t
 DAMPING = 1e-6             # Levenberg-Marquardt lambda, relative to the normal matrix's diagonal
 MAX_SHIFT_FRACTION = 0.3   # a corner that moves further than this times its spacing is not trusted
 MIN_VALID_FRACTION = 0.5   # pairs whose both samples lie inside the image, at least
+FEW_CORNERS = 16           # below this many corners still iterating, their blocks are multiplied one by one
 
 
 def _half_disc(radius: int) -> np.ndarray:
@@ -89,6 +90,7 @@ class DiscSampler:
         self.side = 2 * radius + 1
         self._pad = radius + 3
         self._padded = np.pad(np.asarray(grey, np.float32), self._pad, mode="edge")
+        self._windows = np.lib.stride_tricks.sliding_window_view(self._padded, (self.side + 3, self.side + 3))
         self._steps = np.arange(self.side + 3) - radius - 1        # crop rows / columns relative to q's pixel
         kx, ky = offsets[:, 0], offsets[:, 1]
         self._plus = (radius + ky) * self.side + (radius + kx)      # flat lattice index of q + k
@@ -105,10 +107,9 @@ class DiscSampler:
     def _gather(self, which: np.ndarray, anchor: np.ndarray) -> None:
         x0 = np.clip(anchor[:, 0], -self.radius - 1, self.width + self.radius)
         y0 = np.clip(anchor[:, 1], -self.radius - 1, self.height + self.radius)
-        rows = y0[:, None] + self._steps[None] + self._pad
-        cols = x0[:, None] + self._steps[None] + self._pad
-        crop = self._padded[rows[:, :, None], cols[:, None, :]]                 # (n, side + 3, side + 3)
         s, n = self.side, len(which)
+        first = self._pad - self.radius - 1                                     # the crop's first row/column, padded
+        crop = self._windows[y0 + first, x0 + first]                            # (n, side + 3, side + 3), a copy
         flat = crop.reshape(n, -1)
         self._blocks[0, which] = np.take(flat, self._crop_plus, 1)
         self._blocks[1, which] = np.take(flat, self._crop_minus, 1)
@@ -133,6 +134,10 @@ class DiscSampler:
                             dwy[:, :, None] * wx[:, None, :]], 1).reshape(len(q), 3, 16).astype(np.float32)
         if len(which) == self._blocks.shape[1]:
             return weights @ self._blocks[0], weights @ self._blocks[1], self._inside
+        if len(which) <= FEW_CORNERS:   # no copy of the few corners' blocks: one small product each
+            plus = np.stack([w @ self._blocks[0, j] for w, j in zip(weights, which, strict=True)])
+            minus = np.stack([w @ self._blocks[1, j] for w, j in zip(weights, which, strict=True)])
+            return plus, minus, self._inside[which]
         return weights @ self._blocks[0, which], weights @ self._blocks[1, which], self._inside[which]
 
 
