@@ -68,7 +68,7 @@ def main() -> None:
     parser.add_argument("--repeats", type=int, default=3)
     args = parser.parse_args()
     if REAL.is_dir():
-        images = [cv2.imread(str(p), cv2.IMREAD_GRAYSCALE) for p in sorted(REAL.glob("*.jpg"))]
+        images = [np.asarray(cv2.imread(str(p), cv2.IMREAD_GRAYSCALE)) for p in sorted(REAL.glob("*.jpg"))]
         source = f"{len(images)} real 640 x 480 views ({REAL})"
     else:
         images = [np.rint(255 * grey).astype(np.uint8) for grey, _ in rasterized_views()]
@@ -85,7 +85,7 @@ def main() -> None:
         result = find_board_corners(grey, PATTERN)
         subpix = plain_opencv(grey8)
         theirs = "not found" if subpix is None else f"{rms(subpix, truth):.4f} px"
-        ours_error = "not found" if not result.found else f"{rms(result.corners, truth):.4f} px"
+        ours_error = "not found" if result.corners is None else f"{rms(result.corners, truth):.4f} px"
         print(f"  rasterized board tilted {tilt:2d} deg: refined {ours_error}, cornerSubPix {theirs} (RMS against the truth)")
 
 

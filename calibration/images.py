@@ -53,5 +53,5 @@ def grey_uint8(grey: np.ndarray) -> np.ndarray:
     if hi <= lo:
         return np.zeros(grey.shape, np.uint8)
     scale = 255.0 / (hi - lo)
-    floored = cv2.max(np.asarray(grey, np.float32), float(lo))  # convertScaleAbs takes |x|: nothing below lo may reach it
+    floored = np.maximum(np.asarray(grey, np.float32), np.float32(lo))  # convertScaleAbs takes |x|: nothing below lo
     return cv2.convertScaleAbs(floored, alpha=scale, beta=-lo * scale)  # rounds and saturates at 255
