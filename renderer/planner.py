@@ -300,8 +300,10 @@ def plan_element(spec: SceneSpec, hit: dict[str, Any], origin: np.ndarray, camer
         for table_name, transmitted in channels:
             for chunk, lam in samples:
                 n1, n3 = _indices(structure, np.array([lam]))
-                n_cam = n1[0] if side_name == "above" else n3[0]
-                n_light = (n3[0] if side_name == "above" else n1[0]) if transmitted else n_cam
+                # omega_t is the camera's direction in air; behind a flat top the BWDF's n_pc sin(theta_pc) is sin(theta_air)
+                n_cam = 1.0 if hit["top"] else (n1[0] if side_name == "above" else n3[0])
+                n_side = n1[0] if side_name == "above" else n3[0]  # the table's angles are in this medium
+                n_light = (n3[0] if side_name == "above" else n1[0]) if transmitted else n_side
                 for m, n in kept:
                     theta, phi, ok = _incident_directions(omega_t[on_side], m, n, lam, structure.period, n_cam, n_light)
                     if not ok.any():
