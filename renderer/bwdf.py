@@ -314,7 +314,7 @@ class GratingBWDF(DeltaLobesBSDF):
         g = si.to_local(si.dp_du)
         norm = dr.sqrt(g.x * g.x + g.y * g.y)
         ok = norm > 1e-12  # the exact centre of a disk has no radial direction
-        return dr.select(ok, g.x / norm, 1.0), dr.select(ok, g.y / norm, 0.0)
+        return mi.Float(dr.select(ok, g.x / norm, 1.0)), mi.Float(dr.select(ok, g.y / norm, 0.0))
 
     def _enabled_channels(self, ctx: mi.BSDFContext) -> list[Channel]:
         """The channels the context lets this call sample (reflection 0, transmission 1)."""
@@ -416,9 +416,10 @@ class GratingBWDF(DeltaLobesBSDF):
         bs.pdf = dr.select(valid, pdf, 0.0)
         n_cam, n_light = pick("n_cam"), pick("n_light")
         bs.eta = dr.select(transmitted, n_light / n_cam, 1.0)
-        bs.sampled_type = dr.select(transmitted, mi.UInt32(+mi.BSDFFlags.DeltaTransmission),
+        # Mitsuba's stubs type these fields as UInt, which is UInt32 at run time in every variant
+        bs.sampled_type = dr.select(transmitted, mi.UInt32(+mi.BSDFFlags.DeltaTransmission),  # type: ignore[assignment]
                                     mi.UInt32(+mi.BSDFFlags.DeltaReflection))
-        bs.sampled_component = dr.select(transmitted, mi.UInt32(TRANSMISSION), mi.UInt32(REFLECTION))
+        bs.sampled_component = dr.select(transmitted, mi.UInt32(TRANSMISSION), mi.UInt32(REFLECTION))  # type: ignore[assignment]
         return bs, dr.select(valid, weight, 0.0)
 
     def _choose_improved(self, cands, lanes, k0, hero, rest):
@@ -448,7 +449,7 @@ class GratingBWDF(DeltaLobesBSDF):
         rest_d = dr.clip((rest - q0) / dr.maximum(1.0 - q0, 1e-12), 0.0, 0.99999994)
         others = [i for i in range(len(cands)) if i != k0]
         total = sum((cands[i]["value"] for i in others), mi.Float(0.0))
-        live = sum((dr.select(cands[i]["value"] > 0, 1.0, 0.0) for i in others), mi.Float(0.0))
+        live = sum((mi.Float(dr.select(cands[i]["value"] > 0, 1.0, 0.0)) for i in others), mi.Float(0.0))
         # Each diffracted lobe's probability: its efficiency's share, mixed with a uniform
         # share over the lobes that carry light (defensive importance sampling).
         probs = {i: dr.select(cands[i]["value"] > 0, (1 - alpha) * cands[i]["value"] / dr.maximum(total, 1e-30)

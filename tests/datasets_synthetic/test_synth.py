@@ -127,7 +127,7 @@ def test_bracket_values_follow_the_curve_across_exposures(dataset):
 
     def spread(invert) -> float:
         ratios = []
-        for a, b in zip(BRACKET_EV[:-1], BRACKET_EV[1:]):
+        for a, b in zip(BRACKET_EV[:-1], BRACKET_EV[1:], strict=True):
             ok = (images[a] > 40) & (images[a] < 220) & (images[b] > 40) & (images[b] < 220)
             ea = invert(images[a][ok] / 255) / times[a]
             eb = invert(images[b][ok] / 255) / times[b]
@@ -170,7 +170,8 @@ def calibrate(out) -> dict:
     errors of fx, fy, cx, cy, and the distortion difference (both models with the true K)
     over the area the board's corners covered in some view and over the whole image.
     Also a measuring tool:
-    ``python -c "from pathlib import Path; from tests.datasets_synthetic.test_synth import calibrate; print(calibrate(Path('DIR')))"``."""
+    ``python -c "from pathlib import Path; from tests.datasets_synthetic.test_synth import calibrate;
+    print(calibrate(Path('DIR')))"``."""
     from pathlib import Path
 
     from calibration.intrinsics import calibrate_board_views, distortion_difference_px
@@ -187,7 +188,7 @@ def calibrate(out) -> dict:
     true = np.array([cam["fx"], cam["fy"], cam["cx"], cam["cy"]])
     covered = np.vstack(result.image_points).reshape(-1, 2)
     return {"found": len(result.found), "views": len(views), "rms_px": result.rms_px,
-            "relative_error": dict(zip(("fx", "fy", "cx", "cy"), (estimated / true - 1).tolist())),
+            "relative_error": dict(zip(("fx", "fy", "cx", "cy"), (estimated / true - 1).tolist(), strict=True)),
             "dist": result.dist.tolist(), "true_dist": cam["dist"],
             "distortion_px_covered": distortion_difference_px(K_true, cam["dist"], result.dist, size, covered=covered),
             "distortion_px_image": distortion_difference_px(K_true, cam["dist"], result.dist, size)}
@@ -228,7 +229,8 @@ def test_same_seed_same_bytes(tmp_path, monkeypatch):
         runs[name] = {f.relative_to(tmp_path / name): f.read_bytes() for f in (tmp_path / name).rglob("*")
                       if f.is_file() and f.name != "run.json"}
     assert runs["a"] == runs["b"]
-    assert runs["a"][next(k for k in runs["a"] if k.name == "view0.dng")] != runs["c"][next(k for k in runs["c"] if k.name == "view0.dng")]
+    view0 = {run: next(k for k in files if k.name == "view0.dng") for run, files in runs.items()}
+    assert runs["a"][view0["a"]] != runs["c"][view0["c"]]
 
 
 def test_refuses_to_mix_datasets(dataset, tmp_path):
