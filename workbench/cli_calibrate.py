@@ -3,6 +3,7 @@
     workbench decode FILE --out OUT.exr [--json] [--response response.json] [--demosaic ALG]
     workbench calibrate intrinsics IMAGE... --board COLSxROWS --square-mm S [--charuco DICT,MARKER_MM]
                                    --out intrinsics.json [--fit-k3] [--quiet]
+    workbench calibrate response IMAGE... [--times T,...] --out response.json
 
 ``calibrate`` is a group: each calibration step is one entry of CALIBRATE_STEPS (a
 function adding its parser, one running it), so ``response`` and ``pose`` are added the
@@ -117,8 +118,51 @@ def _run_decode(args: argparse.Namespace) -> int:
     return 0
 
 
+def _times_argument(text: str) -> list[float]:
+    try:
+        values = [float(t) for t in text.split(",")]
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected exposure times in seconds, T,T,... (e.g. 1/250 as 0.004), got {text!r}") from None
+    if any(not v > 0 for v in values):
+        raise argparse.ArgumentTypeError(f"exposure times must be positive, got {text!r}")
+    return values
+
+
+def _add_response(steps) -> None:
+    p = steps.add_parser("response", help="the camera's response curve from an exposure bracket (raw: a linearity check)",
+                         description="Fits the camera's response curve to an exposure bracket of one scene (JPEG, PNG "
+                         "or TIFF: a monotone parametric curve fitted with nlopt, with OpenCV's Debevec and Robertson "
+                         "curves beside it); a raw bracket is checked for linearity instead. Exposure times come from "
+                         "EXIF or --times.")
+    p.add_argument("images", nargs="+", metavar="IMAGE", help="the bracket's images, same scene and camera, any order")
+    p.add_argument("--times", type=_times_argument, metavar="T,...", help="exposure times in seconds, one per image "
+                   "in the order given (default: read from each file's EXIF)")
+    p.add_argument("--out", required=True, metavar="response.json", help="the fitted curve and its comparison")
+    p.add_argument("--quiet", action="store_true", help="no progress bar")
+
+
+def _run_response(args: argparse.Namespace) -> int:
+    from calibration.response import calibrate_response
+
+    result = calibrate_response(args.images, args.out, times_s=args.times, progress=not args.quiet)
+    if result.get("method") == "raw-linearity":
+        check = result["linearity"]
+        print(f"wrote {args.out}: raw bracket of {len(result['files'])} files, slope of log value against log exposure "
+              f"{check['slope']:.4f} ({'linear' if result['linear'] else 'NOT linear'})")
+        return 0
+    print(f"wrote {args.out}: {result['method']} response curve from {len(result['files'])} images")
+    for name, other in result.get("others", {}).items():
+        diffs = [c["log_difference"].get("rms") for c in other["channels"].values()]
+        shown = ", ".join(f"{d:.3f}" for d in diffs if d is not None)
+        print(f"  {name}: RMS log-irradiance difference to it over values 0.05-0.95, per channel: {shown or 'n/a'}")
+    for warning in result.get("warnings", []):
+        print(f"  warning: {warning}")
+    return 0
+
+
 CALIBRATE_STEPS: dict[str, tuple[Callable, Callable[[argparse.Namespace], int]]] = {
     "intrinsics": (_add_intrinsics, _run_intrinsics),
+    "response": (_add_response, _run_response),
 }
 CALIBRATE_STEPS.update(CALIBRATE_POSE_STEPS)  # calibrate pose, calibrate dataset (workbench/cli_calibrate_pose.py)
 

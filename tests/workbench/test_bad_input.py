@@ -42,6 +42,15 @@ def files(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
         out[name] = root / name
     (root / "nocamera.toml").write_text(scene.split("[camera]")[0])
     out["nocamera.toml"] = root / "nocamera.toml"
+    (root / "truncated.dng").write_bytes(b"II*\x00" + bytes(64))
+    out["truncated.dng"] = root / "truncated.dng"
+    import numpy as np
+    from PIL import Image
+
+    gradient = np.tile(np.linspace(0, 255, 64, dtype=np.uint8), (48, 1))
+    for name, image in (("gray.png", gradient), ("gray2.png", gradient // 2)):
+        Image.fromarray(image).save(root / name)
+        out[name] = root / name
     (root / "a_folder").mkdir()
     out["a_folder"] = root / "a_folder"
     out["root"] = root
@@ -96,6 +105,33 @@ CASES: list[tuple[str, list[str], str]] = [
     ("plan-binary", ["plan", "{binary.toml}"], "not a text file"),
     ("plan-missing", ["plan", "{root}/nosuch.toml"], "not found"),
     ("plan-misspelt-table-key", ["plan", "{misspelt.toml}"], "cd[0].table.ordres"),
+    ("decode-missing", ["decode", "{root}/nosuch.dng", "--out", "{root}/o.exr"], "nosuch.dng"),
+    ("decode-not-an-image", ["decode", "{notes.txt}", "--out", "{root}/o.exr"], "notes.txt"),
+    ("decode-truncated-raw", ["decode", "{truncated.dng}", "--out", "{root}/o.exr"], "truncated.dng"),
+    ("intrinsics-bad-board", ["calibrate", "intrinsics", "{gray.png}", "--board", "9by6", "--square-mm", "25",
+                              "--out", "{root}/i.json"], "--board"),
+    ("intrinsics-too-few-views", ["calibrate", "intrinsics", "{gray.png}", "--board", "9x6", "--square-mm", "25",
+                                  "--out", "{root}/i.json"], "view"),
+    ("intrinsics-negative-square", ["calibrate", "intrinsics", "{gray.png}", "--board", "9x6", "--square-mm", "-2",
+                                    "--out", "{root}/i.json"], "--square-mm"),
+    ("response-one-image", ["calibrate", "response", "{gray.png}", "--out", "{root}/r.json"], "2"),
+    ("response-no-exposure-times", ["calibrate", "response", "{gray.png}", "{gray2.png}", "--out", "{root}/r.json"],
+     "exposure"),
+    ("response-times-count", ["calibrate", "response", "{gray.png}", "{gray2.png}", "--times", "0.01",
+                              "--out", "{root}/r.json"], "--times"),
+    ("response-bad-times", ["calibrate", "response", "{gray.png}", "{gray2.png}", "--times", "0.01,fast",
+                            "--out", "{root}/r.json"], "--times"),
+    ("pose-missing-photo", ["calibrate", "pose", "{root}/nosuch.dng", "--scene", "cornell_cd", "--out", "{root}/p"],
+     "nosuch.dng"),
+    ("pose-scene-without-camera", ["calibrate", "pose", "{gray.png}", "--scene", "{nocamera.toml}", "--out", "{root}/p"],
+     "camera"),
+    ("dataset-without-photos", ["calibrate", "dataset", "{a_folder}", "--scene", "cornell_cd", "--out", "{root}/c"],
+     "photos"),
+    ("report-missing-photo", ["report", "--photo", "{root}/nosuch.dng", "--render", "{root}/r.exr", "--calibration",
+                              "{root}/c.json", "--scene", "cornell_cd", "--out", "{root}/rep"], "no such file"),
+    ("report-binary-scene", ["report", "--photo", "{gray.png}", "--render", "{root}/r.exr", "--calibration",
+                             "{root}/c.json", "--scene", "{binary.toml}", "--out", "{root}/rep"], "error"),
+    ("cache-unknown-action", ["cache", "shred"], "invalid choice"),
     ("list-unknown-kind", ["list", "gizmos"], "invalid choice"),
     ("unknown-command", ["frobnicate"], "invalid choice"),
 ]
