@@ -256,7 +256,8 @@ def _check_memory(counts: tuple[int, ...]) -> None:
         raise UserInputError(
             f"{harmonics} harmonics need about {need / 2**30:.0f} GiB for the solver's matrices, more than half of "
             f"this machine's {total / 2**30:.0f} GiB", field="orders",
-            expected=f"fewer harmonics (at most about {_max_harmonics(total)} in all)", got=counts if len(counts) > 1 else counts[0])
+            expected=f"fewer harmonics (at most about {_max_harmonics(total)} in all)",
+            got=counts if len(counts) > 1 else counts[0])
 
 
 def _max_harmonics(total_bytes: int) -> int:

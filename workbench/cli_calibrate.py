@@ -122,7 +122,8 @@ def _times_argument(text: str) -> list[float]:
     try:
         values = [float(t) for t in text.split(",")]
     except ValueError:
-        raise argparse.ArgumentTypeError(f"expected exposure times in seconds, T,T,... (e.g. 1/250 as 0.004), got {text!r}") from None
+        raise argparse.ArgumentTypeError(
+            f"expected exposure times in seconds, T,T,... (e.g. 1/250 as 0.004), got {text!r}") from None
     if any(not v > 0 for v in values):
         raise argparse.ArgumentTypeError(f"exposure times must be positive, got {text!r}")
     return values
