@@ -87,6 +87,16 @@ class CameraModel:
         return cv2.undistortPoints(np.asarray(pixels, dtype=np.float64).reshape(-1, 1, 2), self.K, self.dist_array,
                                    criteria=criteria).reshape(-1, 2)
 
+    def pixel_rays(self, pixels: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The camera centre (3,) and unit world directions (N, 3) through pixel positions
+        (N, 2): the lens model inverted (``normalized``), then the pose."""
+        xy = self.normalized(np.asarray(pixels, float))
+        local = np.concatenate([xy, np.ones((len(xy), 1))], axis=1)
+        rotation = self.world_to_camera[:3, :3]
+        origin = -rotation.T @ self.world_to_camera[:3, 3]
+        directions = local @ rotation  # rows: R^T d
+        return origin, directions / np.linalg.norm(directions, axis=1, keepdims=True)
+
     # ---------------------------------------------------------------- rendering
 
     def pinhole_plan(self) -> "PinholePlan":

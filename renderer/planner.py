@@ -123,15 +123,10 @@ def camera_rays(spec: SceneSpec) -> tuple[np.ndarray, np.ndarray]:
     """The camera centre (3,) and one unit ray direction per pixel (H*W, 3), world frame."""
     cam = spec.camera.model
     v, u = np.mgrid[0:cam.height, 0:cam.width]
-    xy = cam.normalized(np.stack([u.ravel(), v.ravel()], axis=1).astype(float))
-    local = np.concatenate([xy, np.ones((len(xy), 1))], axis=1)
-    rotation = cam.world_to_camera[:3, :3]
-    origin = -rotation.T @ cam.world_to_camera[:3, 3]
-    directions = local @ rotation  # rows: R^T d
-    return origin, directions / np.linalg.norm(directions, axis=1, keepdims=True)
+    return cam.pixel_rays(np.stack([u.ravel(), v.ravel()], axis=1).astype(float))
 
 
-def _plane_hits(origin: np.ndarray, rays: np.ndarray, center: np.ndarray, normal: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def plane_hits(origin: np.ndarray, rays: np.ndarray, center: np.ndarray, normal: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Points where the rays meet the plane (through ``center``, ``normal``), and which rays do."""
     denom = rays @ normal
     with np.errstate(divide="ignore", invalid="ignore"):
@@ -153,7 +148,7 @@ def element_hits(spec: SceneSpec, origin: np.ndarray, rays: np.ndarray) -> list[
         frame = _frame(cd.normal, cd.rotation_deg)
         normal = frame[:, 2]
         center = np.asarray(cd.center, float)
-        points, ok = _plane_hits(origin, rays, center, normal)
+        points, ok = plane_hits(origin, rays, center, normal)
         radius = np.linalg.norm(points - center, axis=1)
         ok &= (radius >= cd.inner_radius) & (radius <= cd.outer_radius)
         radial = (points[ok] - center) / np.maximum(radius[ok, None], 1e-12)
@@ -162,7 +157,7 @@ def element_hits(spec: SceneSpec, origin: np.ndarray, rays: np.ndarray) -> list[
     for i, g in enumerate(spec.gratings):
         frame = _frame(g.normal, g.rotation_deg)
         center = np.asarray(g.center, float)
-        points, ok = _plane_hits(origin, rays, center, frame[:, 2])
+        points, ok = plane_hits(origin, rays, center, frame[:, 2])
         local = (points - center) @ frame
         ok &= (np.abs(local[:, 0]) <= g.size[0] / 2) & (np.abs(local[:, 1]) <= g.size[1] / 2)
         out.append({"key": f"grating[{i}]", "element": g, "points": points[ok],
@@ -207,7 +202,7 @@ def _mark(mask: np.ndarray, grid_theta: np.ndarray, grid_phi: np.ndarray, theta:
             mask[np.clip(it + dt, 0, len(grid_theta) - 1), np.clip(ip + dp, 0, len(grid_phi) - 1)] = True
 
 
-def _incident_directions(omega_t: np.ndarray, m: int, n: int, lam: float, period: tuple[float, ...],
+def incident_directions(omega_t: np.ndarray, m: int, n: int, lam: float, period: tuple[float, ...],
                          n_cam: float, n_light: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Table (theta, phi) in degrees of order (m, n)'s incident wave, and which exist (propagate)."""
     kx = n_cam * omega_t[:, 0] - ORDER_SIGN * m * lam / (1000.0 * period[0])
@@ -224,7 +219,7 @@ def _light_directions(spec: SceneSpec) -> tuple[np.ndarray, np.ndarray]:
     return np.asarray(spec.light.center, float), np.asarray(spec.light.size, float) / 2
 
 
-def _hits_light(points: np.ndarray, directions: np.ndarray, spec: SceneSpec) -> np.ndarray:
+def hits_light(points: np.ndarray, directions: np.ndarray, spec: SceneSpec) -> np.ndarray:
     """Whether rays from ``points`` along ``directions`` (world) meet the light's rectangle (facing down)."""
     center, half = _light_directions(spec)
     with np.errstate(divide="ignore", invalid="ignore"):
@@ -305,14 +300,14 @@ def plan_element(spec: SceneSpec, hit: dict[str, Any], origin: np.ndarray, camer
                 n_side = n1[0] if side_name == "above" else n3[0]  # the table's angles are in this medium
                 n_light = (n3[0] if side_name == "above" else n1[0]) if transmitted else n_side
                 for m, n in kept:
-                    theta, phi, ok = _incident_directions(omega_t[on_side], m, n, lam, structure.period, n_cam, n_light)
+                    theta, phi, ok = incident_directions(omega_t[on_side], m, n, lam, structure.period, n_cam, n_light)
                     if not ok.any():
                         continue
                     needed_orders.add((m, n))
                     _mark(masks[table_name][chunk], grid_theta, grid_phi, theta[ok], fold_azimuths(phi[ok], sym.x, sym.y))
-                    src = _source_rays(theta[ok], phi[ok], axis[on_side][ok], ey[on_side][ok], normal,
+                    src = source_rays(theta[ok], phi[ok], axis[on_side][ok], ey[on_side][ok], normal,
                                        above=(side_name == "above") != transmitted)
-                    direct += int(np.count_nonzero(_hits_light(points[on_side][ok], src, spec)))
+                    direct += int(np.count_nonzero(hits_light(points[on_side][ok], src, spec)))
                     total += int(ok.sum())
     used = [name for name, mk in masks.items() if mk.any()]
     union = np.zeros_like(masks["R"])
@@ -380,7 +375,7 @@ def _side_name(side: np.ndarray) -> str:
     return "both" if above and below else "above" if above else "below" if below else "none"
 
 
-def _source_rays(theta_deg: np.ndarray, phi_deg: np.ndarray, ex: np.ndarray, ey: np.ndarray, normal: np.ndarray,
+def source_rays(theta_deg: np.ndarray, phi_deg: np.ndarray, ex: np.ndarray, ey: np.ndarray, normal: np.ndarray,
                  above: bool) -> np.ndarray:
     """World directions toward where the incident light comes from (the light's side of the element).
 

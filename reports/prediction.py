@@ -20,12 +20,12 @@ The path, for one pixel (world frame, metres; the CD's frame is renderer.build.f
    ``k_out = k_inc + ORDER_SIGN m lambda / Lambda x_hat``. The flat top keeps the
    tangential wave vector, so ``k_out`` is the tangential part of the direction toward the
    camera in air, and ``k_inc = k_out - ORDER_SIGN m lambda / Lambda x_hat``
-   (renderer.planner._incident_directions, in air: both indices 1); the wave exists where
+   (renderer.planner.incident_directions, in air: both indices 1); the wave exists where
    ``|k_inc| < 1``.
-4. The light lies against the incident wave (renderer.planner._source_rays). Inside the
+4. The light lies against the incident wave (renderer.planner.source_rays). Inside the
    top the back-traced ray climbs ``CD_TOP_THICKNESS_M`` at the refracted angle, so it
    leaves the top beside p; from there it must hit the light's rectangle
-   (renderer.planner._hits_light; occlusion by other objects is not tested).
+   (renderer.planner.hits_light; occlusion by other objects is not tested).
 
 Per pixel, order and channel the lit fraction is the camera-sensitivity-weighted share
 of the light's spectrum that arrives: ``sum_lambda S_c E lit w / sum_lambda S_c E``, with
@@ -44,7 +44,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from renderer.camera import CameraModel
-from renderer.planner import _hits_light, _incident_directions, _source_rays
+from renderer.planner import hits_light, incident_directions, plane_hits, source_rays
 from renderer.scene import CD_TOP_THICKNESS_M, SPECTRAL_RANGE_NM, CDSpec, SceneSpec
 from workbench.core.conventions import ORDER_SIGN
 from workbench.core.errors import UserInputError
@@ -116,22 +116,8 @@ def cd_geometry(spec: SceneSpec, index: int = 0) -> CDGeometry:
 
 
 def pixel_rays(camera: CameraModel, pixels: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """The camera centre (3,) and unit world directions (N, 3) through pixel positions (N, 2)
-    (OpenCV: pixel centres at integers; the lens model inverted by CameraModel.normalized)."""
-    xy = camera.normalized(np.asarray(pixels, float))
-    local = np.concatenate([xy, np.ones((len(xy), 1))], axis=1)
-    rotation = camera.world_to_camera[:3, :3]
-    origin = -rotation.T @ camera.world_to_camera[:3, 3]
-    directions = local @ rotation  # rows: R^T d
-    return origin, directions / np.linalg.norm(directions, axis=1, keepdims=True)
-
-
-def _plane_hit(origin: np.ndarray, rays: np.ndarray, point: np.ndarray, normal: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    denom = rays @ normal
-    with np.errstate(divide="ignore", invalid="ignore"):
-        t = ((point - origin) @ normal) / denom
-    ok = np.isfinite(t) & (t > 0)
-    return origin + rays * np.where(ok, t, 0.0)[:, None], ok
+    """The camera centre and unit world directions through pixel positions (CameraModel.pixel_rays)."""
+    return camera.pixel_rays(pixels)
 
 
 def _on_annulus(points: np.ndarray, cd: CDGeometry, lift: float = 0.0) -> np.ndarray:
@@ -147,9 +133,9 @@ def trace_to_grating(origin: np.ndarray, rays: np.ndarray, cd: CDGeometry, top_i
     cos_i = -(rays @ normal)
     valid = cos_i > 0  # the camera looks at the grating's front
     if cd.top_thickness_m <= 0:
-        points, ok = _plane_hit(origin, rays, cd.center, normal)
+        points, ok = plane_hits(origin, rays, cd.center, normal)
         return points, valid & ok & _on_annulus(points, cd)
-    entry, ok = _plane_hit(origin, rays, cd.center + cd.top_thickness_m * normal, normal)
+    entry, ok = plane_hits(origin, rays, cd.center + cd.top_thickness_m * normal, normal)
     valid &= ok & _on_annulus(entry, cd, cd.top_thickness_m)
     eta = 1.0 / top_index
     cos_t = np.sqrt(np.maximum(1.0 - eta**2 * (1.0 - cos_i**2), 0.0))
@@ -265,13 +251,13 @@ def _light_hits(spec: SceneSpec, cd: CDGeometry, points: np.ndarray, axis: np.nd
                 omega_t: np.ndarray, m: int, lam: np.ndarray, top_index: float) -> tuple[np.ndarray, np.ndarray]:
     """For order m at wavelengths ``lam`` (one per row): which points receive the light, and
     the emission-profile weight there."""
-    theta, phi, ok = _incident_directions(omega_t, m, 0, lam, (cd.period_um,), 1.0, 1.0)  # type: ignore[arg-type]
+    theta, phi, ok = incident_directions(omega_t, m, 0, lam, (cd.period_um,), 1.0, 1.0)  # type: ignore[arg-type]
     lit = np.zeros(len(points), bool)
     weight = np.zeros(len(points))
     idx = np.flatnonzero(ok)
     if not len(idx):
         return lit, weight
-    source = _source_rays(theta[idx], phi[idx], axis[idx], ey[idx], cd.normal, above=True)  # in air, toward the light
+    source = source_rays(theta[idx], phi[idx], axis[idx], ey[idx], cd.normal, above=True)  # in air, toward the light
     start = points[idx]
     if cd.top_thickness_m > 0:  # the back-traced ray climbs through the top before it leaves into air
         sin_air = np.sin(np.radians(theta[idx]))
@@ -280,7 +266,7 @@ def _light_hits(spec: SceneSpec, cd: CDGeometry, points: np.ndarray, axis: np.nd
         cos_in = np.sqrt(1.0 - sin_in**2)
         along = np.where(sin_air > 0, sin_in / np.maximum(sin_air, 1e-300), 0.0)
         start = start + cd.top_thickness_m * (tangential * (along / cos_in)[:, None] + cd.normal[None])
-    hit = _hits_light(start, source, spec)
+    hit = hits_light(start, source, spec)
     lit[idx] = hit
     weight[idx] = np.where(hit, np.maximum(source[:, 1], 0.0) ** (spec.light.cos_power or 0.0), 0.0)
     return lit, weight

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from rcwa.table import Table
-from renderer.planner import _incident_directions, fold_azimuths, plan_scene
+from renderer.planner import fold_azimuths, incident_directions, plan_scene
 from renderer.scene import load_scene
 from workbench.core.conventions import order_kx
 
@@ -28,7 +28,7 @@ def test_incident_directions_invert_the_grating_equation() -> None:
     omega_t = rng.uniform(-0.6, 0.6, (200, 2))
     period, lam, n_cam, n_light = (1.6, 1.1), 532.0, 1.58, 1.58
     for m, n in ((-2, 0), (1, 1), (3, -2)):
-        theta, phi, ok = _incident_directions(omega_t, m, n, lam, period, n_cam, n_light)
+        theta, phi, ok = incident_directions(omega_t, m, n, lam, period, n_cam, n_light)
         k_inc = (n_light * np.sin(np.radians(theta)))[:, None] * np.stack([np.cos(np.radians(phi)), np.sin(np.radians(phi))], 1)
         back_x = order_kx(k_inc[ok, 0], m, period[0] * 1000.0, lam)
         back_y = order_kx(k_inc[ok, 1], n, period[1] * 1000.0, lam)
