@@ -65,7 +65,8 @@ def _add_intrinsics(steps) -> None:
     p.add_argument("--square-mm", type=_positive_float, required=True, metavar="S", help="side of a square, mm")
     p.add_argument("--charuco", metavar="DICT,MARKER_MM", help="a ChArUco board: OpenCV dictionary and marker side, "
                    "e.g. DICT_5X5_100,15")
-    p.add_argument("--out", required=True, metavar="intrinsics.json")
+    p.add_argument("--out", required=True, metavar="intrinsics.json",
+                   help="fx, fy, cx, cy, distortion with standard deviations, per-view errors, settings")
     p.add_argument("--fit-k3", action="store_true", help="fit k3 too (default: held at 0)")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
 

@@ -1,0 +1,38 @@
+"""Every command and option of the command line explains itself (issue 13): a help line
+for each subcommand and each argument, and `--version`."""
+
+from __future__ import annotations
+
+import argparse
+
+import pytest
+
+from workbench import __version__
+from workbench.cli import _build_parser, main
+
+
+def _parsers(parser: argparse.ArgumentParser, path: str = "workbench"):
+    yield path, parser
+    for action in parser._actions:
+        if isinstance(action, argparse._SubParsersAction):
+            helps = {choice.dest: choice.help for choice in action._choices_actions}
+            for name, sub in action.choices.items():
+                assert helps.get(name), f"'{path} {name}' has no help line in '{path} --help'"
+                yield from _parsers(sub, f"{path} {name}")
+
+
+def test_every_option_of_every_command_has_help() -> None:
+    missing = []
+    for path, parser in _parsers(_build_parser()):
+        for action in parser._actions:
+            if isinstance(action, (argparse._HelpAction, argparse._VersionAction, argparse._SubParsersAction)):
+                continue
+            if not action.help:
+                missing.append(f"{path} {'/'.join(action.option_strings) or action.dest}")
+    assert not missing, f"arguments without help: {missing}"
+
+
+def test_version(capsys: pytest.CaptureFixture[str]) -> None:
+    with pytest.raises(SystemExit) as info:
+        main(["--version"])
+    assert info.value.code == 0 and capsys.readouterr().out.strip() == f"workbench {__version__}"
