@@ -42,6 +42,7 @@ from calibration.pose import (
     PHOTOMETRY_NOTE,
     PoseSettings,
     Unknowns,
+    check_photo,
     fit_photo,
     fit_renderer,
     result_json,
@@ -158,6 +159,7 @@ def _fit_photos(photos: list[Path], spec, intrinsics: dict | None, response: dic
     for path in photos:
         tick = time.perf_counter()
         photo = read_photo(path, inverse if path.suffix.lower() not in RAW_SUFFIXES else None)
+        check_photo(photo)
         start = start_camera(spec, photo, known)
         if renderer is None and settings.render_check:
             renderer = fit_renderer(spec, start, settings.render_spp)

@@ -46,7 +46,7 @@ import cv2
 import numpy as np
 
 from calibration.edges import ChamferMap, edge_offsets, smoothed
-from calibration.photo import Photo, demosaic_bilinear, read_photo
+from calibration.photo import Photo, mosaic_like, read_photo
 from calibration.scene_model import FeatureSamples, SceneModel, sample_features, scene_model
 from renderer.camera import CameraModel
 from workbench.core.errors import UserInputError
@@ -293,19 +293,6 @@ def fine_fit(image: np.ndarray, model: SceneModel, start: CameraModel, unknowns:
 # ------------------------------------------------------------------------------------ render check
 
 
-def mosaic_like(rgb: np.ndarray, cfa: str | None) -> np.ndarray:
-    """``rgb`` through the photo's colour filter array and the same demosaicing (calibration.photo)."""
-    if not cfa:
-        return rgb
-    h, w, _ = rgb.shape
-    channel = np.empty((h, w), np.int64)
-    for k, c in enumerate(cfa[:4]):
-        dy, dx = divmod(k, 2)
-        channel[dy::2, dx::2] = "RGB".index(c) if c in "RGB" else 1
-    mosaic = np.take_along_axis(rgb, channel[..., None], axis=2)[..., 0]
-    return demosaic_bilinear(mosaic, channel)
-
-
 def photometric_mask(photo: Photo, render_grey: np.ndarray, model: SceneModel, camera: CameraModel) -> np.ndarray:
     """Pixels where photo and render are compared: the walls, at least 6 px from the scene's
     edges, 8 px from the glass, the CDs and the light, away from saturated pixels, and not
@@ -325,7 +312,8 @@ def photometric_mask(photo: Photo, render_grey: np.ndarray, model: SceneModel, c
 @dataclass
 class RenderCheck:
     scale: float            # photo / render over the walls (exposure x light power, relative to the scene file)
-    scale_std: float        # from the spread of the ratio over 16 blocks of the mask
+    scale_std: float        # the spread of the ratio over 16 blocks of the image (not divided by 4: the path
+                            # tracer's heavy-tailed noise makes the mean's error larger than independence suggests)
     bias: np.ndarray        # (N,) the edge finder's offset on the render at the match's points
     pixels_compared: int
     seconds: float
@@ -346,10 +334,8 @@ def render_check(renderer, photo: Photo, model: SceneModel, camera: CameraModel,
     scale = float(photo_grey[mask].sum() / grey[mask].sum())
     blocks = [float(photo_grey[mask & part].sum() / max(grey[mask & part].sum(), 1e-30))
               for part in _blocks(mask.shape, 4) if (mask & part).sum() > 50]
-    scale_std = float(np.std(blocks) / math.sqrt(max(len(blocks) - 1, 1))) if len(blocks) > 1 else float("nan")
-    like_photo = np.clip(mosaic_like(np.clip(render * scale, 0.0, None), photo.cfa), 0.0, 1.0)
-    if photo.saturated.any():
-        like_photo = np.where(photo.saturated[..., None], like_photo, like_photo)  # clipping already applied above
+    scale_std = float(np.std(blocks, ddof=1)) if len(blocks) > 1 else float("nan")
+    like_photo = np.clip(mosaic_like(np.clip(render * scale, 0.0, None), photo.cfa), 0.0, 1.0)  # clipped at white
     found = edge_offsets(smoothed(like_photo.mean(axis=2)), match.pixels, match.normals, window, sign=match.sign)
     bias = np.where(found.valid, found.offset, np.nan)
     return RenderCheck(scale, scale_std, bias, int(mask.sum()), time.perf_counter() - tick)
@@ -694,6 +680,7 @@ def calibrate_pose(photo_path: str | Path, scene: str | Path, out: str | Path | 
     known = load_intrinsics(intrinsics) if intrinsics is not None else None
     inverse = load_inverse_response(response) if response is not None else None
     photo = read_photo(photo_path, inverse)
+    check_photo(photo)
     start = start_camera(spec, photo, known)
     unknowns = Unknowns(intrinsics=known is None, radial=FREE_RADIAL_TERMS if known is None else 0)
     bar = tqdm(total=3, desc="calibrate pose", unit="stage", disable=not progress)
