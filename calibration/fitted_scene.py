@@ -13,7 +13,9 @@ from __future__ import annotations
 
 import os
 import tomllib
+from collections.abc import Sequence
 from pathlib import Path
+from typing import Any
 
 import tomli_w
 
@@ -41,7 +43,8 @@ def fitted_scene_text(spec: SceneSpec, camera: CameraModel, exposure: float, not
     data = tomllib.loads(spec.text)
     old = data.get("camera", {})
     data["camera"] = camera_table(camera, exposure, spec.camera.sensitivities, old.get("response"))
-    for key, elements in (("cd", spec.cds), ("grating", spec.gratings)):
+    groups: list[tuple[str, Sequence[Any]]] = [("cd", spec.cds), ("grating", spec.gratings)]
+    for key, elements in groups:
         for entry, element in zip(data.get(key, []), elements, strict=True):
             entry["structure"] = _absolute(element.structure)
             if "path" in element.table:

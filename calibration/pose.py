@@ -252,26 +252,11 @@ def image_shift_px(a: CameraModel, b: CameraModel, points: np.ndarray) -> float:
     return float(np.max(np.linalg.norm(project(a, points) - project(b, points), axis=1)))
 
 
-def fine_fit(image: np.ndarray, model: SceneModel, start: CameraModel, unknowns: Unknowns, settings: PoseSettings,
-             bias: np.ndarray | None = None, frozen: EdgeMatch | None = None) -> tuple[CameraModel, EdgeMatch, list[dict]]:
+def fine_fit(image: np.ndarray, model: SceneModel, start: CameraModel, unknowns: Unknowns,
+             settings: PoseSettings) -> tuple[CameraModel, EdgeMatch, list[dict]]:
     """Stage 2: measure edges, solve, repeat with shrinking windows until the projection
-    moves less than 0.01 px. ``frozen``/``bias``: one solve on given matches whose offsets
-    are corrected by ``bias`` (the render check)."""
+    moves less than 0.01 px."""
     camera, log = start, []
-    if frozen is not None:
-        window = settings.fine_windows_px[-1]
-        for _ in range(settings.fine_rounds):
-            measured = match_edges(image, model, camera, window, settings, samples=frozen.samples, sign=frozen.sign,
-                                   keep_all=True)
-            usable = measured.valid & np.isfinite(bias)
-            corrected = _subset(dataclasses.replace(measured, offsets=measured.offsets - np.nan_to_num(bias)), usable)
-            fitted, info = solve_match(corrected, unknowns, camera)
-            moved = image_shift_px(camera, fitted, corrected.samples.points)
-            camera = fitted
-            log.append({"window_px": window, "points": int(len(corrected.offsets)), "moved_px": moved, "bias_corrected": True})
-            if moved < 0.01:
-                break
-        return camera, corrected, log
     match = None
     for window in settings.fine_windows_px:
         for _ in range(settings.fine_rounds):
@@ -287,7 +272,31 @@ def fine_fit(image: np.ndarray, model: SceneModel, start: CameraModel, unknowns:
                         "rms_px": float(np.sqrt(np.mean(np.minimum(info["residuals"] ** 2, 9.0))))})
             if moved < 0.01:
                 break
+    if match is None:
+        raise ValueError("PoseSettings.fine_windows_px and fine_rounds must not be empty")
     return camera, match, log
+
+
+def bias_corrected_fit(image: np.ndarray, model: SceneModel, start: CameraModel, unknowns: Unknowns,
+                       settings: PoseSettings, checked: EdgeMatch, bias: np.ndarray) -> tuple[CameraModel, EdgeMatch, list[dict]]:
+    """Stage 3's last fine solves: the photo's edges measured again at ``checked``'s points,
+    each offset corrected by the edge finder's ``bias`` there (measured on the render),
+    repeated until the projection moves less than 0.01 px."""
+    window = settings.fine_windows_px[-1]
+    camera, log = start, []
+    corrected = checked
+    for _ in range(max(settings.fine_rounds, 1)):
+        measured = match_edges(image, model, camera, window, settings, samples=checked.samples, sign=checked.sign,
+                               keep_all=True)
+        usable = np.asarray(measured.valid) & np.isfinite(bias)
+        corrected = _subset(dataclasses.replace(measured, offsets=measured.offsets - np.nan_to_num(bias)), usable)
+        fitted, _ = solve_match(corrected, unknowns, camera)
+        moved = image_shift_px(camera, fitted, corrected.samples.points)
+        camera = fitted
+        log.append({"window_px": window, "points": int(len(corrected.offsets)), "moved_px": moved, "bias_corrected": True})
+        if moved < 0.01:
+            break
+    return camera, corrected, log
 
 
 # ------------------------------------------------------------------------------------ render check
@@ -527,7 +536,7 @@ def fit_photo(photo: Photo, model: SceneModel, start: CameraModel, unknowns: Unk
         check = render_check(renderer, photo, model, camera, match, window, settings)
         usable = np.isfinite(check.bias) & (np.abs(check.bias) < window)
         before, checked = camera, _subset(match, usable)
-        camera, match, refit_log = fine_fit(image, model, camera, unknowns, settings, bias=check.bias[usable], frozen=checked)
+        camera, match, refit_log = bias_corrected_fit(image, model, camera, unknowns, settings, checked, check.bias[usable])
         scale, scale_std = check.scale, check.scale_std
         names = np.asarray(checked.samples.names)[checked.samples.feature]
         check_log = {"seconds": check.seconds, "pixels_compared": check.pixels_compared, "points": int(usable.sum()),
