@@ -290,7 +290,10 @@ def _run_study_rcwa(args: argparse.Namespace) -> int:
 
 def main(argv: Sequence[str] | None = None) -> int:
     signal.signal(signal.SIGPIPE, signal.SIG_DFL)  # quiet when piped into head or less
+    from workbench.cli_calibrate_pose import route_dataset
+
     parser = _build_parser()
+    argv = route_dataset(sys.argv[1:] if argv is None else list(argv), tuple(cli_calibrate.CALIBRATE_STEPS))
     args = parser.parse_args(argv)
     try:
         apply_cache_option(args)

@@ -19,19 +19,10 @@ import json
 from collections.abc import Callable
 from pathlib import Path
 
+from workbench.cli_arguments import board_argument
 from workbench.cli_calibrate_pose import STEPS as CALIBRATE_POSE_STEPS
 
 COMMANDS = ("decode", "calibrate")
-
-
-def _board_argument(text: str) -> tuple[int, int]:
-    try:
-        cols, rows = (int(v) for v in text.lower().split("x"))
-        if cols < 2 or rows < 2:
-            raise ValueError
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected COLSxROWS with integers >= 2 (e.g. 9x6), got {text!r}") from None
-    return cols, rows
 
 
 def _positive_float(text: str) -> float:
@@ -60,7 +51,7 @@ def _add_decode(commands) -> None:
 def _add_intrinsics(steps) -> None:
     p = steps.add_parser("intrinsics", help="focal lengths, principal point and distortion from board views")
     p.add_argument("images", nargs="+", metavar="IMAGE", help="board photographs (raw, JPEG, PNG, TIFF), one camera")
-    p.add_argument("--board", type=_board_argument, required=True, metavar="COLSxROWS",
+    p.add_argument("--board", type=board_argument, required=True, metavar="COLSxROWS",
                    help="inner corners of a checkerboard (e.g. 9x6); with --charuco, the board's squares")
     p.add_argument("--square-mm", type=_positive_float, required=True, metavar="S", help="side of a square, mm")
     p.add_argument("--charuco", metavar="DICT,MARKER_MM", help="a ChArUco board: OpenCV dictionary and marker side, "

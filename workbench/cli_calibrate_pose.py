@@ -15,18 +15,10 @@ from __future__ import annotations
 import argparse
 from collections.abc import Callable, Sequence
 
+from workbench.cli_arguments import board_argument
+
 SCENE_HELP = "the scene the photos show: a built-in scene (`workbench list scenes`) or a scene file"
 DATASET_STEP = "dataset"
-
-
-def _board(text: str) -> tuple[int, int]:
-    try:
-        cols, rows = (int(v) for v in text.lower().split("x"))
-        if cols < 2 or rows < 2:
-            raise ValueError
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected COLSxROWS with integers >= 2 (e.g. 9x6), got {text!r}") from None
-    return cols, rows
 
 
 def _positive(kind: type) -> Callable[[str], float]:
@@ -72,7 +64,7 @@ def add_dataset(steps) -> None:
                                      "Never reads truth.json.")
     p.add_argument("dataset", metavar="DATASET", help="a folder with photos/ (and brackets/, calibration/), "
                                                       "as `workbench synth` writes")
-    p.add_argument("--board", type=_board, default=(9, 6), metavar="COLSxROWS",
+    p.add_argument("--board", type=board_argument, default=(9, 6), metavar="COLSxROWS",
                    help="inner corners of the checkerboard in calibration/ (default: 9x6)")
     p.add_argument("--square-mm", type=_positive(float), default=20.0, metavar="S", help="the board's square size")
     _add_common(p)
@@ -130,10 +122,15 @@ STEPS: dict[str, tuple[Callable, Callable[[argparse.Namespace], int]]] = {
 
 def route_dataset(argv: Sequence[str], steps: Sequence[str]) -> list[str]:
     """``calibrate DATASET ...`` -> ``calibrate dataset DATASET ...`` when the word after
-    ``calibrate`` is neither a step (``steps``) nor an option."""
+    the ``calibrate`` command is neither a step (``steps``) nor an option. Only the command
+    word counts (top-level options such as ``--cache DIR`` may come before it), so a file
+    named ``calibrate`` given to another command is left alone."""
     argv = list(argv)
-    if "calibrate" in argv:
-        i = argv.index("calibrate")
-        if i + 1 < len(argv) and argv[i + 1] not in steps and not argv[i + 1].startswith("-"):
-            argv.insert(i + 1, DATASET_STEP)
+    i = 0
+    while i < len(argv) and argv[i].startswith("-"):
+        i += 2 if argv[i] == "--cache" else 1
+    if i < len(argv) and argv[i] == "calibrate":
+        nxt = i + 1
+        if nxt < len(argv) and argv[nxt] not in steps and not argv[nxt].startswith("-"):
+            argv.insert(nxt, DATASET_STEP)
     return argv
