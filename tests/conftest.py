@@ -11,6 +11,7 @@ their own set WORKBENCH_CACHE to a tmp_path folder with monkeypatch.
 """
 
 import os
+from pathlib import Path
 
 import pytest
 
@@ -29,3 +30,15 @@ def suite_cache(tmp_path_factory, request):
         os.environ.pop(ENVIRONMENT_VARIABLE, None)
     else:
         os.environ[ENVIRONMENT_VARIABLE] = previous
+
+
+def synthetic_dataset(tmp_path_factory: pytest.TempPathFactory, seed: int, scene: str = "cornell_cd") -> Path:
+    """`workbench synth SCENE --seed SEED` (draft), made once per test session and shared by
+    every module that asks for the same one (each takes about a minute on 2 cores).
+    Tests must treat it as read-only."""
+    from datasets_synthetic.synth import synth
+
+    folder = tmp_path_factory.getbasetemp() / f"dataset-{scene}-seed{seed}" / "dataset"
+    if not (folder / "truth.json").exists():
+        synth(scene, folder, seed=seed, progress=False)
+    return folder

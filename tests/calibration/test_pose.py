@@ -36,7 +36,7 @@ from renderer.render import with_resolution
 from renderer.scene import load_scene, parse_scene
 from workbench.core.errors import UserInputError
 
-SEED = 0
+SEED = 0  # seeds 1 and 2 meet the bars too; seed 5 (the other tests' dataset) misses translation: 1.06 mm
 STEP_PX = 0.04              # measured 0.034 px at worst (axis-aligned steps): the 0.1-of-peak floor of the lobe
 # An exact image of the box at 320 x 240 (the edge finder's bias there is 0.001-0.01 px per edge): measured
 # 0.0016 deg and 0.03 mm with the intrinsics held, 0.010 deg, 0.10 mm, 0.010 deg of FOV and 0.07 px of principal
@@ -263,13 +263,11 @@ def test_intrinsics_file_without_a_field_names_it(tmp_path: Path) -> None:
 
 
 def synthetic_dataset(tmp_path_factory) -> Path:
-    """`workbench synth cornell_cd --seed 0` (draft), once per session (shared with test_dataset.py)."""
-    from datasets_synthetic.synth import synth
+    """`workbench synth cornell_cd --seed SEED` (draft), once per session, shared with
+    test_dataset.py, tests/datasets_synthetic/test_synth.py and test_response.py."""
+    from tests.conftest import synthetic_dataset as shared
 
-    folder = tmp_path_factory.getbasetemp() / f"calibration-cornell_cd-seed{SEED}" / "dataset"
-    if not (folder / "truth.json").exists():
-        synth("cornell_cd", folder, seed=SEED, progress=False)
-    return folder
+    return shared(tmp_path_factory, SEED)
 
 
 def calibrated_dataset(tmp_path_factory) -> tuple[Path, dict, dict]:

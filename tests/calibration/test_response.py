@@ -347,10 +347,9 @@ def log_curve_of(points, inverse: bool = False) -> np.ndarray:
 
 @pytest.fixture(scope="module")
 def dataset(tmp_path_factory):
-    from datasets_synthetic.synth import synth
+    from tests.conftest import synthetic_dataset
 
-    out = tmp_path_factory.mktemp("response") / "draft"
-    synth("cornell_cd", out, seed=5, progress=False)
+    out = synthetic_dataset(tmp_path_factory, 5)  # shared with tests/datasets_synthetic/test_synth.py
     return out, json.loads((out / "truth.json").read_text())
 
 

@@ -16,15 +16,15 @@ from datasets_synthetic.jpeg import demosaic, develop, read_exposure_time
 from datasets_synthetic.sensor import SensorModel
 from datasets_synthetic.synth import BRACKET_EV, PRESETS, synth
 from renderer.response import ResponseCurve
+from tests.conftest import synthetic_dataset
 from workbench.core.errors import UserInputError
 
-SEED = 5
+SEED = 5  # the suite's shared draft dataset (tests/conftest.py), also used by test_response.py
 
 
 @pytest.fixture(scope="module")
 def dataset(tmp_path_factory):
-    out = tmp_path_factory.mktemp("ds") / "a"
-    synth("cornell_cd", out, seed=SEED, progress=False)
+    out = synthetic_dataset(tmp_path_factory, SEED)
     return out, json.loads((out / "truth.json").read_text())
 
 
