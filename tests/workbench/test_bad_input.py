@@ -127,6 +127,7 @@ CASES: list[tuple[str, list[str], str]] = [
      "camera"),
     ("dataset-without-photos", ["calibrate", "dataset", "{a_folder}", "--scene", "cornell_cd", "--out", "{root}/c"],
      "photos"),
+    ("calibrate-dataset-short-form", ["calibrate", "{a_folder}", "--scene", "cornell_cd", "--out", "{root}/c2"], "photos"),
     ("report-missing-photo", ["report", "--photo", "{root}/nosuch.dng", "--render", "{root}/r.exr", "--calibration",
                               "{root}/c.json", "--scene", "cornell_cd", "--out", "{root}/rep"], "no such file"),
     ("report-binary-scene", ["report", "--photo", "{gray.png}", "--render", "{root}/r.exr", "--calibration",
