@@ -57,6 +57,7 @@ bench: install
 	$(BIN)/python -m benchmarks.bench_fit
 	$(BIN)/python -m benchmarks.bench_render
 	$(BIN)/python -m benchmarks.bench_corners
+	$(BIN)/python -m benchmarks.bench_calibration
 
 clean:
 	rm -rf build $(VENV)
