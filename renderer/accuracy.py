@@ -27,16 +27,21 @@ RELMSE_EPS = 1e-2
 ELEMENT_PREFIXES = ("cd", "grating")  # scene keys of diffractive elements (renderer.build), CD tops included
 
 
+def primary_hits(mi, scene):
+    """Each film pixel's centre ray and what it hits first: (intersections, rays, (H, W))."""
+    sensor = scene.sensors()[0]
+    W, H = sensor.film().crop_size()
+    y, x = np.mgrid[0:H, 0:W]
+    pixels = mi.Point2f(((x + 0.5) / W).ravel().astype(np.float32), ((y + 0.5) / H).ravel().astype(np.float32))
+    ray, _ = sensor.sample_ray(0.0, 0.5, pixels, mi.Point2f(0.5, 0.5))
+    return scene.ray_intersect(ray), ray, (H, W)
+
+
 def element_mask(mi, scene_d: dict) -> np.ndarray:
     """Pixels of the (uncropped) film whose primary ray hits a diffractive element (a CD,
     its polycarbonate top, a grating)."""
     sc = mi.load_dict(scene_d)
-    sensor = sc.sensors()[0]
-    W, H = sensor.film().crop_size()
-    y, x = np.mgrid[0:H, 0:W]
-    ray, _ = sensor.sample_ray(0.0, 0.5, mi.Point2f(((x + 0.5) / W).ravel().astype(np.float32),
-                                                    ((y + 0.5) / H).ravel().astype(np.float32)), mi.Point2f(0.5, 0.5))
-    si = sc.ray_intersect(ray)
+    si, _, (H, W) = primary_hits(mi, sc)
     hit = np.zeros(W * H, bool)
     for s in sc.shapes():
         if s.id().startswith(ELEMENT_PREFIXES):

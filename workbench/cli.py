@@ -10,12 +10,13 @@ import argparse
 import json
 import signal
 import sys
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
 from workbench import cli_calibrate
 from workbench.catalog import KINDS
+from workbench.cli_arguments import count_argument
 from workbench.cli_cache import add_cache_option, apply_cache_option
 from workbench.cli_cache import add_parsers as add_cache_parsers
 from workbench.cli_cache import run as run_cache
@@ -81,22 +82,6 @@ class _Parser(argparse.ArgumentParser):
         super().__init__(*args, **kwargs)
 
 
-def _count_argument(minimum: int, maximum: int | None = None) -> Callable[[str], int]:
-    """An argparse type: an integer in [minimum, maximum], with the range in the error."""
-
-    def parse(text: str) -> int:
-        try:
-            value = int(text)
-        except ValueError:
-            raise argparse.ArgumentTypeError(f"expected an integer, got {text!r}") from None
-        if value < minimum or (maximum is not None and value > maximum):
-            bound = f"from {minimum} to {maximum}" if maximum is not None else f">= {minimum}"
-            raise argparse.ArgumentTypeError(f"expected an integer {bound}, got {text!r}")
-        return value
-
-    return parse
-
-
 def _build_parser() -> argparse.ArgumentParser:
     from workbench import __version__
 
@@ -150,13 +135,13 @@ def _build_parser() -> argparse.ArgumentParser:
                         help="the linear camera-RGB EXR; the PNG preview and JSON sidecar go beside it")
     render.add_argument("--preset", choices=["draft", "paper"], default="draft",
                         help="draft: the scene camera's resolution, 256 spp; paper: the paper's frame, 978 x 734 at 2045 spp")
-    render.add_argument("--spp", type=_count_argument(1), metavar="N", help="samples per pixel (default: the preset's)")
+    render.add_argument("--spp", type=count_argument(1), metavar="N", help="samples per pixel (default: the preset's)")
     render.add_argument("--resolution", type=_resolution_argument, metavar="WxH", help="image size (default: the preset's)")
     render.add_argument("--integrator", choices=["path", "direct"], default="path",
                         help="path: global illumination; direct: light sources only, as the paper's second mode")
     render.add_argument("--mode", choices=["paper", "improved"], default="improved",
                         help="BWDF sampling: paper reproduces Lange et al. 2021 Eqs. 2-5; improved is unbiased and less noisy")
-    render.add_argument("--seed", type=_count_argument(0, SEED_MAX), default=0, help="random seed of the first pass")
+    render.add_argument("--seed", type=count_argument(0, SEED_MAX), default=0, help="random seed of the first pass")
     render.add_argument("--scheduler", metavar="ADDRESS", help="render the passes on this dask.distributed scheduler")
     render.add_argument("--workers", type=int, metavar="N", help="start a local dask cluster with N worker processes")
     render.add_argument("--quiet", action="store_true", help="no progress bar")
@@ -167,7 +152,7 @@ def _build_parser() -> argparse.ArgumentParser:
     synth.add_argument("scene", help=SCENE_HELP)
     synth.add_argument("--out", required=True, metavar="DIR",
                        help="the dataset folder (photos/, brackets/, calibration/, truth.json)")
-    synth.add_argument("--seed", type=_count_argument(0, SEED_MAX), default=0,
+    synth.add_argument("--seed", type=count_argument(0, SEED_MAX), default=0,
                        help="seed of the hidden camera and the noise: same seed, same bytes")
     synth.add_argument("--preset", choices=["draft", "full"], default="draft",
                        help="draft: 640 x 480, 2 views, 20 board views (about a minute); "

@@ -19,20 +19,10 @@ import json
 from collections.abc import Callable
 from pathlib import Path
 
-from workbench.cli_arguments import board_argument
+from workbench.cli_arguments import board_argument, positive_number
 from workbench.cli_calibrate_pose import STEPS as CALIBRATE_POSE_STEPS
 
 COMMANDS = ("decode", "calibrate")
-
-
-def _positive_float(text: str) -> float:
-    try:
-        value = float(text)
-        if not value > 0:
-            raise ValueError
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a positive number, got {text!r}") from None
-    return value
 
 
 def _add_decode(commands) -> None:
@@ -53,7 +43,7 @@ def _add_intrinsics(steps) -> None:
     p.add_argument("images", nargs="+", metavar="IMAGE", help="board photographs (raw, JPEG, PNG, TIFF), one camera")
     p.add_argument("--board", type=board_argument, required=True, metavar="COLSxROWS",
                    help="inner corners of a checkerboard (e.g. 9x6); with --charuco, the board's squares")
-    p.add_argument("--square-mm", type=_positive_float, required=True, metavar="S", help="side of a square, mm")
+    p.add_argument("--square-mm", type=positive_number(float), required=True, metavar="S", help="side of a square, mm")
     p.add_argument("--charuco", metavar="DICT,MARKER_MM", help="a ChArUco board: OpenCV dictionary and marker side, "
                    "e.g. DICT_5X5_100,15")
     p.add_argument("--out", required=True, metavar="intrinsics.json",

@@ -15,28 +15,16 @@ from __future__ import annotations
 import argparse
 from collections.abc import Callable, Sequence
 
-from workbench.cli_arguments import board_argument
+from workbench.cli_arguments import board_argument, positive_number
 
 SCENE_HELP = "the scene the photos show: a built-in scene (`workbench list scenes`) or a scene file"
 DATASET_STEP = "dataset"
 
 
-def _positive(kind: type) -> Callable[[str], float]:
-    def parse(text: str):
-        try:
-            value = kind(text)
-            if not value > 0:
-                raise ValueError
-        except ValueError:
-            raise argparse.ArgumentTypeError(f"expected a positive {kind.__name__}, got {text!r}") from None
-        return value
-    return parse
-
-
 def _add_common(p: argparse.ArgumentParser) -> None:
     p.add_argument("--scene", required=True, metavar="SCENE", help=SCENE_HELP)
     p.add_argument("--out", required=True, metavar="DIR", help="the results folder (created; files in it are replaced)")
-    p.add_argument("--render-spp", type=_positive(int), default=16, metavar="N",
+    p.add_argument("--render-spp", type=positive_number(int), default=16, metavar="N",
                    help="samples per pixel of the render check (exposure x light power, the edge finder's bias)")
     p.add_argument("--no-render-check", action="store_true",
                    help="skip the render check: edges only, no photometry (seconds instead of a minute)")
@@ -66,7 +54,7 @@ def add_dataset(steps) -> None:
                                                       "as `workbench synth` writes")
     p.add_argument("--board", type=board_argument, default=(9, 6), metavar="COLSxROWS",
                    help="inner corners of the checkerboard in calibration/ (default: 9x6)")
-    p.add_argument("--square-mm", type=_positive(float), default=20.0, metavar="S", help="the board's square size")
+    p.add_argument("--square-mm", type=positive_number(float), default=20.0, metavar="S", help="the board's square size")
     _add_common(p)
 
 

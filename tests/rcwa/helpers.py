@@ -56,3 +56,15 @@ def airy_rt(
     if complex(n_list[-1]).imag > 0:
         T = 0.0  # nothing reaches infinity in an absorbing substrate
     return R, T
+
+
+def damage_chunk(chunk, damage: str) -> None:
+    """Damage a stored table chunk file the way a disk or a careless hand would."""
+    data = bytearray(chunk.read_bytes())
+    if damage == "flip a byte":
+        data[len(data) // 2] ^= 0xFF
+        chunk.write_bytes(bytes(data))
+    elif damage == "truncate":
+        chunk.write_bytes(bytes(data[: len(data) // 3]))
+    else:
+        chunk.unlink()

@@ -16,6 +16,7 @@ import pytest
 
 import rcwa
 from rcwa.table import build_table, open_table, settings_for
+from tests.rcwa.helpers import damage_chunk
 from workbench.core.errors import UserInputError
 
 TOLERANCE_FLOAT32 = 1e-6
@@ -110,14 +111,7 @@ def test_damaged_table_is_a_clear_error(tmp_path, damage):
     out = tmp_path / "d.zarr"
     build_table(s, _small(s), out, progress=False)
     chunk = _chunk_files(out)[1]
-    data = bytearray(chunk.read_bytes())
-    if damage == "flip a byte":
-        data[len(data) // 2] ^= 0xFF
-        chunk.write_bytes(bytes(data))
-    elif damage == "truncate":
-        chunk.write_bytes(bytes(data[: len(data) // 3]))
-    else:
-        chunk.unlink()
+    damage_chunk(chunk, damage)
     with pytest.raises(UserInputError) as err:
         open_table(out)
     assert str(out) in str(err.value)

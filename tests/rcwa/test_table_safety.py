@@ -14,6 +14,7 @@ import pytest
 
 import rcwa
 from rcwa.table import build_table, open_table, settings_for
+from tests.rcwa.helpers import damage_chunk
 from workbench.cli import main
 from workbench.core.errors import UserInputError
 
@@ -61,14 +62,7 @@ def test_a_damaged_table_is_repaired_when_reused(tmp_path, damage):
     build_table(s, st, out, progress=False)
     intact = open_table(out).arrays["R"].copy()
     chunk = sorted(p for p in (out / "R" / "c").rglob("*") if p.is_file())[1]
-    data = bytearray(chunk.read_bytes())
-    if damage == "flip a byte":
-        data[len(data) // 2] ^= 0xFF
-        chunk.write_bytes(bytes(data))
-    elif damage == "truncate":
-        chunk.write_bytes(bytes(data[: len(data) // 3]))
-    else:
-        chunk.unlink()
+    damage_chunk(chunk, damage)
     with pytest.raises(UserInputError, match=r"chunk 1 \(wavelength 550 nm\).*workbench rcwa table cd --out"):
         open_table(out)  # names the chunk and the command that repairs it
     report = build_table(s, st, out, progress=False)

@@ -85,12 +85,9 @@ def test_builtin_scene_renders(mitsuba_variant, tmp_path):
 
 def _primary_hits(mi, scene):
     """Each film pixel's primary hit: point, normal turned toward the camera, validity."""
-    sensor = scene.sensors()[0]
-    W, H = sensor.film().crop_size()
-    y, x = np.mgrid[0:H, 0:W]
-    ray, _ = sensor.sample_ray(0.0, 0.5, mi.Point2f(((x + 0.5) / W).ravel().astype(np.float32),
-                                                    ((y + 0.5) / H).ravel().astype(np.float32)), mi.Point2f(0.5, 0.5))
-    si = scene.ray_intersect(ray)
+    from renderer.accuracy import primary_hits
+
+    si, ray, (H, W) = primary_hits(mi, scene)
     p, n, d = (np.array(v).T.reshape(H, W, 3) for v in (si.p, si.n, ray.d))
     n = n * np.sign(np.sum(-d * n, axis=-1, keepdims=True))
     return p, n, np.array(si.is_valid()).reshape(H, W)
