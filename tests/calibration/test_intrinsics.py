@@ -38,6 +38,7 @@ REAL = Path(__file__).resolve().parents[2].parent / "shared" / "data" / "real"
 REAL_VIEWS = sorted((REAL / "chessboard_right").glob("*.jpg"))
 needs_real = pytest.mark.skipif(not REAL_VIEWS, reason=f"OpenCV's real board views not found in {REAL / 'chessboard_right'}")
 PATTERN = (9, 6)
+SAME_BOARD_REL = 1e-7   # the same corners in another order: equal up to the solver's stopping round-off
 SQUARE_M = 0.025
 SUBPIX_WINDOW = (5, 5)   # cornerSubPix's winSize is a half-size: (5, 5) is an 11 x 11 pixel window. The common
                          # (11, 11) (23 x 23 px) reaches past the neighbouring corners of these 30 px squares, drifts
@@ -87,8 +88,11 @@ def test_real_views_agree_with_plain_opencv_with_a_lower_rms():
 def test_a_swapped_board_size_is_the_same_board():
     a = calibrate_board_views(REAL_VIEWS, (9, 6), SQUARE_M)
     b = calibrate_board_views(REAL_VIEWS, (6, 9), SQUARE_M)
-    np.testing.assert_allclose(b.K, a.K, rtol=1e-9)  # the same corners, on a board model turned by 90 degrees
-    assert b.rms_px == pytest.approx(a.rms_px, rel=1e-9)
+    # The same corners, on a board model turned by 90 degrees; only the order of the points differs, which moves
+    # where calibrateCamera's Levenberg-Marquardt stops by round-off (4.7e-9 relative seen in CI): far below the
+    # 0.4 px standard deviations, far above what a different board would give
+    np.testing.assert_allclose(b.K, a.K, rtol=SAME_BOARD_REL)
+    assert b.rms_px == pytest.approx(a.rms_px, rel=SAME_BOARD_REL)
 
 
 @needs_real
