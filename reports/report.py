@@ -99,6 +99,11 @@ def _sampled_prediction(pred: Prediction, grid: polar.PolarGrid) -> np.ndarray:
                      for m in pred.orders]).transpose(0, 3, 1, 2)
 
 
+def _correlation(photo: images.Photo) -> float:
+    """How far the photo's noise is shared (reports.fringes): 2 px for a demosaiced raw photo."""
+    return fringes.MOSAIC_CORRELATION_PX if photo.kind == "raw" else fringes.NOISE_CORRELATION_PX
+
+
 def measure_fringes(pred: Prediction, photo: images.Photo, render: np.ndarray, grids: tuple[polar.PolarGrid, ...],
                     focal_px: float) -> dict[str, Any]:
     """Band edges in prediction, photo and render on ``grids``; pairs and summaries."""
@@ -107,7 +112,7 @@ def measure_fringes(pred: Prediction, photo: images.Photo, render: np.ndarray, g
     for grid in grids:
         sampled = _sampled_prediction(pred, grid)
         found = {"prediction": fringes.find_edges(grid, sampled, pred.orders),
-                 "photo": fringes.find_edges(grid, sampled, pred.orders, photo.rgb, photo.clipped),
+                 "photo": fringes.find_edges(grid, sampled, pred.orders, photo.rgb, photo.clipped, _correlation(photo)),
                  "render": fringes.find_edges(grid, sampled, pred.orders, render)}
         for name, e in found.items():
             edges[name] += [(grid.kind, x) for x in e]
@@ -196,7 +201,7 @@ def analyse_cd(spec, fitted: FittedCamera, photo: images.Photo, render: np.ndarr
         relative = []
         for grid_ref, grid_own in zip(grids, own, strict=True):
             sampled = _sampled_prediction(pred, grid_ref)
-            photo_edges = fringes.find_edges(grid_own, sampled, pred.orders, photo.rgb, photo.clipped)
+            photo_edges = fringes.find_edges(grid_own, sampled, pred.orders, photo.rgb, photo.clipped, _correlation(photo))
             render_edges = fringes.find_edges(grid_ref, sampled, pred.orders, render)
             by_key = {e.key(): e for e in photo_edges}
             step = float(np.nanmean(grid_ref.step_px()))
