@@ -11,53 +11,20 @@ from __future__ import annotations
 
 import argparse
 import json
-import math
 import shutil
 import tempfile
 import time
 from pathlib import Path
 
-import numpy as np
-
 BARS = {"rotation_deg": 0.1, "centre_mm": 1.0, "fov_deg": 0.05, "principal_point_pct": 0.5,
         "exposure_light_pct": 1.0, "response_rms_pct": 1.0, "seconds": 120.0}
 
 
-def rotation_error_deg(a: np.ndarray, b: np.ndarray) -> float:
-    return math.degrees(math.acos(float(np.clip((np.trace(a[:3, :3] @ b[:3, :3].T) - 1) / 2, -1.0, 1.0))))
-
-
-def centre_error_mm(a: np.ndarray, b: np.ndarray) -> float:
-    return 1e3 * float(np.linalg.norm(-a[:3, :3].T @ a[:3, 3] + b[:3, :3].T @ b[:3, 3]))
-
-
-def fov_deg(size: int, focal: float) -> float:
-    return 2 * math.degrees(math.atan(size / (2 * focal)))
-
-
-def expected_scale(truth: dict, photo: str) -> float:
-    """The synthetic photo's normalised raw value per unit of the scene file's render (datasets_synthetic.sensor)."""
-    sensor = truth["sensor"]
-    return (truth["light_power_scale"] * truth["exposure_time_s"][photo] * sensor["electrons_per_unit"] * sensor["gain"]
-            / (sensor["white_level"] - sensor["black_level"]))
-
-
 def errors(result: dict, truth: dict, seconds: float) -> dict:
-    from calibration.response import response_rms
+    """The worst photo's errors (workbench.score.calibration_errors, which `workbench score` prints too)."""
+    from workbench.score import calibration_errors
 
-    c, t = result["camera"], truth["camera"]
-    photos = sorted(c["world_to_camera"])
-    poses = [(np.array(c["world_to_camera"][p]), np.array(t["world_to_camera"][p])) for p in photos]
-    return {
-        "rotation_deg": max(rotation_error_deg(a, b) for a, b in poses),
-        "centre_mm": max(centre_error_mm(a, b) for a, b in poses),
-        "fov_deg": max(abs(fov_deg(c["width"], c["fx"]) - fov_deg(t["width"], t["fx"])),
-                       abs(fov_deg(c["height"], c["fy"]) - fov_deg(t["height"], t["fy"]))),
-        "principal_point_pct": 100 * max(abs(c["cx"] - t["cx"]) / t["width"], abs(c["cy"] - t["cy"]) / t["height"]),
-        "exposure_light_pct": 100 * max(abs(result["exposure_scale"][p] / expected_scale(truth, p) - 1) for p in photos),
-        "response_rms_pct": 100 * response_rms(result["response"]["points"], truth["response"]["points"]),
-        "seconds": seconds,
-    }
+    return {k: v for k, v in calibration_errors(result, truth).items() if k != "per_photo"} | {"seconds": seconds}
 
 
 def run_seed(seed: int, work: Path) -> dict:

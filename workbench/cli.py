@@ -14,7 +14,7 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
-from workbench import cli_calibrate
+from workbench import cli_calibrate, cli_verify
 from workbench.catalog import KINDS
 from workbench.cli_arguments import count_argument
 from workbench.cli_cache import add_cache_option, apply_cache_option
@@ -189,6 +189,7 @@ def _build_parser() -> argparse.ArgumentParser:
     add_cache_parsers(commands)
     add_report_parsers(commands)
     cli_calibrate.add_parsers(commands)
+    cli_verify.add_parsers(commands)
 
     info = rcwa_commands.add_parser("info", help="what a table holds: grid, settings, size, symmetry, integrity")
     info.add_argument("table", metavar="TABLE", help="a table folder written by `workbench rcwa table`")
@@ -349,6 +350,8 @@ def main(argv: Sequence[str] | None = None) -> int:
             return 0
         if args.command in cli_calibrate.COMMANDS:
             return cli_calibrate.run(args)
+        if args.command in cli_verify.COMMANDS:
+            return cli_verify.run(args)
         if args.command == "demo":
             from workbench.demo import run_demo
 

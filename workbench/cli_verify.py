@@ -1,0 +1,76 @@
+"""``workbench verify`` and ``workbench score`` (workbench.verify, workbench.score)::
+
+    workbench verify DATASET --scene SCENE --out RUN [--preset draft|paper] [--spp N] [--photo NAME]...
+                     [--seed N] [--board COLSxROWS] [--square-mm S] [--scheduler ADDRESS] [--force] [--quiet]
+    workbench score RUN --truth DATASET/truth.json [--json]
+
+cli.py calls ``add_parsers`` while building its parser and ``run`` for the commands in COMMANDS.
+"""
+
+from __future__ import annotations
+
+import argparse
+
+from workbench.cli_arguments import board_argument, count_argument, positive_number
+from workbench.cli_cache import add_cache_option
+
+COMMANDS = ("verify", "score")
+SEED_MAX = 2**32 - 1  # Mitsuba's seeds are unsigned 32-bit
+
+
+def add_parsers(commands) -> None:  # commands: the top-level parser's subparsers
+    """Add ``workbench verify`` and ``workbench score``."""
+    verify = commands.add_parser(
+        "verify", help="photos to report in one resumable run: plan, tables, calibration, render, report",
+        description="Runs plan -> tables -> calibration -> render (every photo with its fitted camera, at the photo's "
+                    "size) -> report into RUN, one folder per stage. Each stage's inputs (file bytes, settings, version) "
+                    "are hashed: a re-run skips finished stages, a killed run resumes where it stopped. RUN/run.json "
+                    "records settings, versions, timings and keys; the summary gives each report's path, the fringe "
+                    "offsets (median, p95) and the calibration residuals. truth.json is never read (see `score`).")
+    verify.add_argument("dataset", metavar="DATASET", help="a folder with photos/ (and optionally brackets/, calibration/)")
+    verify.add_argument("--scene", required=True, metavar="SCENE",
+                        help="the scene the photos show: a built-in scene name or a TOML file")
+    verify.add_argument("--out", required=True, metavar="RUN", help="the run's folder (resumed when it holds this run)")
+    verify.add_argument("--preset", choices=["draft", "paper"], default="draft",
+                        help="draft: draft tables, 256 spp; paper: the paper's tables (2 deg, 31 wavelengths) and 2045 spp")
+    verify.add_argument("--spp", type=count_argument(1), metavar="N", help="render samples per pixel (default: the preset's)")
+    verify.add_argument("--photo", action="append", default=[], metavar="NAME",
+                        help="render and report only this photo of photos/ (repeatable; default: every photo)")
+    verify.add_argument("--seed", type=count_argument(0, SEED_MAX), default=0, help="the render's random seed")
+    verify.add_argument("--board", type=board_argument, metavar="COLSxROWS",
+                        help="inner corners of the checkerboard in calibration/ (default: calibrate DATASET's)")
+    verify.add_argument("--square-mm", type=positive_number(float), metavar="S",
+                        help="the board's square size (default: calibrate DATASET's)")
+    verify.add_argument("--scheduler", metavar="ADDRESS",
+                        help="build table chunks and render passes on this dask.distributed scheduler")
+    verify.add_argument("--force", action="store_true", help="replace another run (or write beside other files) in RUN")
+    verify.add_argument("--quiet", action="store_true", help="no progress bars")
+    add_cache_option(verify)
+
+    score = commands.add_parser(
+        "score", help="a verify run on a synthetic dataset against its truth: calibration errors, fringe offsets",
+        description="Compares RUN's calibration with the dataset's truth.json (rotation, camera centre, field of view, "
+                    "principal point, exposure x light power, response) and prints them with the fringe offsets; "
+                    "writes RUN/score.json.")
+    score.add_argument("run", metavar="RUN", help="the --out folder of a `workbench verify` run")
+    score.add_argument("--truth", required=True, metavar="truth.json", help="the synthetic dataset's truth.json")
+    score.add_argument("--json", action="store_true", help="print score.json instead of the table")
+
+
+def run(args: argparse.Namespace) -> int:
+    if args.command == "score":
+        import json
+
+        from workbench.score import format_score, score_run
+
+        result = score_run(args.run, args.truth)
+        print(json.dumps(result, indent=2) if args.json else format_score(result))
+        return 0
+    from workbench.verify import VerifySettings, format_summary, verify
+
+    settings = VerifySettings(preset=args.preset, spp=args.spp, seed=args.seed, photos=tuple(args.photo),
+                              board=args.board, square_mm=args.square_mm, scheduler=args.scheduler,
+                              progress=not args.quiet)
+    record = verify(args.dataset, args.scene, args.out, settings, force=args.force)
+    print(format_summary(record))
+    return 0

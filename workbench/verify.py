@@ -1,0 +1,569 @@
+"""``workbench verify DATASET --scene SCENE --out RUN``: photos to report in one resumable run.
+
+Five stages, in order, each with its own folder in RUN:
+
+=============  =====================================================================  ==========================
+stage          what it does                                                           inputs hashed
+=============  =====================================================================  ==========================
+plan           renderer.planner on the run's scene: tables, orders, directions, cost  RUN/scene.toml
+tables         the scene's efficiency tables, built (or resumed) in the user's cache  RUN/scene.toml
+calibration    calibration.dataset on DATASET's photos/, brackets/, calibration/      those files, RUN/scene.toml
+render         every photo's fitted scene (calibration/scenes/NAME.toml), rendered     the fitted scenes
+report         reports.report: each photo against its render                          photos, renders, calibration
+=============  =====================================================================  ==========================
+
+RUN/scene.toml is the scene as the run uses it: the user's scene with every CD's and
+grating's table at the preset's table preset (draft or paper) and paths made absolute.
+Every photo is rendered and reported (each view shows the CD's fringes from another
+angle and gets its own report); ``photos`` picks some. The render always has the photo's
+size (the report compares pixel by pixel): the paper preset takes the paper's samples
+per pixel (2045) and paper tables; the paper's 978 x 734 frame is a dataset's
+(``workbench synth --preset full``).
+
+A stage's key is the SHA-256 of its input files' bytes, its settings and the workbench
+version. A stage runs in ``RUN/.staging/NAME`` (marked with its key) and, once complete,
+the folder is moved into place in one rename, carrying the key in ``.stage-key``: a
+finished stage is one whose folder holds its current key, and is skipped. A killed run
+leaves the staging folder; the next run with the same key keeps it (a render resumes
+from its saved passes and finished photos, the table build from its finished chunks)
+and a changed key clears it. RUN/run.json records the settings, versions, each stage's
+key, status, estimate and timings, and the summary. verify never reads truth.json
+(``workbench score`` does, workbench.score).
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+import platform
+import shutil
+import time
+from collections.abc import Callable
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import Any
+
+from workbench.core.errors import UserInputError
+from workbench.core.files import atomic_write_text
+from workbench.core.version import __version__ as workbench_version
+
+RUN_FORMAT = "workbench-verify"
+STAGES = ("plan", "tables", "calibration", "render", "report")
+DATASET_FOLDERS = ("photos", "brackets", "calibration")  # all calibration reads; never truth.json
+PRESETS: dict[str, dict[str, Any]] = {"draft": {"tables": "draft", "spp": 256}, "paper": {"tables": "paper", "spp": 2045}}
+PAPER_RESOLUTION = (978, 734)  # the paper's frame (renderer.render's paper preset)
+KEY_FILE = ".stage-key"  # in a finished stage's folder: the key it was made for
+DONE_FILE = ".stage-done"  # in a staging folder whose work finished (moved into place next)
+OWN_NAMES = (*STAGES, ".staging", "scene.toml", "run.json")  # what a run writes in RUN; --force removes only these
+# The scene's image aspect may differ from the photos' by its resolution's rounding: one pixel
+# of 245 (cornell_cd: 326 x 245 for a 25 x 18.8 mm sensor) is 0.4 %; a different camera is off by far more.
+ASPECT_TOLERANCE = 0.01
+# Estimates of each stage's time on this 2-core machine (measured on draft cornell_cd datasets, 640 x 480):
+SECONDS_PLAN = 3.0  # planner with its timed cost sweep
+SECONDS_CALIBRATION_BASE = 3.0  # intrinsics from 20 board views and the response from a 5-photo bracket
+SECONDS_PER_POSE = 7.0  # one photo's pose fit
+SECONDS_PER_SAMPLE = 1.05e-6  # render: 81 s for 640 x 480 at 256 spp
+SECONDS_RENDER_LOAD = 2.5  # building the Mitsuba scene, per photo
+SECONDS_PER_REPORT = 6.0  # one photo's report (masks, fringes, error maps, page)
+
+
+@dataclass(frozen=True)
+class VerifySettings:
+    """What a run is asked to do; ``scheduler`` and ``progress`` change how, not what."""
+
+    preset: str = "draft"
+    spp: int | None = None  # render samples per pixel (default: the preset's)
+    seed: int = 0  # the render's seed
+    integrator: str = "path"
+    mode: str = "improved"
+    photos: tuple[str, ...] = ()  # photo file names to render and report (default: every photo)
+    board: tuple[int, int] | None = None  # checkerboard inner corners (default: calibration's)
+    square_mm: float | None = None
+    scheduler: str | None = field(default=None, compare=False)
+    progress: bool = field(default=True, compare=False)
+
+    @property
+    def render_spp(self) -> int:
+        return int(self.spp if self.spp is not None else PRESETS[self.preset]["spp"])
+
+    def to_json(self) -> dict[str, Any]:
+        data = asdict(self)
+        data["photos"], data["board"] = list(self.photos), list(self.board) if self.board else None
+        return data | {"render_spp": self.render_spp, "table_preset": PRESETS[self.preset]["tables"]}
+
+
+@dataclass
+class _Run:
+    """The run's folder, its record (run.json) and what every stage reads."""
+
+    root: Path
+    record: dict[str, Any]
+    dataset: Path
+    photos: list[Path]
+    size: tuple[int, int]
+    settings: VerifySettings
+    executor: Any = None
+
+    @property
+    def scene(self) -> Path:
+        return self.root / "scene.toml"
+
+    def save(self) -> None:
+        self.record["updated"] = time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime())
+        atomic_write_text(self.root / "run.json", json.dumps(self.record, indent=2) + "\n")
+
+
+# ---------------------------------------------------------------- inputs
+
+
+def file_sha256(path: Path) -> str:
+    digest = hashlib.sha256()
+    with open(path, "rb") as f:
+        for block in iter(lambda: f.read(1 << 20), b""):
+            digest.update(block)
+    return digest.hexdigest()
+
+
+def stage_key(name: str, files: dict[str, Path], settings: dict[str, Any]) -> str:
+    """SHA-256 over the stage's name, each input file's name and bytes, its settings and the version."""
+    request = {"stage": name, "files": {k: file_sha256(p) for k, p in sorted(files.items())}, "settings": settings,
+               "version": workbench_version}
+    return hashlib.sha256(json.dumps(request, sort_keys=True).encode()).hexdigest()
+
+
+def photo_size(path: Path) -> tuple[int, int]:
+    """(width, height) of a photo as calibration decodes it (raw: LibRaw's visible size)."""
+    from calibration.decode import is_raw
+
+    try:
+        if is_raw(path):
+            import rawpy
+
+            with rawpy.imread(str(path)) as raw:
+                return int(raw.sizes.width), int(raw.sizes.height)
+        from PIL import Image
+
+        with Image.open(path) as image:
+            return image.size
+    except Exception as exc:  # noqa: BLE001 (LibRaw and Pillow raise many kinds for an unreadable file)
+        raise UserInputError(f"cannot read the photo ({type(exc).__name__}: {exc})", file=path,
+                             expected="a raw file LibRaw reads, or a JPEG/PNG/TIFF image") from None
+
+
+def _selected_photos(dataset: Path, wanted: tuple[str, ...]) -> list[Path]:
+    from calibration.dataset import dataset_files
+
+    photos = dataset_files(dataset)["photos"]  # refuses a dataset without photos, naming photos/
+    if not wanted:
+        return photos
+    by_name = {p.name: p for p in photos}
+    missing = [n for n in wanted if n not in by_name]
+    if missing:
+        raise UserInputError(f"no such photo in the dataset: {', '.join(missing)}", file=dataset / "photos",
+                             field="--photo", expected=f"one of {', '.join(sorted(by_name))}")
+    return [by_name[n] for n in dict.fromkeys(wanted)]
+
+
+def _check_sizes(dataset: Path, scene_source: str, scene_size: tuple[int, int]) -> tuple[int, int]:
+    """The photos' common size, checked against each other and against the scene camera's aspect."""
+    from calibration.dataset import dataset_files
+
+    photos = dataset_files(dataset)["photos"]
+    sizes = {p: photo_size(p) for p in photos}
+    first = photos[0]
+    for path, size in sizes.items():
+        if size != sizes[first]:
+            raise UserInputError(f"the photos differ in size: {first.name} is {sizes[first][0]} x {sizes[first][1]}",
+                                 file=path, expected="photos of one camera at one size", got=f"{size[0]} x {size[1]}")
+    width, height = sizes[first]
+    aspect, scene_aspect = width / height, scene_size[0] / scene_size[1]
+    if abs(aspect / scene_aspect - 1) > ASPECT_TOLERANCE:
+        raise UserInputError(f"the photos ({width} x {height}, aspect {aspect:.3f}) do not match the scene's camera "
+                             f"({scene_size[0]} x {scene_size[1]}, aspect {scene_aspect:.3f})", file=scene_source,
+                             field="camera.resolution", expected=f"the photos' aspect within {ASPECT_TOLERANCE:.0%}, "
+                             f"e.g. [{width}, {height}]", got=f"{first}: {width} x {height}")
+    return width, height
+
+
+def run_scene_text(spec, table_preset: str) -> str:
+    """The scene file the run uses: ``spec``'s with every computed table at ``table_preset``
+    (a table the scene names by path is kept) and structure and table paths absolute."""
+    import tomllib
+
+    import tomli_w
+
+    from rcwa.structure import BUILTIN_STRUCTURES
+
+    data = tomllib.loads(spec.text)
+    for key, elements in (("cd", spec.cds), ("grating", spec.gratings)):
+        for entry, element in zip(data.get(key, []), elements, strict=True):
+            structure = element.structure
+            if structure not in BUILTIN_STRUCTURES and Path(structure).exists():
+                structure = os.path.abspath(structure)
+            entry["structure"] = structure
+            if "path" in element.table:
+                entry["table"] = {"path": os.path.abspath(element.table["path"])}
+            else:
+                entry["table"] = dict(element.table) | {"preset": table_preset}
+    header = f"# {spec.source}, as `workbench verify` uses it (tables at the {table_preset} preset)\n"
+    return header + tomli_w.dumps(data)
+
+
+# ---------------------------------------------------------------- the run's folder
+
+
+def _new_record(identity: dict[str, str], settings: VerifySettings) -> dict[str, Any]:
+    return {"format": RUN_FORMAT, "identity": identity, "status": "running", "settings": settings.to_json(),
+            "versions": {"workbench": workbench_version, "python": platform.python_version()},
+            "started": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()), "stages": {}}
+
+
+def read_record(root: Path) -> dict[str, Any] | None:
+    """RUN/run.json when a verify run wrote it, else None."""
+    try:
+        record = json.loads((root / "run.json").read_text())
+    except (OSError, ValueError):
+        return None
+    return record if isinstance(record, dict) and record.get("format") == RUN_FORMAT else None
+
+
+def _remove_own(root: Path) -> None:
+    for name in OWN_NAMES:
+        path = root / name
+        if path.is_dir():
+            shutil.rmtree(path)
+        elif path.exists():
+            path.unlink()
+
+
+def open_run(root: Path, identity: dict[str, str], settings: VerifySettings, force: bool) -> dict[str, Any]:
+    """The record to carry on with: this run's (resumed), or a new one. Another run's folder,
+    or a folder of files no run wrote, is refused unless ``force``."""
+    if root.exists() and not root.is_dir():
+        raise UserInputError("is a file, not a folder", field="--out", expected="a folder for the run", got=str(root))
+    root.mkdir(parents=True, exist_ok=True)
+    record = read_record(root)
+    if record is None:
+        present = sorted(p.name for p in root.iterdir())
+        if present and not force:
+            raise UserInputError(f"the folder holds files no verify run wrote: {', '.join(present[:6])}"
+                                 f"{' ...' if len(present) > 6 else ''}", file=root,
+                                 expected="a new or empty folder, or --force to write the run beside them")
+        _remove_own(root)
+        return _new_record(identity, settings)
+    if record.get("identity") != identity:
+        if not force:
+            other = record.get("identity", {})
+            raise UserInputError(f"the folder holds another run (dataset {other.get('dataset')}, scene "
+                                 f"{other.get('scene')})", file=root / "run.json", field="identity",
+                                 expected=f"a run of dataset {identity['dataset']} with scene {identity['scene']}, "
+                                 "a new folder, or --force to replace it")
+        _remove_own(root)
+        return _new_record(identity, settings)
+    record.update(status="running", settings=settings.to_json())
+    record["versions"]["workbench"] = workbench_version
+    return record
+
+
+def _clear(path: Path) -> None:
+    if path.is_dir():
+        shutil.rmtree(path)
+    elif path.exists():
+        path.unlink()
+
+
+def _marker(path: Path) -> str | None:
+    try:
+        return path.read_text().strip()
+    except OSError:
+        return None
+
+
+def run_stage(run: _Run, name: str, inputs: dict[str, Path], settings: dict[str, Any], estimate_s: float,
+              work: Callable[[Path], dict[str, Any]], intact: Callable[[Path], bool] = lambda folder: True) -> dict:
+    """Run one stage unless its folder already holds its key (see the module's docstring); returns
+    the stage's entry in run.json."""
+    key = stage_key(name, inputs, settings)
+    final, staging = run.root / name, run.root / ".staging" / name
+    entry = run.record["stages"].setdefault(name, {})
+    if _marker(final / KEY_FILE) == key and (final / "stage.json").is_file() and intact(final):
+        entry.update(status="done", key=key, skipped=True, result=json.loads((final / "stage.json").read_text()))
+        run.save()
+        _say(run, f"{name}: up to date (key {key[:12]}), skipped")
+        return entry
+    if _marker(staging / KEY_FILE) != key:
+        _clear(staging)  # another key's work, or none: start afresh
+    resumed = staging.is_dir()
+    staging.mkdir(parents=True, exist_ok=True)
+    atomic_write_text(staging / KEY_FILE, key)
+    entry.clear()
+    entry.update(status="running", key=key, estimate_s=round(estimate_s, 1), resumed=resumed,
+                 inputs=sorted(inputs), settings=settings)
+    run.save()
+    _say(run, f"{name}: {'resuming' if resumed else 'running'} (estimate ~{_duration(estimate_s)})")
+    started = time.perf_counter()
+    if _marker(staging / DONE_FILE) == key:
+        result = json.loads((staging / "stage.json").read_text())
+    else:
+        result = work(staging)
+        atomic_write_text(staging / "stage.json", json.dumps(result, indent=2, default=str) + "\n")
+        atomic_write_text(staging / DONE_FILE, key)
+    _move_into_place(staging, final)
+    entry.update(status="done", seconds=round(time.perf_counter() - started, 2), skipped=False, result=result)
+    run.save()
+    return entry
+
+
+def _move_into_place(staging: Path, final: Path) -> None:
+    """The finished staging folder becomes RUN/NAME in one rename (an older one is moved aside first)."""
+    old = staging.with_name(staging.name + ".old")
+    _clear(old)
+    if final.exists():
+        os.replace(final, old)
+    os.replace(staging, final)
+    (final / DONE_FILE).unlink(missing_ok=True)
+    _clear(old)
+
+
+def _say(run: _Run, message: str) -> None:
+    if run.settings.progress:
+        from tqdm import tqdm
+
+        tqdm.write(f"verify: {message}")
+
+
+def _duration(seconds: float) -> str:
+    return f"{seconds:.0f} s" if seconds < 120 else f"{seconds / 60:.1f} min"
+
+
+# ---------------------------------------------------------------- stages
+
+
+def _stage_plan(run: _Run) -> dict:
+    def work(folder: Path) -> dict[str, Any]:
+        from renderer.planner import format_plan, plan_scene
+        from renderer.scene import load_scene
+
+        plan = plan_scene(load_scene(run.scene))
+        atomic_write_text(folder / "plan.json", json.dumps(plan.to_json(), indent=2, default=_json_default) + "\n")
+        atomic_write_text(folder / "plan.txt", format_plan(plan) + "\n")
+        return {"rcwa_needed": plan.rcwa_needed, "elements": [
+            {"element": e.key, "tables": e.tables, "fraction": e.fraction, "seconds_whole": e.seconds_whole,
+             "megabytes_whole": e.megabytes_whole} for e in plan.elements]}
+
+    return run_stage(run, "plan", {"scene.toml": run.scene}, {}, SECONDS_PLAN, work)
+
+
+def _elements(spec) -> list[tuple[str, Any]]:
+    return [(f"cd[{i}]", cd) for i, cd in enumerate(spec.cds)] + [(f"grating[{i}]", g) for i, g in enumerate(spec.gratings)]
+
+
+def _stage_tables(run: _Run, plan: dict) -> dict:
+    from renderer.build import table_plan
+    from renderer.scene import load_scene
+
+    spec = load_scene(run.scene)
+    plans = {where: table_plan(element, where, str(run.scene)) for where, element in _elements(spec)}
+    estimate = sum(e["seconds_whole"] for e in plan.get("result", {}).get("elements", [])
+                   if not plans[e["element"]].path.exists())
+
+    def work(folder: Path) -> dict[str, Any]:
+        from tqdm import tqdm
+
+        from rcwa.table import build_table
+
+        tables = {}
+        for where, table in tqdm(plans.items(), desc="tables", unit="table", disable=not run.settings.progress):
+            if table.settings is None:  # a table the scene names: checked when the scene is built
+                tables[where] = {"path": str(table.path), "key": table.key, "named": True}
+                continue
+            report = build_table(table.structure, table.settings, table.path, progress=run.settings.progress, force=True,
+                                 executor=run.executor)
+            tables[where] = {"path": str(table.path), "key": table.key, "cached": report.cached,
+                             "chunks_computed": report.chunks_computed, "seconds": report.seconds}
+        atomic_write_text(folder / "tables.json", json.dumps(tables, indent=2) + "\n")
+        return {"tables": tables}
+
+    def intact(folder: Path) -> bool:  # the cache may have been cleared since
+        return all(p.path.exists() for p in plans.values())
+
+    return run_stage(run, "tables", {"scene.toml": run.scene}, {"preset": PRESETS[run.settings.preset]["tables"]},
+                     estimate, work, intact)
+
+
+def _dataset_inputs(dataset: Path) -> dict[str, Path]:
+    files: dict[str, Path] = {}
+    for sub in DATASET_FOLDERS:
+        folder = dataset / sub
+        if folder.is_dir():
+            files |= {f"{sub}/{p.name}": p for p in sorted(folder.iterdir()) if p.is_file()}
+    return files
+
+
+def _stage_calibration(run: _Run) -> dict:
+    from calibration.dataset import dataset_files
+
+    files = _dataset_inputs(run.dataset)
+    options: dict[str, Any] = {}
+    if run.settings.board is not None:
+        options["board"] = tuple(run.settings.board)
+    if run.settings.square_mm is not None:
+        options["square_mm"] = run.settings.square_mm
+    estimate = SECONDS_CALIBRATION_BASE + SECONDS_PER_POSE * len(dataset_files(run.dataset)["photos"])
+
+    def work(folder: Path) -> dict[str, Any]:
+        from calibration.dataset import calibrate_dataset
+
+        record = calibrate_dataset(run.dataset, run.scene, folder, progress=run.settings.progress, **options)
+        return {"residuals_rms_px": {name: r.get("rms_px") for name, r in record["residuals"].items()},
+                "intrinsics_rms_px": record.get("intrinsics", {}).get("rms_px")}
+
+    return run_stage(run, "calibration", files | {"scene.toml": run.scene},
+                     {k: list(v) if isinstance(v, tuple) else v for k, v in options.items()}, estimate, work,
+                     lambda folder: (folder / "calibration.json").is_file())
+
+
+def _stage_render(run: _Run) -> dict:
+    scenes = {p.name: run.root / "calibration" / "scenes" / f"{p.stem}.toml" for p in run.photos}
+    s = run.settings
+    settings = {"preset": s.preset, "spp": s.render_spp, "seed": s.seed, "integrator": s.integrator, "mode": s.mode,
+                "resolution": list(run.size)}
+    estimate = len(scenes) * (SECONDS_RENDER_LOAD + SECONDS_PER_SAMPLE * run.size[0] * run.size[1] * s.render_spp)
+
+    def work(folder: Path) -> dict[str, Any]:
+        from renderer.render import render
+
+        renders = {}
+        for name, scene in scenes.items():
+            info = render(scene, folder / f"{Path(name).stem}.exr", preset=s.preset, spp=s.render_spp,
+                          resolution=run.size, integrator=s.integrator, mode=s.mode, seed=s.seed, progress=s.progress,
+                          executor=run.executor, force=True)  # the staging folder is the run's own
+            renders[name] = {"exr": f"{Path(name).stem}.exr", "seconds": info["seconds_total"],
+                             "served": info.get("served", False), "resumed_passes": info.get("resumed_passes", 0)}
+        return {"renders": renders}
+
+    return run_stage(run, "render", {f"scenes/{k}": p for k, p in scenes.items()}, settings, estimate, work,
+                     lambda folder: all((folder / f"{Path(n).stem}.exr").is_file() for n in scenes))
+
+
+def _stage_report(run: _Run) -> dict:
+    renders = {p.name: run.root / "render" / f"{p.stem}.exr" for p in run.photos}
+    calibration = run.root / "calibration" / "calibration.json"
+    inputs = ({f"photos/{p.name}": p for p in run.photos} | {f"render/{k}": p for k, p in renders.items()}
+              | {"calibration.json": calibration, "scene.toml": run.scene})
+
+    def work(folder: Path) -> dict[str, Any]:
+        from tqdm import tqdm
+
+        from reports.report import Inputs, build_report
+
+        reports = {}
+        for photo in tqdm(run.photos, desc="report", unit="photo", disable=not run.settings.progress):
+            out = folder / photo.stem
+            report = build_report(Inputs(photo, renders[photo.name], calibration, str(run.scene), out))
+            reports[photo.name] = {"html": f"{photo.stem}/report.html", "fringe_offset_px": report["fringe_offset_px"],
+                                   "problems": report.get("problems", []), "seconds": report["seconds"]}
+        return {"reports": reports}
+
+    return run_stage(run, "report", inputs, {}, SECONDS_PER_REPORT * len(run.photos), work,
+                     lambda folder: all((folder / p.stem / "report.html").is_file() for p in run.photos))
+
+
+def _json_default(value: Any) -> Any:
+    import numpy as np
+
+    if isinstance(value, np.ndarray):
+        return value.tolist()
+    if isinstance(value, np.generic):
+        return value.item()
+    return str(value)
+
+
+# ---------------------------------------------------------------- the command
+
+
+def verify(dataset: str | Path, scene: str | Path, out: str | Path, settings: VerifySettings | None = None, *,
+           force: bool = False) -> dict[str, Any]:
+    """Run (or resume, or skip) every stage; returns run.json's content with its ``summary``."""
+    from renderer.scene import load_scene
+
+    settings = settings or VerifySettings()
+    if settings.preset not in PRESETS:
+        raise UserInputError("unknown preset", field="--preset", expected=f"one of {sorted(PRESETS)}", got=settings.preset)
+    if settings.spp is not None and settings.spp < 1:
+        raise UserInputError("must be at least 1", field="--spp", got=settings.spp)
+    dataset, root = Path(dataset), Path(out)
+    spec = load_scene(scene)
+    photos = _selected_photos(dataset, settings.photos)
+    size = _check_sizes(dataset, spec.source, (spec.camera.model.width, spec.camera.model.height))
+    identity = {"dataset": str(dataset.resolve()), "scene": str(scene)}
+    run = _Run(root, open_run(root, identity, settings, force), dataset, photos, size, settings)
+    atomic_write_text(run.scene, run_scene_text(spec, PRESETS[settings.preset]["tables"]))
+    run.save()
+    started = time.perf_counter()
+    try:
+        run.executor = _executor(settings.scheduler)
+        plan = _stage_plan(run)
+        _stage_tables(run, plan)
+        _stage_calibration(run)
+        _stage_render(run)
+        _stage_report(run)
+    except BaseException as exc:
+        run.record.update(status="failed", error=f"{type(exc).__name__}: {exc}")
+        run.save()
+        raise
+    finally:
+        if run.executor is not None:
+            run.executor.__exit__(None, None, None)
+    if (root / ".staging").is_dir() and not any((root / ".staging").iterdir()):
+        (root / ".staging").rmdir()
+    run.record.update(status="finished", seconds=round(time.perf_counter() - started, 2), summary=run_summary(run))
+    run.record.pop("error", None)
+    if settings.preset == "paper" and size != PAPER_RESOLUTION:
+        run.record["summary"]["notes"] = [f"the photos are {size[0]} x {size[1]}, not the paper's "
+                                          f"{PAPER_RESOLUTION[0]} x {PAPER_RESOLUTION[1]}: rendered at the photos' size"]
+    run.save()
+    return run.record
+
+
+def _executor(scheduler: str | None):
+    if not scheduler:
+        return None
+    from workbench.core.executor import DaskExecutor
+
+    return DaskExecutor(scheduler).__enter__()
+
+
+def run_summary(run: _Run) -> dict[str, Any]:
+    """Where the reports are, each photo's fringe offsets, the calibration's residuals."""
+    calibration = json.loads((run.root / "calibration" / "calibration.json").read_text())
+    reports = run.record["stages"]["report"]["result"]
+    photos = {}
+    for name, r in reports["reports"].items():
+        residual = calibration["residuals"].get(name, {})
+        photos[name] = {"report": str(run.root / "report" / r["html"]), "fringe_offset_px": r["fringe_offset_px"],
+                        "pose_rms_px": residual.get("rms_px"), "pose_median_abs_px": residual.get("median_abs_px")}
+    return {"photos": photos, "intrinsics_rms_px": calibration.get("intrinsics", {}).get("rms_px"),
+            "seconds_per_stage": {k: v.get("seconds", 0.0) if not v.get("skipped") else 0.0
+                                  for k, v in run.record["stages"].items()}}
+
+
+def format_summary(record: dict[str, Any]) -> str:
+    """The summary printed at the end of a run."""
+    summary = record["summary"]
+    stages = record["stages"]
+    lines = ["stages: " + ", ".join(f"{k} {'skipped' if v.get('skipped') else format(v.get('seconds', 0), '.1f') + ' s'}"
+                                    for k, v in stages.items())]
+    intrinsics = summary.get("intrinsics_rms_px")
+    lines.append("calibration: board views " + (f"RMS {intrinsics:.3f} px" if intrinsics is not None else "not used"))
+    for name, p in summary["photos"].items():
+        fo = p["fringe_offset_px"] or {}
+        offsets = (f"fringe offset photo-render median {fo['median']:.2f} px, p95 {fo['p95']:.2f} px "
+                   f"({fo.get('count')} band edges)" if fo.get("median") is not None
+                   else "fringe offset: no band edge seen in both photo and render")
+        pose = f"pose residual RMS {p['pose_rms_px']:.3f} px" if p.get("pose_rms_px") is not None else "no pose residual"
+        lines.append(f"{name}: {pose}; {offsets}")
+        lines.append(f"  report: {p['report']}")
+    lines += [f"note: {n}" for n in summary.get("notes", [])]
+    return "\n".join(lines)
