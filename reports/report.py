@@ -44,7 +44,8 @@ CD_MAP_MARGIN_PX = 2
 FLIP_MAX = 1.0
 RELATIVE_MAX = 1.0
 DELTA_E_MAX = 20.0
-UNCERTAINTY_DRAWS = 4  # cameras drawn within the calibration's standard deviations
+UNCERTAINTY_DRAWS = 4  # cameras drawn within the calibration's standard deviations (about 1.7 s each at 640 x 480)
+BAND_SIGMAS = 2.0  # the plotted band: the predicted edge +- this many RMS spreads (about 95 %)
 MIN_OK_EDGES = 3  # fewer good edges in the photo than this: "no fringes visible"
 OFFSET_LABELS = {"photo_render": "photo vs render", "prediction_photo": "prediction vs photo",
                  "prediction_render": "prediction vs render",
@@ -129,38 +130,39 @@ def _quality_counts(edges: list) -> dict[str, int]:
     return counts
 
 
-def _prediction_spread(spec, fitted: FittedCamera, grids, reference: list) -> dict[str, Any] | None:
-    """The prediction's band edges for cameras drawn within the calibration's standard
-    deviations: per edge the spread (px) of where it lands, summarised."""
-    std = fitted.std or {}
-    keys = [k for k in ("fx", "fy", "cx", "cy", "rotation_deg", "translation_m") if isinstance(std.get(k), (int, float))]
-    if not keys:
-        return None
-    from scipy.spatial.transform import Rotation
+def prediction_band(spec, camera, std: dict, grids, reference: list[fringes.Edge], draws: int = UNCERTAINTY_DRAWS,
+                    seed: int = 0) -> dict[tuple, float]:
+    """The prediction's uncertainty band: for cameras drawn within the calibration's standard
+    deviations (reports.prediction.draw_cameras), the RMS distance (px) of each predicted band
+    edge from where ``camera`` puts it (``reference``: that camera's predicted edges), by edge key.
+    The band is the reference edge +- ``BAND_SIGMAS`` times it."""
+    from reports.prediction import draw_cameras
 
-    rng = np.random.default_rng(0)
-    base = fitted.model
+    ref = {e.key(): e for e in reference}
     spreads: dict[tuple, list[float]] = {}
-    ref = {e.key(): e for _, e in reference}
-    for _ in range(UNCERTAINTY_DRAWS):
-        changes: dict[str, Any] = {k: getattr(base, k) + rng.normal(0.0, float(std[k])) for k in ("fx", "fy", "cx", "cy")
-                                   if k in keys}
-        pose = base.world_to_camera.copy()
-        if "rotation_deg" in keys:
-            turn = Rotation.from_rotvec(np.radians(rng.normal(0.0, float(std["rotation_deg"]), 3))).as_matrix()
-            pose[:3, :3], pose[:3, 3] = turn @ pose[:3, :3], turn @ pose[:3, 3]
-        if "translation_m" in keys:
-            pose[:3, 3] += rng.normal(0.0, float(std["translation_m"]), 3)
-        camera = dataclasses.replace(base, world_to_camera=pose, **changes)
-        drawn = predict(spec, camera)
+    for drawn_camera in draw_cameras(camera, std, draws, seed):
+        drawn = predict(spec, drawn_camera)
         for grid in grids:
             for e in fringes.find_edges(grid, _sampled_prediction(drawn, grid), drawn.orders):
                 r = ref.get(e.key())
                 if r is not None and np.isfinite(e.x) and np.isfinite(r.x):
                     spreads.setdefault(e.key(), []).append(float(np.hypot(e.x - r.x, e.y - r.y)))
-    values = [float(np.sqrt(np.mean(np.square(v)))) for v in spreads.values() if v]
-    return {"draws": UNCERTAINTY_DRAWS, "varied": keys, "edge_rms_px_median": float(np.median(values)) if values else None,
-            "edge_rms_px_p95": float(np.percentile(values, 95)) if values else None}
+    return {key: float(np.sqrt(np.mean(np.square(v)))) for key, v in spreads.items() if len(v) == draws}
+
+
+def _prediction_spread(spec, fitted: FittedCamera, grids, reference: list) -> tuple[dict[str, Any] | None, dict[tuple, float]]:
+    """The band (prediction_band) for the fitted camera, summarised, and per edge."""
+    from reports.prediction import CAMERA_STD_KEYS
+
+    std = fitted.std or {}
+    keys = [k for k in CAMERA_STD_KEYS if isinstance(std.get(k), (int, float))]
+    if not keys:
+        return None, {}
+    band = prediction_band(spec, fitted.model, std, grids, [e for _, e in reference])
+    values = list(band.values())
+    return ({"draws": UNCERTAINTY_DRAWS, "varied": keys, "band_sigmas": BAND_SIGMAS,
+             "edge_rms_px_median": float(np.median(values)) if values else None,
+             "edge_rms_px_p95": float(np.percentile(values, 95)) if values else None}, band)
 
 
 def analyse_cd(spec, fitted: FittedCamera, photo: images.Photo, render: np.ndarray, messages: list[str],
@@ -222,15 +224,32 @@ def analyse_cd(spec, fitted: FittedCamera, photo: images.Photo, render: np.ndarr
     if ok_photo < MIN_OK_EDGES:
         problems.append(f"CD: no fringes visible in the photo where the grating equation puts them ({ok_photo} band "
                         f"edges of quality ok; {result['edge_quality']['photo']})")
-    spread = _prediction_spread(spec, fitted, grids, measured["edges"]["prediction"])
+    spread, band = _prediction_spread(spec, fitted, grids, measured["edges"]["prediction"])
     result["prediction_uncertainty"] = spread if spread else "the calibration gives no standard deviations"
+    result["_band"] = band
     result["seconds"] = time.perf_counter() - started
     result["_measured"] = measured
     result["_radius_px"] = polar.rim_radius_px(camera, cd)
     return result
 
 
-def _fringe_plot(measured: dict, cd_radius_px: float) -> str:
+def _band_bars(measured: dict, band: dict[tuple, float], cd_radius_px: float) -> list[tuple[float, float, float, float]]:
+    """(azimuth deg, radius px, azimuth half-width deg, radius half-width px) of the prediction's
+    uncertainty band at each predicted edge: along the profile, +- BAND_SIGMAS RMS spreads."""
+    bars = []
+    for kind, e in measured["edges"]["prediction"]:
+        width = band.get(e.key())
+        if width is None or not np.isfinite(e.position):
+            continue
+        half = BAND_SIGMAS * width
+        if kind == "circle":  # along the circle: px to degrees of azimuth at this radius
+            bars.append((e.coordinate, e.label * cd_radius_px, float(np.degrees(half / max(e.label * cd_radius_px, 1e-6))), 0.0))
+        else:
+            bars.append((e.label, e.coordinate * cd_radius_px, 0.0, half))
+    return bars
+
+
+def _fringe_plot(measured: dict, cd_radius_px: float, band: dict[tuple, float] | None = None) -> str:
     import matplotlib
 
     matplotlib.use("Agg")
@@ -245,6 +264,11 @@ def _fringe_plot(measured: dict, cd_radius_px: float) -> str:
             azimuth, radius = np.array(points).T
             ax.scatter(azimuth, radius, s=9 if marker != "." else 4, c=colour, marker=marker, label=name,
                        linewidths=0.8, alpha=0.8)
+    bars = _band_bars(measured, band or {}, cd_radius_px)
+    if bars:
+        x, y, dx, dy = np.array(bars).T
+        ax.errorbar(x, y, xerr=dx, yerr=dy, fmt="none", ecolor="0.5", elinewidth=0.8, capsize=0,
+                    label=f"prediction +- {BAND_SIGMAS:g} sigma (calibration)")
     ax.set_xlabel("azimuth on the CD (deg)")
     ax.set_ylabel("radius (px, rim = %.0f)" % cd_radius_px)
     ax.set_title("band edges: radius against azimuth")
@@ -387,7 +411,8 @@ def _page(report, inputs: Inputs, photo_display, render_display, exposure, maps,
                                                    f"p95 {fo.get('p95')}, count {fo.get('count')})")
     if "_measured" in cd:
         radius_px = cd["_radius_px"]
-        fringe_html += f"<div><img alt='fringe radius against azimuth' src='{_fringe_plot(cd['_measured'], radius_px)}'></div>"
+        plot = _fringe_plot(cd["_measured"], radius_px, cd.get("_band"))
+        fringe_html += f"<div><img alt='fringe radius against azimuth' src='{plot}'></div>"
         fringe_html += "<div class='scroll'>" + page.table(pair_rows, caption="photo vs render, edge by edge") + "</div>"
         rim = cd.get("rim", {})
         fringe_html += page.key_values({"photo rim": rim.get("photo"), "render rim": rim.get("render"),
