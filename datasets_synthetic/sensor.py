@@ -54,3 +54,60 @@ class SensorModel:
         """Mean and variance of the digital values (before clipping), per pixel."""
         mu = self.expected_electrons(rgb, exposure_time_s)
         return self.black_level + self.gain * mu, self.gain**2 * (mu + self.read_noise_e**2) + 1.0 / 12.0
+
+
+# ------------------------------------------------------------------------------------ colour tags
+#
+# What a raw developer needs to show the camera's RGB as colour (DNG specification 1.4,
+# Adobe 2012, chapter 6 "Mapping Camera Color Space to CIE XYZ Space"): AsShotNeutral, the
+# camera's response to a neutral surface under the light the photo was taken in, and
+# ColorMatrix1, XYZ to camera RGB under CalibrationIlluminant1 (D65). Both follow from the
+# camera's spectral sensitivities S_c(lambda), the renderer's data: a surface of spectral
+# reflectance rho lit by a spectrum E gives camera RGB c = integral E rho S_c dlambda
+# (the render's film, renderer.build.sensor_dict, integrates the same product).
+
+COLOUR_CHECKER = "ColorChecker N Ohta"   # colour-science's measured reflectances of the 24 patches
+CMFS = "CIE 1931 2 Degree Standard Observer"
+
+
+def _on(wavelengths_nm: np.ndarray, source_nm, values) -> np.ndarray:
+    return np.interp(wavelengths_nm, np.asarray(source_nm, float), np.asarray(values, float), left=0.0, right=0.0)
+
+
+def camera_rgb(wavelengths_nm: np.ndarray, sensitivities: np.ndarray, spectrum: np.ndarray) -> np.ndarray:
+    """Camera RGB of the spectral radiance ``spectrum`` (..., N) on ``wavelengths_nm`` (N,):
+    the integral of radiance x sensitivity (``sensitivities`` (3, N)), trapezoidal; (..., 3)."""
+    return np.trapezoid(np.asarray(spectrum, float)[..., None, :] * np.asarray(sensitivities, float), wavelengths_nm, axis=-1)
+
+
+def as_shot_neutral(wavelengths_nm: np.ndarray, sensitivities: np.ndarray, light: np.ndarray) -> tuple[float, float, float]:
+    """DNG AsShotNeutral: the camera RGB of a perfectly white diffuse surface (reflectance 1
+    at every wavelength) lit by the spectrum ``light``, normalised so G = 1. A developer's
+    white balance divides each channel by it, so a neutral surface comes out grey."""
+    rgb = camera_rgb(wavelengths_nm, sensitivities, light)
+    if not np.all(rgb > 0):
+        raise ValueError(f"the camera sees no light of this spectrum in some channel (camera RGB {rgb})")
+    r, g, b = (float(v) for v in rgb / rgb[1])
+    return r, g, b
+
+
+def xyz_to_camera(wavelengths_nm: np.ndarray, sensitivities: np.ndarray) -> tuple[float, ...]:
+    """DNG ColorMatrix1 for CalibrationIlluminant1 D65, row-major: the 3 x 3 matrix M with
+    camera RGB = M XYZ, least squares over the 24 ColorChecker patches lit by D65 (a
+    camera's sensitivities are not a linear mix of the CIE 1931 colour matching functions,
+    so no matrix is exact: the Luther condition), scaled as the DNG SDK scales its
+    matrices, so that D65's white (Y = 1) maps to a camera RGB whose largest channel is 1."""
+    import colour
+
+    wl = np.asarray(wavelengths_nm, float)
+    d65 = colour.SDS_ILLUMINANTS["D65"]
+    illuminant = _on(wl, d65.wavelengths, d65.values)
+    cmfs = colour.MSDS_CMFS[CMFS]
+    xyz_bar = np.stack([_on(wl, cmfs.wavelengths, cmfs.values[:, i]) for i in range(3)])
+    patches = np.stack([_on(wl, sd.wavelengths, sd.values) for sd in colour.SDS_COLOURCHECKERS[COLOUR_CHECKER].values()])
+    xyz = camera_rgb(wl, xyz_bar, patches * illuminant)
+    cam = camera_rgb(wl, sensitivities, patches * illuminant)
+    white_y = camera_rgb(wl, xyz_bar, illuminant)[1]
+    matrix = np.linalg.lstsq(xyz / white_y, cam, rcond=None)[0].T  # cam = M xyz, Y of the white = 1
+    white = matrix @ (camera_rgb(wl, xyz_bar, illuminant) / white_y)
+    return tuple(float(v) for v in (matrix / white.max()).ravel())

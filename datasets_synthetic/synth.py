@@ -7,6 +7,8 @@ Layout (other tools read it; DESIGN.md section 6)::
     DIR/brackets/ev*.dng, *.jpg   exposure brackets of view0, 1 EV apart, RAW+JPEG as a camera writes them
     DIR/calibration/board*.dng    a checkerboard held in the box in several poses, seen by view0's camera
                                   with its flash on
+    DIR/calibration/board.json    what that board is, as a photographer would note it (BOARD_FORMAT:
+                                  kind, inner corners, square size in mm); ``calibrate DATASET`` reads it
     DIR/truth.json                the truth (never inside the photos)
     DIR/run.json                  settings, versions and timings of the run, and every file it wrote
                                   (size, SHA-256): what ``--force`` may replace, and nothing else
@@ -25,7 +27,15 @@ response in its JPEGs: what the paper could not control. truth.json holds ``came
 ``exposure_time_s`` of every file, ``response`` (the JPEGs' curve as samples of normalised
 irradiance to normalised value), ``light_power_scale``, ``board`` (type, inner_corners,
 square_size_m, and ``board_to_world`` per calibration file), ``brackets`` and the
-``sensor`` model. File names are unique across the folders. Same seed, same bytes.
+``sensor`` model (with the DNGs' colour tags). File names are unique across the folders.
+Same seed, same bytes.
+
+Every DNG carries the colour tags a raw developer needs (``colour_tags``): AsShotNeutral,
+the camera's RGB of a white diffuse surface under the scene light's spectrum (what a
+photographer's grey card would read), so that developing with the camera's white balance
+shows the white walls white (not green: the camera's green channel is the most
+sensitive); and ColorMatrix1, XYZ to camera RGB under D65 fitted to the camera's spectral
+sensitivities. Calibration reads neither (it works in camera RGB).
 
 The calibration set is made for OpenCV to recover the hidden intrinsics (issue 6: the
 board found in every view, fx, fy, cx, cy within 0.5 %, the distortion close; checked by
@@ -76,10 +86,11 @@ BRACKET_EV = (-2, -1, 0, 1, 2)
 FLASH_KEY = "calibration_flash"
 FLASH_W_PER_SR = 20.0
 MARKER = "workbench-synthetic-dataset"
+BOARD_FORMAT = "workbench-board"
 WORK_SUFFIX = ".synth-partial"  # the work folder beside DIR: .DIR.synth-partial/{request.json, renders/, dataset/}
 WORK_FORMAT = "workbench-synthetic-dataset-work"
 LEGACY_LAYOUT = re.compile(  # the files of a dataset written before run.json listed them
-    r"photos/view\d+\.dng|brackets/ev[+-]\d+\.(dng|jpg)|calibration/board\d+\.dng|truth\.json|run\.json")
+    r"photos/view\d+\.dng|brackets/ev[+-]\d+\.(dng|jpg)|calibration/board(\d+\.dng|\.json)|truth\.json|run\.json")
 MAKE, MODEL, ISO = "Workbench", "Synthetic RGGB", 100
 
 
@@ -134,14 +145,16 @@ class _Shot:
 class _Writer:
     """Writes raw frames (DNG, and the camera's JPEG where asked) and collects their truth."""
 
-    def __init__(self, out: Path, sensor: SensorModel, response) -> None:
-        self.out, self.sensor, self.response = out, sensor, response
+    def __init__(self, out: Path, sensor: SensorModel, response, colour: dict) -> None:
+        self.out, self.sensor, self.response, self.colour = out, sensor, response, colour
         self.shots: dict[str, _Shot] = {}
 
     def capture(self, folder: str, stem: str, rgb: np.ndarray, exposure_s: float, camera, rng, jpeg: bool = False) -> np.ndarray:
         raw = self.sensor.capture(rgb, exposure_s, rng)
         meta = DngMetadata(cfa_pattern=self.sensor.cfa_pattern, black_level=self.sensor.black_level,
-                           white_level=self.sensor.white_level, exposure_time_s=exposure_s, iso=ISO, make=MAKE, model=MODEL)
+                           white_level=self.sensor.white_level, exposure_time_s=exposure_s, iso=ISO, make=MAKE, model=MODEL,
+                           as_shot_neutral=tuple(self.colour["as_shot_neutral"]),
+                           color_matrix=tuple(self.colour["color_matrix"]))
         write_dng(self.out / folder / f"{stem}.dng", raw, meta)
         self.shots[f"{stem}.dng"] = _Shot(exposure_s, camera.world_to_camera)
         if jpeg:
@@ -401,7 +414,7 @@ def _generate(spec, scene: str, out: Path, renders: _RenderStore, seed: int, pre
     light_scale = float(np.exp(rng_camera.normal(0.0, 0.3)))
     response = hidden_response(rng_camera)
     sensor = SensorModel()
-    writer = _Writer(out, sensor, response)
+    writer = _Writer(out, sensor, response, colour_tags(spec))
     hidden = dataclasses.replace(spec, camera=dataclasses.replace(spec.camera, model=camera))
     bar = tqdm(total=p["views"] + p["calibration_views"], desc="synth renders", unit="frame", disable=not progress)
     timings: dict[str, float] = {}
@@ -432,6 +445,7 @@ def _generate(spec, scene: str, out: Path, renders: _RenderStore, seed: int, pre
     tick = time.perf_counter()
     board = Checkerboard()
     poses = _calibration_set(hidden, camera, board, p, light_scale, seed, writer, rng_board, rng_noise, bar, renders)
+    atomic_write_text(out / "calibration" / "board.json", json.dumps(board_description(board), indent=2) + "\n")
     timings["calibration_s"] = time.perf_counter() - tick
     bar.close()
 
@@ -448,7 +462,7 @@ def _generate(spec, scene: str, out: Path, renders: _RenderStore, seed: int, pre
                                     "flash": {"at": "the camera's centre", "intensity_w_per_sr": FLASH_W_PER_SR,
                                               "spectrum": spec.light.spectrum}},
         "brackets": {"of": "view0.dng", "ev": list(BRACKET_EV)},
-        "sensor": dataclasses.asdict(sensor) | {"white_level": sensor.white_level},
+        "sensor": dataclasses.asdict(sensor) | {"white_level": sensor.white_level} | writer.colour,
     }
     atomic_write_text(out / "truth.json", json.dumps(truth, indent=2))
     timings["total_s"] = time.perf_counter() - started
@@ -483,6 +497,32 @@ def _calibration_set(hidden, camera, board: Checkerboard, p: dict, light_scale: 
             pose = sample_pose(board, camera, rng_board, view=i + 1)
         bar.update()
     return poses
+
+
+def board_description(board: Checkerboard) -> dict:
+    """calibration/board.json: the board of the calibration views (the format
+    calibration.dataset reads: ``kind`` "checkerboard", ``inner_corners`` [cols, rows] as
+    OpenCV's patternSize counts them, ``square_mm``)."""
+    return {"format": BOARD_FORMAT, "kind": "checkerboard", "inner_corners": list(board.inner_corners),
+            "square_mm": round(board.square_size_m * 1000.0, 9)}
+
+
+def colour_tags(spec) -> dict:
+    """The DNG colour tags of every file (datasets_synthetic.sensor): ``as_shot_neutral``, the
+    scene camera's RGB of a white diffuse surface under the scene light's spectrum (the
+    ceiling light's and the flash's, which share it), G = 1; ``color_matrix``, XYZ to camera
+    RGB under D65 (ColorMatrix1), row-major. From the camera's spectral sensitivities, the
+    renderer's own data (renderer.build)."""
+    from datasets_synthetic.sensor import as_shot_neutral, xyz_to_camera
+    from renderer.build import camera_sensitivities, light_spectrum
+
+    curves = camera_sensitivities(spec.camera.sensitivities)
+    wl = np.unique(np.concatenate([w for w, _ in curves]))
+    sensitivities = np.stack([np.interp(wl, w, s, left=0.0, right=0.0) for w, s in curves])
+    light_wl, light = light_spectrum(spec.light.spectrum)
+    light = np.interp(wl, light_wl, light, left=0.0, right=0.0)
+    return {"as_shot_neutral": list(as_shot_neutral(wl, sensitivities, light)),
+            "color_matrix": list(xyz_to_camera(wl, sensitivities)), "color_matrix_illuminant": "D65"}
 
 
 def _frame_seed(seed: int, frame: int) -> int:
