@@ -5,7 +5,8 @@ follow as well::
 
     DATASET/photos/*        photos of the scene (raw: DNG, NEF, CR2, ...; or JPEG/PNG/TIFF)
     DATASET/brackets/*      optional: an exposure bracket (raw files and/or JPEG, PNG, TIFF)
-    DATASET/calibration/*   optional: checkerboard views (--board COLSxROWS, --square-mm)
+    DATASET/calibration/*   optional: board views, and board.json describing the board
+                            (calibration.board_file; --board COLSxROWS, --square-mm override it)
 
 Steps, in order: the intrinsics from calibration/ (calibration.intrinsics, Zhang's method),
 the response from brackets/ (calibration.response: the curve from the non-raw files, the
@@ -36,6 +37,7 @@ import json
 import time
 from pathlib import Path
 
+from calibration.board_file import BoardSpec, resolve_board
 from calibration.photo import RAW_SUFFIXES, read_photo
 from calibration.pose import (
     FREE_RADIAL_TERMS,
@@ -55,8 +57,6 @@ from workbench.core.files import atomic_write_text
 
 DATASET_FORMAT = "workbench-calibration"
 IMAGE_SUFFIXES = {".jpg", ".jpeg", ".png", ".tif", ".tiff"}
-DEFAULT_BOARD = (9, 6)
-DEFAULT_SQUARE_MM = 20.0
 
 
 def _files(folder: Path) -> list[Path]:
@@ -81,18 +81,29 @@ def dataset_files(dataset: str | Path) -> dict[str, list[Path]]:
     return {"photos": photos, "brackets": _files(root / "brackets"), "boards": _files(root / "calibration")}
 
 
-def _intrinsics(boards: list[Path], board: tuple[int, int], square_mm: float, progress: bool) -> dict | None:
-    if not boards:
+def dataset_board(files: dict[str, list[Path]], dataset: str | Path, board: tuple[int, int] | None = None,
+                  square_mm: float | None = None) -> BoardSpec | None:
+    """The board of the dataset's calibration views (calibration.board_file.resolve_board:
+    calibration/board.json, overridden by ``board``/``square_mm``), or None without views."""
+    if not files["boards"]:
+        return None
+    return resolve_board(Path(dataset) / "calibration", board, square_mm)
+
+
+def intrinsics_from_boards(boards: list[Path], board: BoardSpec | None, progress: bool) -> dict | None:
+    """intrinsics.json's content from the board views (calibration.intrinsics), or None without views."""
+    if not boards or board is None:
         return None
     from calibration.intrinsics import calibrate_board_views
 
-    calibration = calibrate_board_views(boards, board, square_mm / 1000.0, progress=progress)
+    calibration = calibrate_board_views(boards, board.size, board.square_mm / 1000.0, charuco=board.charuco(),
+                                        progress=progress)
     record = calibration.to_json()
     return record | {"source": f"{boards[0].parent} ({len(boards)} views)", "timings": calibration.timings,
-                     "settings": {"board": list(board), "square_mm": square_mm}}
+                     "settings": {"board": board.to_json()}}
 
 
-def _response(brackets: list[Path], progress: bool) -> dict | None:
+def response_from_bracket(brackets: list[Path], progress: bool) -> dict | None:
     """The response curve from the bracket's non-raw files, the linearity of its raw ones."""
     if not brackets:
         return None
@@ -110,10 +121,14 @@ def _response(brackets: list[Path], progress: bool) -> dict | None:
     return result
 
 
-def calibrate_dataset(dataset: str | Path, scene: str | Path, out: str | Path, *, board: tuple[int, int] = DEFAULT_BOARD,
-                      square_mm: float = DEFAULT_SQUARE_MM, settings: PoseSettings | None = None,
+def calibrate_dataset(dataset: str | Path, scene: str | Path, out: str | Path, *, board: tuple[int, int] | None = None,
+                      square_mm: float | None = None, settings: PoseSettings | None = None,
                       progress: bool = True) -> dict:
-    """Run every step on ``dataset`` and write DIR's files (module docstring); returns calibration.json's content."""
+    """Run every step on ``dataset`` and write DIR's files (module docstring); returns calibration.json's content.
+
+    ``board`` (inner corners or ChArUco squares, cols x rows) and ``square_mm`` override
+    the dataset's calibration/board.json; without that file both are needed when there are
+    board views (a UserInputError naming the file and the flags, before anything runs)."""
     from tqdm import tqdm
 
     from renderer.scene import load_scene
@@ -125,26 +140,27 @@ def calibrate_dataset(dataset: str | Path, scene: str | Path, out: str | Path, *
         raise UserInputError("is a file, not a folder", field="--out", expected="a folder for the results", got=str(out))
     spec = load_scene(scene)
     files = dataset_files(dataset)
+    board_spec = dataset_board(files, dataset, board, square_mm)
     bar = tqdm(total=2 + 3 * len(files["photos"]), desc="calibrate dataset", unit="step", disable=not progress)
     timings: dict = {}
     tick = time.perf_counter()
-    intrinsics = _intrinsics(files["boards"], board, square_mm, progress=False)
+    intrinsics = intrinsics_from_boards(files["boards"], board_spec, progress=False)
     timings["intrinsics_s"] = time.perf_counter() - tick
     bar.update()
     tick = time.perf_counter()
-    response = _response(files["brackets"], progress=False)
+    response = response_from_bracket(files["brackets"], progress=False)
     timings["response_s"] = time.perf_counter() - tick
     bar.update()
-    results = _fit_photos(files["photos"], spec, intrinsics, response, settings, bar, timings)
+    results = fit_photos(files["photos"], spec, intrinsics, response, settings, bar, timings)
     bar.close()
     timings["total_s"] = time.perf_counter() - started
-    record = _record(dataset, scene, spec, files, intrinsics, response, results, settings, board, square_mm, timings)
+    record = _record(dataset, scene, spec, files, intrinsics, response, results, settings, board_spec, timings)
     _write(out, record, spec, results, intrinsics, response)
     return record
 
 
-def _fit_photos(photos: list[Path], spec, intrinsics: dict | None, response: dict | None, settings: PoseSettings, bar,
-                timings: dict) -> dict:
+def fit_photos(photos: list[Path], spec, intrinsics: dict | None, response: dict | None, settings: PoseSettings, bar,
+               timings: dict) -> dict:
     """Each photo's PoseResult by file name; the first fixes the intrinsics when no boards did."""
     import numpy as np
 
@@ -175,7 +191,7 @@ def _fit_photos(photos: list[Path], spec, intrinsics: dict | None, response: dic
     return results
 
 
-def _record(dataset, scene, spec, files, intrinsics, response, results, settings: PoseSettings, board, square_mm,
+def _record(dataset, scene, spec, files, intrinsics, response, results, settings: PoseSettings, board: BoardSpec | None,
             timings: dict) -> dict:
     first = next(iter(results.values()))
     c = first.camera
@@ -202,7 +218,7 @@ def _record(dataset, scene, spec, files, intrinsics, response, results, settings
         "residuals": {name: {k: v for k, v in r.residuals.items()} for name, r in results.items()},
         "photos": {name: result_json(r) for name, r in results.items()},
         "files": {k: [str(p) for p in v] for k, v in files.items()},
-        "settings": {"board": list(board), "square_mm": square_mm, "pose": settings.to_json(), "scene": spec.source},
+        "settings": {"board": None if board is None else board.to_json(), "pose": settings.to_json(), "scene": spec.source},
         "versions": versions(), "timings": timings,
     }
 

@@ -3,6 +3,9 @@
     workbench calibrate pose PHOTO --scene SCENE [--intrinsics intrinsics.json] [--response response.json] --out DIR
     workbench calibrate DATASET --scene SCENE --out DIR [--board COLSxROWS] [--square-mm S]
 
+``calibrate DATASET`` reads the board of DATASET/calibration/ from its board.json
+(calibration.board_file); ``--board`` and ``--square-mm`` override it (the run says so).
+
 Two entries for workbench/cli_calibrate.py's CALIBRATE_STEPS (``STEPS``: a function adding
 the parser, one running it). ``calibrate DATASET`` names a folder where the other steps
 name a subcommand; ``route_dataset`` rewrites such a command line to
@@ -52,9 +55,11 @@ def add_dataset(steps) -> None:
                                      "Never reads truth.json.")
     p.add_argument("dataset", metavar="DATASET", help="a folder with photos/ (and brackets/, calibration/), "
                                                       "as `workbench synth` writes")
-    p.add_argument("--board", type=board_argument, default=(9, 6), metavar="COLSxROWS",
-                   help="inner corners of the checkerboard in calibration/ (default: 9x6)")
-    p.add_argument("--square-mm", type=positive_number(float), default=20.0, metavar="S", help="the board's square size")
+    p.add_argument("--board", type=board_argument, default=None, metavar="COLSxROWS",
+                   help="inner corners of the checkerboard in calibration/ (ChArUco: its squares); overrides "
+                        "calibration/board.json, needed without it")
+    p.add_argument("--square-mm", type=positive_number(float), default=None, metavar="S",
+                   help="the board's square size in mm; overrides calibration/board.json, needed without it")
     _add_common(p)
 
 
@@ -80,6 +85,10 @@ def run_dataset(args: argparse.Namespace) -> int:
     record = calibrate_dataset(args.dataset, args.scene, args.out, board=args.board, square_mm=args.square_mm,
                                settings=_settings(args), progress=not args.quiet)
     camera, std = record["camera"], record["std"]
+    board = record["settings"]["board"]
+    if board is not None:
+        size = board.get("inner_corners", board.get("squares"))
+        print(f"board: {board['kind']} {size[0]}x{size[1]}, {board['square_mm']:g} mm squares ({board['source']})")
     print(f"camera: fx {camera['fx']:.2f} +- {std['fx']:.2f}, fy {camera['fy']:.2f} +- {std['fy']:.2f}, "
           f"cx {camera['cx']:.2f} +- {std['cx']:.2f}, cy {camera['cy']:.2f} +- {std['cy']:.2f} px "
           f"(FOV {camera['fov_x_deg']:.3f} deg; intrinsics: {record['intrinsics']['source']})")

@@ -13,7 +13,10 @@ with test_pose.py within a session). Asserted against truth.json:
 * the run under two minutes on this machine (issue 14);
 * fitted_scene.toml renders, and its render agrees with the photo in brightness.
 Fast: a dataset without photos, a missing folder, `calibrate DATASET` routed to the
-``dataset`` step, and user errors ending in exit status 2 with an error line.
+``dataset`` step, and user errors ending in exit status 2 with an error line; the board
+description (calibration/board.json, calibration.board_file): read, checked field by
+field, overridden by --board/--square-mm, and required (file or flags) when there are
+board views.
 """
 
 from __future__ import annotations
@@ -25,6 +28,7 @@ import cv2
 import numpy as np
 import pytest
 
+from calibration.board_file import read_board_file, resolve_board
 from calibration.dataset import calibrate_dataset, dataset_files
 from tests.calibration.test_pose import calibrated_dataset
 from workbench.cli_calibrate_pose import route_dataset
@@ -58,6 +62,10 @@ def test_calibration_json_layout(calibrated) -> None:
     assert {"fx", "fy", "cx", "cy", "dist", "poses", "exposure_scale"} <= set(std)
     assert all(np.isfinite(std["poses"][name]["rotation_total_deg"]) for name in photos)
     assert result["light_power_scale"] == 1.0 and set(result["exposure_scale"]) == photos
+    board = result["settings"]["board"]  # from the dataset's own description, no flags
+    assert board["source"].endswith("board.json") and board["overridden_by_command_line"] == []
+    assert board["inner_corners"] == truth["board"]["inner_corners"]
+    assert board["square_mm"] == pytest.approx(1000 * truth["board"]["square_size_m"], rel=1e-12)
     assert len(result["response"]["points"]) > 10
     assert {p.name for p in out.iterdir()} >= {"calibration.json", "fitted_scene.toml", "scenes", "intrinsics.json",
                                                "response.json"}
@@ -152,3 +160,79 @@ def test_command_line_errors_exit_2(tmp_path: Path, capsys, argv: list[str]) -> 
     assert main([a.format(tmp=tmp_path) for a in argv]) == 2
     err = capsys.readouterr().err
     assert err.startswith("error: ") and "absent" in err and "Traceback" not in err
+
+
+# ----------------------------------------------------------------------------- calibration/board.json
+
+
+def _board_file(folder: Path, data) -> Path:
+    folder.mkdir(parents=True, exist_ok=True)
+    path = folder / "board.json"
+    path.write_text(data if isinstance(data, str) else json.dumps(data))
+    return path
+
+
+def test_checkerboard_and_charuco_descriptions(tmp_path: Path) -> None:
+    board = read_board_file(_board_file(tmp_path / "a", {"kind": "checkerboard", "inner_corners": [9, 6], "square_mm": 25,
+                                                         "note": "printed A4"}))
+    assert (board.kind, board.size, board.square_mm, board.charuco()) == ("checkerboard", (9, 6), 25.0, None)
+    charuco = read_board_file(_board_file(tmp_path / "b", {"kind": "charuco", "squares": [10, 7], "square_mm": 20,
+                                                           "dictionary": "DICT_5X5_100", "marker_mm": 15}))
+    spec = charuco.charuco()
+    assert charuco.size == (10, 7) and spec.dictionary == "DICT_5X5_100" and spec.marker_size_m == pytest.approx(0.015)
+
+
+@pytest.mark.parametrize(("data", "field"), [
+    ({"kind": "chessboard", "inner_corners": [9, 6], "square_mm": 20}, "kind"),
+    ({"inner_corners": [9, 6], "square_mm": 20}, "kind"),
+    ({"kind": "checkerboard", "inner_corners": [9], "square_mm": 20}, "inner_corners"),
+    ({"kind": "checkerboard", "inner_corners": [9, 1], "square_mm": 20}, "inner_corners"),
+    ({"kind": "checkerboard", "inner_corners": ["9", "6"], "square_mm": 20}, "inner_corners"),
+    ({"kind": "checkerboard", "inner_corners": [9, 6]}, "square_mm"),
+    ({"kind": "checkerboard", "inner_corners": [9, 6], "square_mm": -20}, "square_mm"),
+    ({"kind": "checkerboard", "inner_corners": [9, 6], "square_mm": True}, "square_mm"),
+    ({"kind": "checkerboard", "inner_corners": [9, 6], "square_mm": 20, "sqare_mm": 20}, "sqare_mm"),
+    ({"kind": "charuco", "squares": [10, 7], "square_mm": 20, "dictionary": "DICT_5X5_100", "marker_mm": 25}, "marker_mm"),
+    ({"kind": "charuco", "squares": [10, 7], "square_mm": 20, "dictionary": "DICT_NOPE", "marker_mm": 15}, "dictionary"),
+    ({"kind": "charuco", "squares": [10, 7], "square_mm": 20, "marker_mm": 15}, "dictionary"),
+])
+def test_bad_board_file_names_file_and_field(tmp_path: Path, data: dict, field: str) -> None:
+    path = _board_file(tmp_path, data)
+    with pytest.raises(UserInputError) as info:
+        read_board_file(path)
+    assert info.value.file == str(path) and info.value.field == field, str(info.value)
+
+
+@pytest.mark.parametrize("text", ["{not json", "[9, 6]", ""])
+def test_board_file_that_is_not_a_description(tmp_path: Path, text: str) -> None:
+    path = _board_file(tmp_path, text)
+    with pytest.raises(UserInputError) as info:
+        read_board_file(path)
+    assert info.value.file == str(path) and "inner_corners" in str(info.value)  # the message shows the expected form
+
+
+def test_command_line_overrides_the_board_file_and_says_so(tmp_path: Path) -> None:
+    folder = tmp_path / "calibration"
+    _board_file(folder, {"kind": "checkerboard", "inner_corners": [9, 6], "square_mm": 20})
+    same = resolve_board(folder, (9, 6), 20.0)
+    assert same.overridden == () and same.source == str(folder / "board.json")
+    both = resolve_board(folder, (7, 5), 25.0)
+    assert (both.size, both.square_mm, both.overridden) == ((7, 5), 25.0, ("--board", "--square-mm"))
+    assert "overridden by --board and --square-mm" in both.to_json()["source"]
+    square = resolve_board(folder, None, 30.0)
+    assert (square.size, square.square_mm, square.overridden) == ((9, 6), 30.0, ("--square-mm",))
+    flags = resolve_board(tmp_path / "elsewhere", (9, 6), 25.0)  # no board.json: the flags alone
+    assert (flags.size, flags.square_mm, flags.source) == ((9, 6), 25.0, "command line")
+
+
+@pytest.mark.parametrize(("board", "square_mm", "missing"), [(None, None, "--board COLSxROWS and --square-mm S"),
+                                                             ((9, 6), None, "--square-mm S"), (None, 20.0, "--board")])
+def test_board_views_without_a_description_are_refused(tmp_path: Path, board, square_mm, missing: str) -> None:
+    """No silent 9x6 / 20 mm: real board photos without board.json need the flags, and nothing is written."""
+    for sub, name in (("photos", "view0.png"), ("calibration", "board00.png")):
+        (tmp_path / "ds" / sub).mkdir(parents=True, exist_ok=True)
+        (tmp_path / "ds" / sub / name).write_bytes(b"not read before the board is known")
+    with pytest.raises(UserInputError) as info:
+        calibrate_dataset(tmp_path / "ds", "cornell_cd", tmp_path / "out", board=board, square_mm=square_mm, progress=False)
+    assert info.value.file == str(tmp_path / "ds" / "calibration" / "board.json") and missing in str(info.value)
+    assert not (tmp_path / "out").exists()
