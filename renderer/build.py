@@ -277,7 +277,8 @@ def scene_dict(mi, spec: SceneSpec, *, spp: int, integrator: str = "path", mode:
         R = frame_to(cd.normal, cd.rotation_deg)
         mesh = str(annulus_mesh(cd.inner_radius, cd.outer_radius))
         scene[f"cd{i}"] = {"type": "ply", "filename": mesh, "to_world": mi.ScalarTransform4f(transform(cd.center, R).tolist()),
-                           "bsdf": {"type": "bwdf", "filename": str(table), "mapping": "radial", "mode": mode}}
+                           "bsdf": {"type": "bwdf", "filename": str(table), "mapping": "radial", "mode": mode,
+                                    "center": [float(c) for c in cd.center]}}  # the grooves' centre: radial at every hit
         if cd.top_surface:
             top = np.asarray(cd.center) + CD_TOP_THICKNESS_M * np.asarray(cd.normal)
             scene[f"cd{i}_top"] = {"type": "ply", "filename": mesh,

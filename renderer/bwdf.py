@@ -110,6 +110,29 @@ def _check_setting(name: str, value: float) -> float:
     return value
 
 
+def _check_center(center) -> tuple[float, float, float]:
+    """The radial mapping's groove centre: three finite coordinates (world space)."""
+    values = tuple(float(c) for c in center)
+    if len(values) != 3 or not all(math.isfinite(c) for c in values):
+        raise ValueError(f"bwdf: 'center' must be a point of three finite coordinates, got {list(values)}")
+    return values
+
+
+def _read_center(props: mi.Properties, mapping: str) -> tuple[float, float, float]:
+    """``center`` from the properties: required by the radial mapping, the origin (unused)
+    otherwise."""
+    if "center" not in props:
+        if mapping == "radial":
+            raise ValueError("bwdf: the radial (CD) mapping needs 'center', the grooves' centre in world space "
+                             "(e.g. [0.28, 0.023, 0.25])")
+        return (0.0, 0.0, 0.0)
+    value = props.get("center")
+    try:
+        return _check_center(value)
+    except (TypeError, ValueError):
+        raise ValueError(f"bwdf: 'center' must be a point of three finite coordinates, got {value!r}") from None
+
+
 class GratingBWDF(DeltaLobesBSDF):
     """Diffraction orders of a periodic surface, read from an RCWA efficiency table.
 
@@ -138,9 +161,19 @@ class GratingBWDF(DeltaLobesBSDF):
        * - ``mapping``
          - string
          - Where the grating vector (the table's +x) lies in the surface: ``"constant"``,
-           at ``grating_angle`` from the shading frame's s axis; ``"radial"``, along the
-           shape's dp/du (Mitsuba's disk: circular grooves about the centre, a CD).
+           at ``grating_angle`` from the shading frame's s axis (a grating whose grooves
+           keep one direction); ``"radial"``, outward from ``center`` at every hit point
+           (circular grooves about the centre, a CD): the hit point minus the centre,
+           projected onto the surface (the shading frame's tangent plane). Exact at any
+           tessellation, unlike a mesh's per-triangle dp/du (a 256-segment disk is up to
+           1.4 degrees off radial).
          - ``"constant"``
+       * - ``center``
+         - point (3 floats, world space)
+         - The centre of the circular grooves. Required with the radial mapping; unused
+           with the constant one. *Exposed* with the radial mapping (move it with the
+           shape).
+         - required (radial)
        * - ``grating_angle``
          - float, degrees
          - The grating vector's angle from the shading frame's s axis (the groove
@@ -174,7 +207,7 @@ class GratingBWDF(DeltaLobesBSDF):
 
         set_variant()  # the one place that picks Mitsuba's variant
         bwdf.register()
-        cd = mi.load_dict({"type": "bwdf", "filename": "cd.zarr", "mapping": "radial"})
+        cd = mi.load_dict({"type": "bwdf", "filename": "cd.zarr", "mapping": "radial", "center": [0.0, 0.0, 0.0]})
         params = mi.traverse(cd)
         params["uniform_share"] = 0.3
         params.update()
@@ -189,6 +222,7 @@ class GratingBWDF(DeltaLobesBSDF):
     uniform_share: mi.Float
     delta: mi.Float
     grating_angle: mi.Float  # degrees
+    center: mi.Point3f  # world space; the radial mapping's groove centre
     lookups: dict[str, EfficiencyLookup]
     period: tuple[float, ...]  # micrometres, (x, y); a 1D grating's y period is a dummy 1
     dimension: int
@@ -232,6 +266,7 @@ class GratingBWDF(DeltaLobesBSDF):
             raise ValueError(f"bwdf: 'mapping' must be one of {MAPPINGS}, got {mapping!r}")
         settings = {name: _check_setting(name, float(props.get(name, default)))  # type: ignore[arg-type]
                     for name, default in (("uniform_share", 0.5), ("delta", 0.05), ("grating_angle", 0.0))}
+        center = _read_center(props, mapping)
         table = open_table(path)  # clear errors for missing, unfinished or damaged tables
         arrays = set(table.meta["arrays"])
         see_through = "T" in arrays
@@ -248,6 +283,7 @@ class GratingBWDF(DeltaLobesBSDF):
         return {
             "filename": str(path), "mode": mode, "mapping": mapping, "see_through": see_through,
             **{name: mi.Float(value) for name, value in settings.items()},
+            "center": mi.Point3f(*center),
             "lookups": {name: EfficiencyLookup.from_table(table, name) for name in ("R", "T", "R_below", "T_below")
                         if name in arrays},
             "period": tuple(structure.period) + ((1.0,) if structure.dimension == 1 else ()),
@@ -265,7 +301,7 @@ class GratingBWDF(DeltaLobesBSDF):
 
     def _exposed(self) -> list[str]:
         """The settings that change this instance's output (so mi.traverse shows them)."""
-        return (["grating_angle"] if self.mapping == "constant" else []) + \
+        return (["grating_angle"] if self.mapping == "constant" else ["center"]) + \
             (["uniform_share"] if self.mode == "improved" else ["delta"])
 
     def traverse(self, callback) -> None:
@@ -276,8 +312,12 @@ class GratingBWDF(DeltaLobesBSDF):
         for name in self._exposed():
             value = getattr(self, name)
             if dr.width(value) != 1:
-                raise ValueError(f"bwdf: '{name}' must be one number, got {dr.width(value)} values")
-            _check_setting(name, float(value[0]))
+                raise ValueError(f"bwdf: '{name}' must be one {'point' if name == 'center' else 'number'}, "
+                                 f"got {dr.width(value)} values")
+            if name == "center":
+                _check_center([float(c[0]) for c in value])
+            else:
+                _check_setting(name, float(value[0]))
             dr.make_opaque(value)
 
     def to_string(self) -> str:
@@ -288,6 +328,8 @@ class GratingBWDF(DeltaLobesBSDF):
             f'mode = "{self.mode}"',
             f'mapping = "{self.mapping}"',
             f"grating_angle = {self.grating_angle[0]:g} deg" + (" (unused: radial mapping)" if self.mapping == "radial" else ""),
+            f"center = [{', '.join(f'{float(c[0]):g}' for c in self.center)}]"
+            + (" (unused: constant mapping)" if self.mapping == "constant" else ""),
             f"uniform_share = {self.uniform_share[0]:g}" + ("" if self.mode == "improved" else " (unused: paper mode)"),
             f"delta = {self.delta[0]:g}" + ("" if self.mode == "paper" else " (unused: improved mode)"),
             f"components = {'[reflection, transmission] (see-through)' if self.see_through else '[reflection]'}",
@@ -311,7 +353,9 @@ class GratingBWDF(DeltaLobesBSDF):
         if self.mapping == "constant":
             angle = self.grating_angle * (math.pi / 180.0)
             return mi.Float(dr.cos(angle)), mi.Float(dr.sin(angle))
-        g = si.to_local(si.dp_du)
+        # Outward from the groove centre, in the tangent plane: exact at every hit point
+        # (a mesh's per-triangle dp/du is not; see the class docstring).
+        g = si.to_local(mi.Vector3f(si.p - self.center))
         norm = dr.sqrt(g.x * g.x + g.y * g.y)
         ok = norm > 1e-12  # the exact centre of a disk has no radial direction
         return mi.Float(dr.select(ok, g.x / norm, 1.0)), mi.Float(dr.select(ok, g.y / norm, 0.0))

@@ -226,14 +226,14 @@ def test_flat_aluminium_reduces_to_fresnel(mitsuba_variant, tmp_path):
 def test_hard_cases_are_finite(bwdf_factory, mitsuba_variant):
     import mitsuba as mi
 
-    for props in ({}, {"mode": "paper"}, {"mapping": "radial"}):
+    for props in ({}, {"mode": "paper"}, {"mapping": "radial", "center": [0.0, 0.0, 0.0]}):
         bsdf = bwdf_factory(**props)
         n = 64
         cases = [((1e-7, 0.0, 1.0), WAVELENGTHS), ((math.sqrt(1 - 1e-12), 0.0, 1e-6), WAVELENGTHS),
                  ((0.3, 0.2, math.sqrt(1 - 0.13)), (300.0, 1000.0, 2000.0, 390.0))]
         for wi, wls in cases:
             si = _interaction(n, wi, wls)
-            si.dp_du = mi.Vector3f(0.0, 0.0, 0.0)  # the exact centre of a CD
+            si.p = mi.Point3f(0.0, 0.0, 0.0)  # the exact centre of a CD (its radial direction is undefined)
             si.sh_frame = mi.Frame3f(mi.Vector3f(0, 0, 1))
             wo, w, pdf = _sample(bsdf, si, np.linspace(0, 0.999, n))
             assert np.all(np.isfinite(wo)) and np.all(np.isfinite(w)) and np.all(np.isfinite(pdf))

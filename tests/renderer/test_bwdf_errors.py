@@ -46,8 +46,21 @@ def test_2d_table_on_the_radial_mapping(mitsuba_variant, tmp_path):
     st = settings_for(s, "draft", wavelengths="550", theta_step=45.0, phi_step=45.0, orders=3, keep=3, both_sides=True)
     build_table(s, st, tmp_path / "g2.zarr", progress=False)
     with pytest.raises(Exception, match="radial .*1D grating table"):
-        _load(mi, filename=str(tmp_path / "g2.zarr"), mapping="radial")
+        _load(mi, filename=str(tmp_path / "g2.zarr"), mapping="radial", center=[0.0, 0.0, 0.0])
     _load(mi, filename=str(tmp_path / "g2.zarr"), mapping="constant")  # fine
+
+
+@pytest.mark.parametrize("props, message", [
+    ({"mapping": "radial"}, "radial .*mapping needs 'center'"),
+    ({"mapping": "radial", "center": [0.0, float("nan"), 0.0]}, "'center' must be a point of three finite coordinates"),
+    ({"mapping": "radial", "center": "middle"}, "'center' must be a point"),
+])
+def test_radial_mapping_needs_a_centre(mitsuba_variant, cd_table, props, message):
+    """The grooves' centre sets the grating vector at every hit point: no silent default."""
+    import mitsuba as mi
+
+    with pytest.raises(Exception, match=message):
+        _load(mi, filename=str(cd_table.path), **props)
 
 
 def test_see_through_table_needs_both_sides(mitsuba_variant, tmp_path):

@@ -1,7 +1,7 @@
 """The BWDF behaves as a Mitsuba plugin (renderer/bwdf.py, GratingBWDF).
 
 * ``mi.traverse`` exposes exactly the settings that change the output in the configured
-  mode and mapping (uniform share, Delta, grating angle); a value changed in place gives
+  mode and mapping (uniform share, Delta, grating angle, the radial mapping's centre); a value changed in place gives
   the samples of an instance built with it (1e-6: float32 round-off of the same
   arithmetic), out-of-range values are refused on ``update``.
 * ``to_string`` names every setting; the class docstring's example runs.
@@ -83,6 +83,7 @@ def _sample(bsdf, wi, u1, ctx=None):
     si = dr.zeros(mi.SurfaceInteraction3f, n)
     si.wi = mi.Vector3f(*(float(c) for c in wi))
     si.wavelengths = mi.Spectrum(*WAVELENGTHS)
+    si.sh_frame = mi.Frame3f(mi.Vector3f(0, 0, 1))  # hit point at the origin, in the xy-plane
     bs, w = bsdf.sample(ctx or _ctx(), si, mi.Float(np.asarray(u1, dtype=np.float32)), mi.Point2f(0.5, 0.5))
     return np.array(bs.wo), np.array(w), np.array(bs.pdf), np.array(bs.sampled_component)
 
@@ -103,10 +104,10 @@ def _per_direction(wo, w, pdf):
 
 
 @pytest.mark.parametrize("props, exposed", [
-    ({"mapping": "radial"}, {"uniform_share"}),
+    ({"mapping": "radial", "center": [0.1, 0.2, 0.3]}, {"uniform_share", "center"}),
     ({}, {"uniform_share", "grating_angle"}),
     ({"mode": "paper"}, {"delta", "grating_angle"}),
-    ({"mode": "paper", "mapping": "radial"}, {"delta"}),
+    ({"mode": "paper", "mapping": "radial", "center": [0.1, 0.2, 0.3]}, {"delta", "center"}),
 ])
 def test_traverse_exposes_what_changes_the_output(mitsuba_variant, cd_table, props, exposed):
     import mitsuba as mi
@@ -118,6 +119,7 @@ def test_traverse_exposes_what_changes_the_output(mitsuba_variant, cd_table, pro
     ({}, "uniform_share", 0.15),
     ({"mode": "paper"}, "delta", 0.3),
     ({}, "grating_angle", 37.0),
+    ({"mapping": "radial", "center": [0.0, 0.0, 0.0]}, "center", [0.02, -0.01, 0.0]),
 ])
 def test_changed_in_place_equals_built_fresh(mitsuba_variant, cd_table, props, key, value):
     import mitsuba as mi
@@ -128,10 +130,10 @@ def test_changed_in_place_equals_built_fresh(mitsuba_variant, cd_table, props, k
     bsdf = _load(cd_table.path, **props)
     before = _sample(bsdf, wi, u1)
     params = mi.traverse(bsdf)
-    params[key] = value
+    params[key] = mi.Point3f(*value) if key == "center" else value
     params.update()
     changed = _sample(bsdf, wi, u1)
-    fresh = _sample(_load(cd_table.path, **props, **{key: value}), wi, u1)
+    fresh = _sample(_load(cd_table.path, **{**props, key: value}), wi, u1)
     for a, b in zip(changed, fresh, strict=True):
         np.testing.assert_allclose(a, b, atol=TOLERANCE_IN_PLACE)
     assert not np.allclose(before[1], changed[1])  # the setting does change the output
@@ -142,12 +144,13 @@ def test_changed_in_place_equals_built_fresh(mitsuba_variant, cd_table, props, k
     ({"mode": "paper"}, "delta", 0.0, "'delta' must be within"),
     ({"mode": "paper"}, "delta", 0.7, "'delta' must be within"),
     ({}, "grating_angle", math.inf, "'grating_angle' must be a finite angle"),
+    ({"mapping": "radial", "center": [0.0, 0.0, 0.0]}, "center", [0.0, math.nan, 0.0], "'center' must be a point"),
 ])
 def test_out_of_range_changes_are_refused(mitsuba_variant, cd_table, props, key, value, message):
     import mitsuba as mi
 
     params = mi.traverse(_load(cd_table.path, **props))
-    params[key] = value
+    params[key] = mi.Point3f(*value) if key == "center" else value
     with pytest.raises(ValueError, match=message):
         params.update()
 
@@ -160,12 +163,15 @@ def test_to_string_names_every_setting(see_through_table):
     for expected in (str(see_through_table), 'mode = "paper"', 'mapping = "constant"', "grating_angle = 12.5 deg",
                      "uniform_share = 0.5 (unused: paper mode)", "delta = 0.1", "[reflection, transmission]",
                      "period_um = [0.8]", "(-2, 0), (-1, 0), (0, 0), (1, 0), (2, 0)", "wavelengths_nm = 440-660",
-                     "superstrate air"):
+                     "superstrate air", "center = [0, 0, 0] (unused: constant mapping)"):
         assert expected in text, (expected, text)
     params = mi.traverse(bsdf)
     params["delta"] = 0.25
     params.update()
     assert "delta = 0.25" in str(bsdf)
+    radial = str(_load(see_through_table, mapping="radial", center=[0.1, 0.2, 0.3]))
+    assert "center = [0.1, 0.2, 0.3]\n" in radial + "\n" or "center = [0.1, 0.2, 0.3]," in radial, radial
+    assert "grating_angle = 0 deg (unused: radial mapping)" in radial
 
 
 def test_docstring_example_runs(mitsuba_variant, cd_table, capsys):
