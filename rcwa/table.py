@@ -50,7 +50,8 @@ FORMAT_VERSION = 1
 GRAZING_THETA_DEG = 89.999  # theta = 90 (no incident power) is solved at this limit
 POLARIZATIONS = ("unpolarized", "s", "p", "all")
 ARRAY_NAMES = ("R", "T", "R_below", "T_below")
-TABLE_FILES = ("zarr.json", "progress.json") + ARRAY_NAMES  # everything a table folder holds
+PLANNED_NODES = "planned_nodes"  # a planned table's mask of exactly solved nodes (wavelength, theta, phi)
+TABLE_FILES = ("zarr.json", "progress.json", PLANNED_NODES) + ARRAY_NAMES  # everything a table folder holds
 
 
 @dataclass(frozen=True)
@@ -65,9 +66,49 @@ class TableSettings:
     both_sides: bool = False
     factorization: str = "auto"
     use_symmetry: bool = True
+    planned_nodes_sha256: str = ""   # a planned table (NodePlan): the digest of its mask; "" for a whole table
+    fill_orders: tuple[int, ...] = ()  # a planned table: the retained orders of the nodes outside the mask
 
     def to_json(self) -> dict:
-        return asdict(self)
+        data = asdict(self)
+        if not self.planned_nodes_sha256:  # a whole table's request (and key) as before planning existed
+            del data["planned_nodes_sha256"], data["fill_orders"]
+        return data
+
+
+@dataclass(frozen=True)
+class NodePlan:
+    """The grid nodes a render reads (renderer.planner), solved with the table's orders; the
+    others are solved with only ``fill_orders`` retained (at least the kept orders).
+
+    Why the others are not left empty: a path that meets the element after a diffuse
+    bounce (the element's light thrown onto a wall, seen by the camera) reads directions no
+    camera ray reads directly. Those paths are dim and already blurred by the bounce, so a
+    less converged solve serves them; its error is measured and reported by the planner
+    (renderer.planner) and the render's equality within Monte Carlo noise is tested.
+    """
+
+    mask: np.ndarray               # (wavelengths, theta, phi) bool: solved with the table's orders
+    fill_orders: tuple[int, ...]
+
+    def digest(self) -> str:
+        mask = np.ascontiguousarray(self.mask, dtype=bool)
+        h = hashlib.sha256(json.dumps({"shape": list(mask.shape), "fill_orders": list(self.fill_orders)}).encode())
+        h.update(np.packbits(mask).tobytes())
+        return h.hexdigest()
+
+
+def planned(settings: TableSettings, nodes: NodePlan) -> TableSettings:
+    """``settings`` for a table whose nodes outside ``nodes.mask`` use ``nodes.fill_orders``."""
+    shape = (len(settings.wavelengths_nm), len(settings.theta_deg), len(settings.phi_deg))
+    if nodes.mask.shape != shape:
+        raise UserInputError("the planned nodes do not match the table's grid", field="nodes",
+                             expected=f"a mask of shape {shape} (wavelength, theta, phi)", got=list(nodes.mask.shape))
+    fill = _counts(tuple(nodes.fill_orders), len(settings.orders), "fill_orders")
+    if any(f < k or f > o for f, k, o in zip(fill, settings.keep, settings.orders, strict=True)):
+        raise UserInputError("the fill's orders must lie between the kept and the retained orders", field="fill_orders",
+                             expected=f"{list(settings.keep)} <= N <= {list(settings.orders)}", got=list(fill))
+    return replace(settings, planned_nodes_sha256=nodes.digest(), fill_orders=fill)
 
 
 PRESETS: dict[str, dict] = {
@@ -196,23 +237,33 @@ class BuildReport:
 
 
 def compute_chunk(structure: Structure, settings: TableSettings, wavelength_nm: float,
-                  threads: int) -> tuple[dict[str, np.ndarray], tuple[int, int]]:
+                  threads: int, mask: np.ndarray | None = None) -> tuple[dict[str, np.ndarray], tuple[int, int]]:
     """All arrays of one wavelength: R (and T; and from below), (theta, phi, order, pol);
     and the sweeps' (eigen-solves, refined eigen-solves).
+
+    ``mask`` (theta, phi) of a planned table: the nodes solved with the table's orders;
+    the rest with ``settings.fill_orders``.
     """
     theta = np.array([min(t, GRAZING_THETA_DEG) for t in settings.theta_deg])
     th, ph = np.meshgrid(theta, np.array(settings.phi_deg), indexing="ij")
+    exact = np.ones(th.size, bool) if mask is None else np.asarray(mask, bool).ravel()
+    groups = [(exact, settings.orders), (~exact, settings.fill_orders or settings.orders)]
     out, solves, refined = {}, 0, 0
     sides = [("", structure)] + ([("_below", flipped(structure))] if settings.both_sides else [])
     for suffix, s in sides:
-        sw = sweep_directions(s, wavelength_nm, th.ravel(), ph.ravel(), settings.orders, keep=settings.keep,
-                              factorization=settings.factorization, threads=threads)
-        shape = th.shape + (sw.m.size,)
-        solves, refined = solves + sw.eigen_solves, refined + sw.eigen_refined
-        for name, values in (("R", sw.R), ("T", sw.T)):
+        values: dict[str, np.ndarray] = {}
+        for nodes, orders in groups:
+            if not nodes.any():
+                continue
+            sw = sweep_directions(s, wavelength_nm, th.ravel()[nodes], ph.ravel()[nodes], orders, keep=settings.keep,
+                                  factorization=settings.factorization, threads=threads)
+            solves, refined = solves + sw.eigen_solves, refined + sw.eigen_refined
+            for name, part in (("R", sw.R), ("T", sw.T)):
+                values.setdefault(name, np.empty((th.size,) + part.shape[1:]))[nodes] = part
+        for name, whole in values.items():
             if name == "T" and (settings.reflection_only or not _transmits(s, settings)):
                 continue
-            out[name + suffix] = _select_pol(values, settings.pol).reshape(shape + (-1,)).astype(np.float32)
+            out[name + suffix] = _select_pol(whole, settings.pol).reshape(th.shape + (whole.shape[1], -1)).astype(np.float32)
     return out, (solves, refined)
 
 
@@ -245,8 +296,10 @@ def check_materials(structure: Structure, settings: TableSettings) -> None:
 
 def build_table(structure: Structure, settings: TableSettings, out: str | Path, *, threads: int | None = None,
                 progress: bool = True, force: bool = False, executor=None,
-                notify: Callable[[str], None] | None = None) -> BuildReport:
+                notify: Callable[[str], None] | None = None, nodes: NodePlan | None = None) -> BuildReport:
     """Build (or resume, or repair, or return the finished) table at ``out``.
+
+    ``nodes``: a planned table's NodePlan (``settings`` from ``planned(settings, nodes)``).
 
     ``executor``: an object with ``submit(fn, *args)`` returning futures (a
     dask.distributed Client); by default chunks run here on ``threads`` threads.
@@ -256,22 +309,24 @@ def build_table(structure: Structure, settings: TableSettings, out: str | Path, 
     """
     out = Path(out)
     key = request_key(structure, settings)
+    if (nodes.digest() if nodes is not None else "") != settings.planned_nodes_sha256:
+        raise ValueError("build_table: pass the NodePlan whose digest the settings hold (rcwa.table.planned)")
     check_materials(structure, settings)
     _refuse_unless_replaceable(out, key, force)  # before the lock file is written
     with entry_lock(out, notify=notify):
         return _build_locked(structure, settings, out, key, threads=threads, progress=progress, force=force,
-                             executor=executor)
+                             executor=executor, nodes=nodes)
 
 
 def _build_locked(structure: Structure, settings: TableSettings, out: Path, key: str, *, threads: int | None,
-                  progress: bool, force: bool, executor) -> BuildReport:
+                  progress: bool, force: bool, executor, nodes: NodePlan | None = None) -> BuildReport:
     from tqdm import tqdm
 
     start = time.perf_counter()
     existed = out.exists()
     created = not existed or not any(out.iterdir())
     notes: list[str] = []
-    store = _open_store(out, structure, settings, key, force, notes)
+    store = _open_store(out, structure, settings, key, force, notes, nodes)
     done = _read_progress(out)
     repaired = _drop_damaged_chunks(out, store, settings, done, notes)
     sym = symmetry.detect(structure) if settings.use_symmetry else symmetry.MirrorSymmetry(False, False)
@@ -285,7 +340,7 @@ def _build_locked(structure: Structure, settings: TableSettings, out: Path, key:
         report.bytes_on_disk = _size(out)
         return report
     try:
-        _compute_chunks(structure, settings, out, store, todo, done, report, threads, executor,
+        _compute_chunks(structure, settings, out, store, todo, done, report, threads, executor, nodes,
                         tqdm(total=len(settings.wavelengths_nm), initial=len(done), unit="wavelength",
                              disable=not progress, desc=f"table {structure.name}"))
     except BaseException:
@@ -310,12 +365,14 @@ def _remove_contents(out: Path, keep_folder: bool) -> None:
 
 
 def _compute_chunks(structure: Structure, settings: TableSettings, out: Path, store, todo: list[int], done: dict,
-                    report: BuildReport, threads: int | None, executor, bar) -> None:
+                    report: BuildReport, threads: int | None, executor, nodes: NodePlan | None, bar) -> None:
     threads = threads or default_threads()
+    masks = [None if nodes is None else nodes.mask[i] for i in range(len(settings.wavelengths_nm))]
     if executor is None:
-        results = ((i, timed(compute_chunk, structure, settings, settings.wavelengths_nm[i], threads)) for i in todo)
+        results = ((i, timed(compute_chunk, structure, settings, settings.wavelengths_nm[i], threads, masks[i]))
+                   for i in todo)
     else:
-        futures = {i: executor.submit(timed, compute_chunk, structure, settings, settings.wavelengths_nm[i], 1)
+        futures = {i: executor.submit(timed, compute_chunk, structure, settings, settings.wavelengths_nm[i], 1, masks[i])
                    for i in todo}
         results = ((i, futures[i].result()) for i in todo)
     with bar:
@@ -382,7 +439,8 @@ def _refuse_unless_replaceable(out: Path, key: str, force: bool) -> None:
                              expected="a new path, the same request, or --force to replace that table")
 
 
-def _open_store(out: Path, structure: Structure, settings: TableSettings, key: str, force: bool, notes: list[str]):
+def _open_store(out: Path, structure: Structure, settings: TableSettings, key: str, force: bool, notes: list[str],
+                nodes: NodePlan | None = None):
     import zarr
 
     _refuse_unless_replaceable(out, key, force)  # again, under the lock
@@ -419,6 +477,10 @@ def _open_store(out: Path, structure: Structure, settings: TableSettings, key: s
         "factorization": resolve_rule(settings.factorization, structure.dimension, structure.layers),
         "solver_version": workbench_version, "complete": False,
     }
+    if nodes is not None:
+        group.create_array(PLANNED_NODES, shape=nodes.mask.shape, dtype="bool", fill_value=False)[...] = nodes.mask
+        meta["planned"] = {"nodes_sha256": nodes.digest(), "exact_nodes": int(nodes.mask.sum()),
+                           "total_nodes": int(nodes.mask.size), "fill_orders": list(settings.fill_orders)}
     group.attrs.update(meta)
     _atomic_write_json(out / "progress.json", {})
     return group

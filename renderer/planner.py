@@ -80,12 +80,22 @@ class ElementPlan:
     seconds_whole: float
     seconds_planned: float
     megabytes_whole: float
+    fill_orders: tuple[int, ...] = ()
+    fill_error: dict[str, float] = field(default_factory=dict)  # |R_fill - R| over the cost sample: max, median
     notes: list[str] = field(default_factory=list)
     mask: np.ndarray | None = field(default=None, repr=False)
 
     @property
     def fraction(self) -> float:
         return self.directions_needed / self.directions_total if self.directions_total else 0.0
+
+    def node_plan(self):
+        """The rcwa.table.NodePlan a render builds this element's table with (None: nothing in view)."""
+        from rcwa.table import NodePlan
+
+        if self.mask is None or not self.visible_pixels:
+            return None
+        return NodePlan(self.mask, self.fill_orders)
 
     def to_json(self) -> dict[str, Any]:
         data = {k: v for k, v in asdict(self).items() if k != "mask"}
@@ -245,8 +255,10 @@ def _indices(structure, wavelengths: np.ndarray) -> tuple[np.ndarray, np.ndarray
     return n1, n3
 
 
-def _seconds_per_direction(structure, settings) -> float:
-    """Measured: one short sweep at the table's orders (the middle wavelength), per direction."""
+def _cost_sample(structure, settings, fill_orders: tuple[int, ...]) -> tuple[float, float, dict[str, float]]:
+    """Measured on COST_SAMPLE_DIRECTIONS directions at the middle wavelength: seconds per
+    direction with the table's orders and with the fill's, and the fill's error there
+    (|R_fill - R| over the kept orders: max and median)."""
     from rcwa.sweep import sweep_directions
 
     wl = settings.wavelengths_nm[len(settings.wavelengths_nm) // 2]
@@ -255,8 +267,13 @@ def _seconds_per_direction(structure, settings) -> float:
     phi = rng.uniform(0.0, 90.0, COST_SAMPLE_DIRECTIONS)
     sweep_directions(structure, wl, theta[:2], phi[:2], settings.orders, settings.keep, threads=1)  # warm up
     start = time.perf_counter()
-    sweep_directions(structure, wl, theta, phi, settings.orders, settings.keep, threads=1)
-    return (time.perf_counter() - start) / COST_SAMPLE_DIRECTIONS
+    exact = sweep_directions(structure, wl, theta, phi, settings.orders, settings.keep, threads=1)
+    middle = time.perf_counter()
+    fill = sweep_directions(structure, wl, theta, phi, fill_orders, settings.keep, threads=1)
+    end = time.perf_counter()
+    error = np.abs(fill.R - exact.R)
+    return ((middle - start) / COST_SAMPLE_DIRECTIONS, (end - middle) / COST_SAMPLE_DIRECTIONS,
+            {"max": float(error.max()), "median": float(np.median(error.max(axis=(1, 2))))})
 
 
 def plan_element(spec: SceneSpec, hit: dict[str, Any], origin: np.ndarray, camera_range: tuple[float, float],
@@ -320,7 +337,9 @@ def plan_element(spec: SceneSpec, hit: dict[str, Any], origin: np.ndarray, camer
     whole_tables = ["R", "T"] if see_through else ["R"]
     if settings.both_sides or see_through:
         whole_tables += [name + "_below" for name in whole_tables]
-    per_dir = _seconds_per_direction(structure, settings) if measure_cost and samples else 0.0
+    fill_orders = tuple(settings.keep)  # the nodes no camera ray reads: only the kept orders retained (rcwa.table.NodePlan)
+    per_dir, per_fill, fill_error = (_cost_sample(structure, settings, fill_orders) if measure_cost and samples
+                                     else (0.0, 0.0, {}))
     cores = os.cpu_count() or 1
     nwl = 1  # the node counts below include the wavelength axis
     sides_whole = 2 if (settings.both_sides or see_through) else 1
@@ -342,8 +361,9 @@ def plan_element(spec: SceneSpec, hit: dict[str, Any], origin: np.ndarray, camer
         directions_needed=int(union.sum()), directions_total=nodes_whole, theta_range_deg=theta_range,
         phi_range_deg=phi_range, direct_light_share=direct / total if total else 0.0,
         seconds_whole=per_dir * nodes_whole * nwl * sides_whole / cores,
-        seconds_planned=per_dir * (needed_above + needed_below) * nwl / cores,
-        megabytes_whole=bytes_whole / 1e6, notes=notes, mask=union,
+        seconds_planned=(per_dir * (needed_above + needed_below)
+                         + per_fill * (nodes_whole * sides_whole - needed_above - needed_below)) * nwl / cores,
+        megabytes_whole=bytes_whole / 1e6, fill_orders=fill_orders, fill_error=fill_error, notes=notes, mask=union,
     )
 
 
@@ -428,8 +448,10 @@ def format_plan(plan: Plan) -> str:
             f"{_range_text(e.theta_range_deg)}, phi {_range_text(e.phi_range_deg)} deg; symmetry {e.symmetry}",
             f"  light         {e.direct_light_share:.1%} of the needed lookups see the light directly; the rest is "
             f"lit by the box's diffuse walls (kept)",
-            f"  cost          whole table ~{e.seconds_whole:.0f} s, {e.megabytes_whole:.1f} MB; planned part "
+            f"  cost          whole table ~{e.seconds_whole:.0f} s, {e.megabytes_whole:.1f} MB; planned "
             f"~{e.seconds_planned:.0f} s (measured per direction here)",
+            f"  other nodes   {'x'.join(map(str, e.fill_orders))} orders retained (paths that reach the element after a "
+            f"diffuse bounce){_fill_error_text(e.fill_error)}",
         ]
         lines += [f"  note          {n}" for n in e.notes]
     for g in plan.glass:
@@ -438,6 +460,10 @@ def format_plan(plan: Plan) -> str:
                  "mean index (the scene's choice)")
         lines.append(f"{g.key}: {g.visible_pixels} pixels in view; {state}")
     return "\n".join(lines)
+
+
+def _fill_error_text(error: dict[str, float]) -> str:
+    return f": |dR| median {error['median']:.3f}, max {error['max']:.3f} on a sample" if error else ""
 
 
 def _range_text(r: tuple[float, float] | None) -> str:
