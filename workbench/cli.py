@@ -171,9 +171,10 @@ def _build_parser() -> argparse.ArgumentParser:
                               help="a built-in scene name or a TOML file; its camera must see a CD or grating")
     study_render.add_argument("--out", required=True, metavar="DIR", help="folder for the JSON, CSV and figures")
 
-    demo = commands.add_parser("demo", help="the main job on the built-in defaults: the CD's orders, then a synthetic dataset "
-                        "of cornell_cd in out/demo/", description="Solves the built-in CD at one direction, then writes "
-                        "the default synthetic dataset (workbench synth cornell_cd) to out/demo/dataset.")
+    demo = commands.add_parser("demo", help="the main job on the built-in defaults: a synthetic dataset of cornell_cd, then "
+                        "verify and score on it, in out/demo/", description="Writes the default synthetic dataset "
+                        "(workbench synth cornell_cd) to out/demo/dataset, runs workbench verify on it (first photo) into "
+                        "out/demo/run and scores the calibration against the truth; ends with the report's path.")
     add_cache_option(demo)
 
     plan = commands.add_parser("plan", help="what a scene needs simulated: tables, orders, angles, wavelengths, cost",

@@ -1,47 +1,46 @@
-"""``make demo``: the main job on the built-in defaults.
+"""``make demo``: the main job on the built-in defaults, from photos to a report.
 
-It solves the built-in CD cell over a few wavelengths and prints each one's diffraction
-orders, then renders the built-in Cornell-box scene with the CD (draft preset; its
-efficiency table is built through the table cache on first use), then generates the
-default synthetic dataset (seeded, so the same bytes every time: raw photos, exposure
-brackets and a calibration set, with the truth beside them). Later stages add the
-calibration and the report.
+1. The default synthetic dataset (``workbench synth cornell_cd --seed 0``, draft: raw
+   photos from two viewpoints, an exposure bracket, checkerboard views, and the truth
+   beside them) in out/demo/dataset; seeded, so the same bytes every time.
+2. ``workbench verify`` on it into out/demo/run: the plan, the CD's table (through the
+   table cache), the calibration from the photos alone, the first photo rendered with
+   its fitted camera (draft, 256 spp) and the report comparing the two. Only the first
+   photo is rendered and reported, to keep the demo within about 5 minutes on 2 cores
+   (``workbench verify`` does every photo); a second demo finds every stage's inputs
+   unchanged and skips them.
+3. ``workbench score``: the calibration against the dataset's truth.
+
+It ends with the path of the HTML report.
 """
 
 from __future__ import annotations
 
 import time
 
-import rcwa
-from workbench.report_text import solve_table
-
-DEMO_WAVELENGTHS_NM = (400.0, 500.0, 600.0, 700.0)
-DEMO_THETA_DEG = 30.0
-DEMO_ORDERS = 61
-DEMO_RENDER = "out/demo/cornell_cd.exr"
+DEMO_SCENE = "cornell_cd"
 DEMO_DATASET = "out/demo/dataset"
+DEMO_RUN = "out/demo/run"
 DEMO_SEED = 0
+DEMO_PHOTOS = ("view0.dng",)  # the first photo only (see the docstring)
 
 
 def run_demo() -> int:
-    structure = rcwa.load_structure("cd")
-    print(f"Built-in structure 'cd' ({structure.source}), unpolarized light at {DEMO_THETA_DEG:g} deg, "
-          f"{DEMO_ORDERS} harmonics, Li's inverse rule.\n")
-    for wavelength in DEMO_WAVELENGTHS_NM:
-        start = time.perf_counter()
-        result = rcwa.solve(structure, wavelength, DEMO_THETA_DEG, 0.0, DEMO_ORDERS, "unpolarized")
-        print(solve_table(result))
-        print(f"({(time.perf_counter() - start) * 1e3:.1f} ms)\n")
-    from renderer.render import render, summary
-
-    print("Rendering the built-in scene cornell_cd (draft preset) ...")
-    info = render("cornell_cd", DEMO_RENDER, preset="draft", force=True)  # out/demo is the demo's own folder
-    print(f"\n{summary(info)}")
     from datasets_synthetic.synth import synth
+    from workbench.score import format_score, score_run
+    from workbench.verify import VerifySettings, format_summary, verify
 
-    print(f"\nGenerating the default synthetic dataset (seed {DEMO_SEED}, draft preset) ...")
-    start = time.perf_counter()
-    synth("cornell_cd", DEMO_DATASET, seed=DEMO_SEED, preset="draft", force=True)
-    print(f"Dataset: {DEMO_DATASET}/ (photos/, brackets/, calibration/, truth.json, run.json) "
-          f"in {time.perf_counter() - start:.1f} s.")
+    started = time.perf_counter()
+    print(f"1/3 the default synthetic dataset: workbench synth {DEMO_SCENE} --seed {DEMO_SEED} (draft) "
+          f"-> {DEMO_DATASET}", flush=True)
+    synth(DEMO_SCENE, DEMO_DATASET, seed=DEMO_SEED, preset="draft", force=True)  # out/demo is the demo's own folder
+    print(f"    done in {time.perf_counter() - started:.0f} s\n", flush=True)
+    print(f"2/3 workbench verify {DEMO_DATASET} --scene {DEMO_SCENE} --out {DEMO_RUN} --photo {DEMO_PHOTOS[0]}",
+          flush=True)
+    record = verify(DEMO_DATASET, DEMO_SCENE, DEMO_RUN, VerifySettings(photos=DEMO_PHOTOS), force=True)
+    print(format_summary(record) + "\n")
+    print(f"3/3 workbench score {DEMO_RUN} --truth {DEMO_DATASET}/truth.json")
+    print(format_score(score_run(DEMO_RUN, f"{DEMO_DATASET}/truth.json")) + "\n")
+    report = record["summary"]["photos"][DEMO_PHOTOS[0]]["report"]
+    print(f"demo finished in {time.perf_counter() - started:.0f} s; the report: {report}")
     return 0

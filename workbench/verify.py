@@ -12,6 +12,11 @@ render         every photo's fitted scene (calibration/scenes/NAME.toml), render
 report         reports.report: each photo against its render                          photos, renders, calibration
 =============  =====================================================================  ==========================
 
+The tables stage builds whole tables: calibration re-renders the scene from many
+cameras (renderer.fit), and a whole table in the cache serves the render's plan too
+(renderer.build.table_plan), so the plan stage's planned fractions and costs are what a
+render of the scene's camera alone would need, recorded for the user (RUN/plan/plan.txt).
+
 RUN/scene.toml is the scene as the run uses it: the user's scene with every CD's and
 grating's table at the preset's table preset (draft or paper) and paths made absolute.
 Every photo is rendered and reported (each view shows the CD's fringes from another
