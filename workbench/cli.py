@@ -14,7 +14,7 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
-from workbench import cli_calibrate, cli_verify
+from workbench import cli_calibrate, cli_study, cli_verify
 from workbench.catalog import KINDS
 from workbench.cli_arguments import count_argument
 from workbench.cli_cache import add_cache_option, apply_cache_option
@@ -170,6 +170,7 @@ def _build_parser() -> argparse.ArgumentParser:
     study_render.add_argument("scene", nargs="?", default="cornell_cd",
                               help="a built-in scene name or a TOML file; its camera must see a CD or grating")
     study_render.add_argument("--out", required=True, metavar="DIR", help="folder for the JSON, CSV and figures")
+    cli_study.add_calibrate(study_commands)
 
     demo = commands.add_parser("demo", help="the main job on the built-in defaults: a synthetic dataset of cornell_cd, then "
                         "verify and score on it, in out/demo/", description="Writes the default synthetic dataset "
@@ -323,6 +324,8 @@ def main(argv: Sequence[str] | None = None) -> int:
             return 0
         if args.command == "study" and args.study_command == "rcwa":
             return _run_study_rcwa(args)
+        if args.command == "study" and args.study_command == cli_study.CALIBRATE:
+            return cli_study.run_calibrate(args)
         if args.command == "study" and args.study_command == "render":
             from renderer.study import run_render_study
 

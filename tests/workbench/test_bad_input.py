@@ -53,6 +53,14 @@ def files(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
         out[name] = root / name
     (root / "a_folder").mkdir()
     out["a_folder"] = root / "a_folder"
+    for name, board in (("undescribed_boards", None), ("bad_board_json", '{"kind": "checkerboard", "inner_corners": [9], '
+                                                                         '"square_mm": 20}')):
+        for sub, file_name in (("photos", "view0.png"), ("calibration", "board00.png")):
+            (root / name / sub).mkdir(parents=True)
+            (root / name / sub / file_name).write_bytes((root / "gray.png").read_bytes())
+        if board is not None:
+            (root / name / "calibration" / "board.json").write_text(board)
+        out[name] = root / name
     out["root"] = root
     return out
 
@@ -128,6 +136,16 @@ CASES: list[tuple[str, list[str], str]] = [
     ("dataset-without-photos", ["calibrate", "dataset", "{a_folder}", "--scene", "cornell_cd", "--out", "{root}/c"],
      "photos"),
     ("calibrate-dataset-short-form", ["calibrate", "{a_folder}", "--scene", "cornell_cd", "--out", "{root}/c2"], "photos"),
+    ("dataset-board-undescribed", ["calibrate", "{undescribed_boards}", "--scene", "cornell_cd", "--out", "{root}/c3"],
+     "board.json"),
+    ("dataset-board-square-missing", ["calibrate", "{undescribed_boards}", "--scene", "cornell_cd", "--out", "{root}/c4",
+                                      "--board", "9x6"], "--square-mm"),
+    ("dataset-board-json-bad-field", ["calibrate", "{bad_board_json}", "--scene", "cornell_cd", "--out", "{root}/c5"],
+     "field 'inner_corners'"),
+    ("study-calibrate-without-truth", ["study", "calibrate", "{undescribed_boards}", "--scene", "cornell_cd", "--out",
+                                       "{root}/s2"], "truth.json"),
+    ("study-calibrate-bad-scale", ["study", "calibrate", "{undescribed_boards}", "--scene", "cornell_cd", "--out",
+                                   "{root}/s3", "--scales", "1,half"], "--scales"),
     ("report-missing-photo", ["report", "--photo", "{root}/nosuch.dng", "--render", "{root}/r.exr", "--calibration",
                               "{root}/c.json", "--scene", "cornell_cd", "--out", "{root}/rep"], "no such file"),
     ("report-binary-scene", ["report", "--photo", "{gray.png}", "--render", "{root}/r.exr", "--calibration",

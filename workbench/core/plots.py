@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from functools import partial
 from pathlib import Path
 
 
@@ -19,10 +20,16 @@ def save_figure(fig, axes, out: Path, stem: str) -> None:
     """Grid and legend on every panel, then ``stem``.png and ``stem``.svg in ``out``."""
     import matplotlib.pyplot as plt
 
+    from workbench.core.files import atomic_write
+
     for ax in axes:
         ax.grid(True, which="both", alpha=0.3)
         ax.legend()
     fig.tight_layout()
-    for ext in ("png", "svg"):
-        fig.savefig(Path(out) / f"{stem}.{ext}", dpi=120)
+    for ext in ("png", "svg"):  # each written atomically: a temporary name, then renamed
+        atomic_write(Path(out) / f"{stem}.{ext}", partial(_savefig, fig, ext))
     plt.close(fig)
+
+
+def _savefig(fig, ext: str, path: Path) -> None:
+    fig.savefig(path, dpi=120, format=ext)
