@@ -138,12 +138,16 @@ class TablePlan:
     key: str
     structure: Any
     settings: Any
+    nodes: Any = None  # rcwa.table.NodePlan of a planned table (None: the whole table)
 
 
-def table_plan(element, where: str = "element", scene_file: str | None = None) -> TablePlan:
-    """Where a CD's or grating's table is and what it holds, without building it."""
+def table_plan(element, where: str = "element", scene_file: str | None = None, nodes=None) -> TablePlan:
+    """Where a CD's or grating's table is and what it holds, without building it.
+
+    ``nodes`` (rcwa.table.NodePlan, from renderer.planner): a planned table, unless the
+    whole table is in the cache already (it serves every plan)."""
     import rcwa
-    from rcwa.table import read_table_metadata, request_key, settings_for
+    from rcwa.table import planned, read_table_metadata, request_key, settings_for
 
     structure = rcwa.load_structure(element.structure)
     options = dict(element.table)
@@ -161,7 +165,30 @@ def table_plan(element, where: str = "element", scene_file: str | None = None) -
         options.setdefault("both_sides", True)  # see-through: light from below too
     settings = settings_for(structure, preset, **options)
     key = request_key(structure, settings)
-    return TablePlan(entry_path("tables", f"{structure.name}-{key[:16]}.zarr"), key, structure, settings)
+    whole = TablePlan(entry_path("tables", f"{structure.name}-{key[:16]}.zarr"), key, structure, settings)
+    if nodes is None or _finished_table(whole.path, key):
+        return whole
+    settings = planned(settings, nodes)
+    key = request_key(structure, settings)
+    return TablePlan(entry_path("tables", f"{structure.name}-{key[:16]}-planned.zarr"), key, structure, settings, nodes)
+
+
+def _finished_table(path: Path, key: str) -> bool:
+    from rcwa.table import read_table_metadata
+
+    try:
+        meta = read_table_metadata(path)
+    except UserInputError:
+        return False
+    return meta.get("key") == key and bool(meta.get("complete"))
+
+
+def planned_nodes(spec: SceneSpec) -> dict[str, Any]:
+    """The planner's rcwa.table.NodePlan per element key (``cd[0]``) the camera sees."""
+    from renderer.planner import plan_scene
+
+    plan = plan_scene(spec, measure_cost=False)
+    return {e.key: e.node_plan() for e in plan.elements}
 
 
 def table_keys(spec: SceneSpec) -> list[str]:
@@ -171,19 +198,21 @@ def table_keys(spec: SceneSpec) -> list[str]:
     return [table_plan(element, where, spec.source).key for where, element in elements]
 
 
-def element_table(element, camera_sens, where: str = "element", scene_file: str | None = None) -> Path:
+def element_table(element, camera_sens, where: str = "element", scene_file: str | None = None, nodes=None) -> Path:
     """The efficiency table of a CD or grating: the one its scene names (checked), or built
-    through the table cache. ``where`` (``cd[0]``) and ``scene_file`` locate errors.
+    through the table cache (planned with ``nodes``: see table_plan). ``where`` (``cd[0]``)
+    and ``scene_file`` locate errors.
     """
     from rcwa.table import build_table
     from renderer.checks import require_table_covers_camera
 
-    plan = table_plan(element, where, scene_file)
+    plan = table_plan(element, where, scene_file, nodes)
     if plan.settings is None:
         wavelengths = _check_named_table(plan, where, scene_file)
     else:
         try:
-            report = build_table(plan.structure, plan.settings, plan.path, progress=True, force=True)  # the cache's path
+            report = build_table(plan.structure, plan.settings, plan.path, progress=True, force=True,  # the cache's path
+                                 nodes=plan.nodes)
             for note in report.notes:  # damaged chunks computed again: say so, as `rcwa table` does
                 print(f"{plan.path}: {note}", file=sys.stderr)
         except UserInputError as exc:  # e.g. wavelengths outside a material's data: say which scene field asked
@@ -243,8 +272,12 @@ def light_dict(mi, light) -> dict:
 
 
 def scene_dict(mi, spec: SceneSpec, *, spp: int, integrator: str = "path", mode: str = "improved",
-               max_depth: int = 8) -> tuple[dict, dict]:
-    """The Mitsuba scene dict and what was built for it (tables, the pinhole plan)."""
+               max_depth: int = 8, plan: bool = False) -> tuple[dict, dict]:
+    """The Mitsuba scene dict and what was built for it (tables, the pinhole plan).
+
+    ``plan``: tables planned for this scene's camera (renderer.planner): the nodes its
+    rays read solved in full, the rest with fewer orders; for a render of one camera.
+    Renders of many cameras (calibration's re-renders) use whole tables."""
     register_plugins()
     from renderer.dielectric import bsdf_dict
 
@@ -271,8 +304,9 @@ def scene_dict(mi, spec: SceneSpec, *, spp: int, integrator: str = "path", mode:
     from rcwa.materials import material_from_spec
 
     polycarbonate = material_from_spec("polycarbonate")
+    nodes = planned_nodes(spec) if plan else {}
     for i, cd in enumerate(spec.cds):
-        table = element_table(cd, sens, f"cd[{i}]", spec.source)
+        table = element_table(cd, sens, f"cd[{i}]", spec.source, nodes.get(f"cd[{i}]"))
         built["tables"].append(str(table))
         R = frame_to(cd.normal, cd.rotation_deg)
         mesh = str(annulus_mesh(cd.inner_radius, cd.outer_radius))
@@ -285,7 +319,7 @@ def scene_dict(mi, spec: SceneSpec, *, spp: int, integrator: str = "path", mode:
                                    "to_world": mi.ScalarTransform4f(transform(top, R).tolist()),
                                    "bsdf": bsdf_dict(polycarbonate, dispersion=cd.dispersion)}
     for i, g in enumerate(spec.gratings):
-        table = element_table(g, sens, f"grating[{i}]", spec.source)
+        table = element_table(g, sens, f"grating[{i}]", spec.source, nodes.get(f"grating[{i}]"))
         built["tables"].append(str(table))
         R = frame_to(g.normal, g.rotation_deg)
         plate = transform(g.center, R, (g.size[0] / 2, g.size[1] / 2, 1.0))

@@ -17,11 +17,12 @@ kept across the CD's flat polycarbonate top, so the camera's side in air gives i
 
 and the table's angles are sin(theta) = |k_inc| / n_light, phi = atan2(k_inc,y, k_inc,x)
 (renderer.bwdf.BWDF._incident), folded into the stored azimuth range by the cell's
-mirror symmetry. The planner casts one ray per camera pixel (no occlusion: a superset
-of what the camera sees), evaluates this for every order and for wavelengths 5 nm apart
-over the camera's range, and marks the grid nodes of the table that bilinear
-interpolation then reads (the four around each direction; one ray per pixel and 5 nm
-steps move the direction far less than a grid step, so no margin is needed), per
+mirror symmetry. The planner casts one ray per camera pixel (every k-th pixel on images
+wider than PLAN_RAYS_ACROSS; no occlusion: a superset of what the camera sees),
+evaluates this for every order and for wavelengths 5 nm apart over the camera's range,
+and marks the grid nodes of the table that bilinear interpolation then reads (the four
+around each direction; neighbouring rays and 5 nm steps move the direction far less
+than a grid step, so no margin is needed), per
 wavelength chunk of the table: the renderer interpolates linearly in wavelength, so table
 wavelength lambda_i serves every wavelength between its neighbours lambda_i-1 and
 lambda_i+1, and only the directions those wavelengths reach are needed at lambda_i. Light arriving after a diffuse
@@ -54,6 +55,7 @@ from workbench.core.conventions import ORDER_SIGN
 PLAN_WAVELENGTH_STEP_NM = 5.0  # wavelengths sampled for the domain; the tables' own steps are 10 nm or more
 NODE_MARGIN = 0  # extra grid nodes around a needed cell: none, since one ray per pixel is far denser than any table grid
 COST_SAMPLE_DIRECTIONS = 16  # directions timed for the cost model
+PLAN_RAYS_ACROSS = 400  # rays across the image: neighbours 0.1 deg apart for a 40 deg view, far below any table step (2 deg)
 
 
 @dataclass
@@ -90,12 +92,11 @@ class ElementPlan:
         return self.directions_needed / self.directions_total if self.directions_total else 0.0
 
     def node_plan(self):
-        """The rcwa.table.NodePlan a render builds this element's table with (None: nothing in view)."""
+        """The rcwa.table.NodePlan a render builds this element's table with: out of view,
+        every node is a fill node (paths can still reach the element after a bounce)."""
         from rcwa.table import NodePlan
 
-        if self.mask is None or not self.visible_pixels:
-            return None
-        return NodePlan(self.mask, self.fill_orders)
+        return None if self.mask is None else NodePlan(self.mask, self.fill_orders)
 
     def to_json(self) -> dict[str, Any]:
         data = {k: v for k, v in asdict(self).items() if k != "mask"}
@@ -129,11 +130,17 @@ class Plan:
 # ---------------------------------------------------------------- geometry
 
 
-def camera_rays(spec: SceneSpec) -> tuple[np.ndarray, np.ndarray]:
-    """The camera centre (3,) and one unit ray direction per pixel (H*W, 3), world frame."""
+def camera_rays(spec: SceneSpec, step: int = 1) -> tuple[np.ndarray, np.ndarray]:
+    """The camera centre (3,) and a unit ray direction per pixel (every ``step``-th pixel
+    in each direction), world frame."""
     cam = spec.camera.model
-    v, u = np.mgrid[0:cam.height, 0:cam.width]
+    v, u = np.mgrid[0:cam.height:step, 0:cam.width:step]
     return cam.pixel_rays(np.stack([u.ravel(), v.ravel()], axis=1).astype(float))
+
+
+def ray_step(spec: SceneSpec) -> int:
+    """The pixel step of the planner's rays: at most PLAN_RAYS_ACROSS rays across the image."""
+    return max(1, math.ceil(spec.camera.model.width / PLAN_RAYS_ACROSS))
 
 
 def plane_hits(origin: np.ndarray, rays: np.ndarray, center: np.ndarray, normal: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -418,10 +425,13 @@ def plan_scene(spec: SceneSpec, *, measure_cost: bool = True) -> Plan:
     wl = np.unique(np.concatenate([w for w, _ in sens]))
     curves = np.stack([np.interp(wl, w, s, left=0, right=0) for w, s in sens])
     camera_range = visible_range(wl, curves)
-    origin, rays = camera_rays(spec)
+    step = ray_step(spec)
+    origin, rays = camera_rays(spec, step)
     elements = [plan_element(spec, hit, origin, camera_range, measure_cost=measure_cost)
                 for hit in element_hits(spec, origin, rays)]
-    glass = [GlassPlan(f"glass[{i}]", count, g.dispersion, g.dispersion and count > 0)
+    for e in elements:
+        e.visible_pixels *= step * step  # in pixels of the image, not rays
+    glass = [GlassPlan(f"glass[{i}]", count * step * step, g.dispersion, g.dispersion and count > 0)
              for i, (g, count) in enumerate(zip(spec.glass, _glass_visible(spec, origin, rays), strict=True))]
     return Plan(spec.name, camera_range, elements, glass, any(e.visible_pixels for e in elements),
                 time.perf_counter() - start)

@@ -45,7 +45,7 @@ def with_resolution(spec: SceneSpec, resolution: tuple[int, int] | None) -> Scen
     return replace(spec, camera=replace(spec.camera, model=model))
 
 
-def render_pass(spec: SceneSpec, pass_spp: int, integrator: str, mode: str, pass_seed: int) -> np.ndarray:
+def render_pass(spec: SceneSpec, pass_spp: int, integrator: str, mode: str, pass_seed: int, plan: bool = True) -> np.ndarray:
     """One pass on a dask worker: build the scene there (tables come from the cache) and render."""
     from renderer.variant import set_variant
 
@@ -54,14 +54,14 @@ def render_pass(spec: SceneSpec, pass_spp: int, integrator: str, mode: str, pass
 
     from renderer.build import scene_dict
 
-    scene_d, _ = scene_dict(mi, spec, spp=pass_spp, integrator=integrator, mode=mode)
+    scene_d, _ = scene_dict(mi, spec, spp=pass_spp, integrator=integrator, mode=mode, plan=plan)
     # Mitsuba's stub types seed as UInt32; a Python int is what it takes at run time
     return np.array(mi.render(mi.load_dict(scene_d), seed=pass_seed))  # type: ignore[arg-type]
 
 
 def render(scene: str | Path, out: str | Path, *, preset: str = "draft", spp: int | None = None,
            resolution: tuple[int, int] | None = None, integrator: str = "path", mode: str = "improved",
-           seed: int = 0, progress: bool = True, executor=None, force: bool = False) -> dict:
+           seed: int = 0, progress: bool = True, executor=None, force: bool = False, plan: bool = True) -> dict:
     """Render ``scene``; with ``executor`` (workbench.core.executor.DaskExecutor) the passes run on a
     dask.distributed cluster, each with its own seed, averaged here: the result is the
     same as a local render with the same seed.
@@ -71,6 +71,9 @@ def render(scene: str | Path, out: str | Path, *, preset: str = "draft", spp: in
     served at once (``info["served"]``); a different render or other files at ``out``
     (the EXR, its PNG preview or JSON sidecar) are replaced only with ``force``; an
     interrupted render of the same request resumes (``info["resumed_passes"]``).
+
+    ``plan`` (the default): the tables are planned for this camera (renderer.planner,
+    renderer.build.scene_dict); False builds whole tables, for comparison.
     """
     from tqdm import tqdm
 
@@ -78,7 +81,7 @@ def render(scene: str | Path, out: str | Path, *, preset: str = "draft", spp: in
 
     spp, pass_spp, spec, out = _checked_request(scene, out, preset, spp, resolution, integrator, mode, seed)
     passes = math.ceil(spp / pass_spp)
-    key = _request_key(spec, spp, pass_spp, integrator, mode, seed)
+    key = _request_key(spec, spp, pass_spp, integrator, mode, seed, plan)
     partial = out.with_name(out.name + ".partial.npz")
     finished = _finished_render(out, key)
     if finished is not None:
@@ -90,7 +93,7 @@ def render(scene: str | Path, out: str | Path, *, preset: str = "draft", spp: in
     from renderer.build import scene_dict
 
     started = time.perf_counter()
-    scene_d, built = scene_dict(mi, spec, spp=pass_spp, integrator=integrator, mode=mode)
+    scene_d, built = scene_dict(mi, spec, spp=pass_spp, integrator=integrator, mode=mode, plan=plan)
     total, done = _resume(partial, key)
     bar = tqdm(total=passes, initial=done, unit="pass", disable=not progress, desc=f"render {spec.name}")
     pass_seconds = []
@@ -100,7 +103,7 @@ def render(scene: str | Path, out: str | Path, *, preset: str = "draft", spp: in
         images = ((p, timed(lambda p=p: np.array(mi.render(loaded, seed=pass_seed(seed, p)))))  # type: ignore[arg-type]
                   for p in range(done, passes))
     else:
-        futures = {p: executor.submit(timed, render_pass, spec, pass_spp, integrator, mode, pass_seed(seed, p))
+        futures = {p: executor.submit(timed, render_pass, spec, pass_spp, integrator, mode, pass_seed(seed, p), plan)
                    for p in range(done, passes)}
         images = ((p, futures[p].result()) for p in range(done, passes))
     for p, (image, seconds) in images:
@@ -123,7 +126,8 @@ def render(scene: str | Path, out: str | Path, *, preset: str = "draft", spp: in
         "scene": spec.name, "scene_source": spec.source, "scene_sha256": hashlib.sha256(spec.text.encode()).hexdigest(),
         "output": str(out), "preview": str(preview), "preset": preset, "spp": passes * pass_spp, "passes": passes,
         "resolution": [spec.camera.model.width, spec.camera.model.height], "integrator": integrator, "mode": mode,
-        "seed": seed, "variant": variant, "tables": built["tables"], "seconds_total": time.perf_counter() - started,
+        "seed": seed, "variant": variant, "planned_tables": plan, "tables": built["tables"],
+        "seconds_total": time.perf_counter() - started,
         "seconds_per_pass": pass_seconds, "resumed_passes": done,
         "versions": {"workbench": workbench_version, "mitsuba": mi.__version__, "python": platform.python_version(),
                      "numpy": np.__version__},
@@ -183,15 +187,16 @@ def _checked_request(scene: str | Path, out: str | Path, preset: str, spp: int |
     return spp, min(spp, settings["pass_spp"]), spec, out
 
 
-def _request_key(spec: SceneSpec, spp: int, pass_spp: int, integrator: str, mode: str, seed: int) -> str:
+def _request_key(spec: SceneSpec, spp: int, pass_spp: int, integrator: str, mode: str, seed: int, plan: bool) -> str:
     """What a render is of: scene text, image size, sampling, seed, the tables' own request
-    keys (their content, wherever the cache is) and the workbench version.
+    keys (their content, wherever the cache is; planned for the camera or whole) and the
+    workbench version.
     """
     from renderer.build import table_keys
 
     request = {"scene": spec.text, "w": spec.camera.model.width, "h": spec.camera.model.height, "spp": spp,
                "pass": pass_spp, "integrator": integrator, "mode": mode, "seed": seed, "tables": table_keys(spec),
-               "version": workbench_version}
+               "planned_tables": plan, "version": workbench_version}
     return hashlib.sha256(json.dumps(request, sort_keys=True).encode()).hexdigest()
 
 

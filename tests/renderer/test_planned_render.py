@@ -1,0 +1,84 @@
+"""Renders with planned tables (renderer.planner -> rcwa.table.NodePlan) equal renders with
+whole tables within Monte Carlo noise (issue 16), for cornell_cd, cornell_cd_view2 and
+grating2d_gold.
+
+Small tables (a coarse grid, few orders) keep it quick; what is tested is the plan: the
+nodes the camera's rays read are solved as in the whole table, the others with only the
+kept orders. Statistic: per region (the whole image, the element's pixels, the rest) and
+channel, the mean of planned - whole (same seed) against the standard error of a mean
+difference measured between two whole-table renders of other seeds; |z| < Z_MAX. The
+negative control shows the test can fail: a plan that marks no node (every lookup from
+the fill) moves grating2d_gold's element by many standard errors (measured: 5-12).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+
+from rcwa.table import NodePlan
+from renderer.render import with_resolution
+from renderer.scene import load_scene
+from workbench.core.cache import ENVIRONMENT_VARIABLE
+
+Z_MAX = 4.0       # a 4-sigma bound on each of 9 (region, channel) means: a false alarm about once in 2000 runs
+NEGATIVE_Z = 4.0  # the all-fill control must exceed this on the element in some channel
+SIZE = (96, 72)
+SPP = 64
+SMALL_TABLES = {
+    "cd": {"preset": "draft", "wavelengths": "400:700:7", "theta_step": 10.0, "phi_step": 15.0, "orders": 21, "keep": 7},
+    "grating": {"preset": "draft", "wavelengths": "400:700:7", "theta_step": 10.0, "phi_step": 15.0, "orders": [5, 5],
+                "keep": [3, 3]},
+}
+
+
+def _small(name: str):
+    spec = with_resolution(load_scene(name), SIZE)
+    return dataclasses.replace(spec, cds=tuple(dataclasses.replace(c, table=SMALL_TABLES["cd"]) for c in spec.cds),
+                               gratings=tuple(dataclasses.replace(g, table=SMALL_TABLES["grating"]) for g in spec.gratings))
+
+
+def _renders(spec, monkeypatch, nodes_rule=None) -> dict[str, np.ndarray]:
+    from renderer import build
+    from renderer.accuracy import element_mask
+    from renderer.variant import set_variant
+
+    set_variant()
+    import mitsuba as mi
+
+    if nodes_rule is not None:
+        original = build.planned_nodes
+        monkeypatch.setattr(build, "planned_nodes", lambda s: {k: nodes_rule(v) for k, v in original(s).items()})
+    planned_d, planned_built = build.scene_dict(mi, spec, spp=SPP, plan=True)  # first: a whole table would serve it
+    whole_d, _ = build.scene_dict(mi, spec, spp=SPP, plan=False)
+    assert all(path.endswith("-planned.zarr") for path in planned_built["tables"])
+    render = lambda d, seed: np.array(mi.render(mi.load_dict(d), seed=seed))  # noqa: E731
+    return {"planned": render(planned_d, 1), "whole": render(whole_d, 1), "whole_other": render(whole_d, 2),
+            "element": element_mask(mi, whole_d)}
+
+
+def _z_scores(r: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
+    regions = {"image": np.ones(r["element"].shape, bool), "element": r["element"], "rest": ~r["element"]}
+    out = {}
+    for name, sel in regions.items():
+        se = (r["whole"] - r["whole_other"])[sel].std(axis=0) / np.sqrt(sel.sum())
+        out[name] = (r["planned"] - r["whole"])[sel].mean(axis=0) / np.maximum(se, 1e-30)
+    return out
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("scene", ["cornell_cd", "cornell_cd_view2", "grating2d_gold"])
+def test_planned_tables_render_as_whole_tables(scene: str, tmp_path, monkeypatch) -> None:
+    monkeypatch.setenv(ENVIRONMENT_VARIABLE, str(tmp_path / "cache"))  # no whole table to serve the plan
+    z = _z_scores(_renders(_small(scene), monkeypatch))
+    for region, values in z.items():
+        assert np.all(np.abs(values) < Z_MAX), (region, values)
+
+
+@pytest.mark.slow
+def test_a_plan_that_marks_no_node_is_caught(tmp_path, monkeypatch) -> None:
+    monkeypatch.setenv(ENVIRONMENT_VARIABLE, str(tmp_path / "cache"))
+    r = _renders(_small("grating2d_gold"), monkeypatch, lambda n: NodePlan(np.zeros_like(n.mask), n.fill_orders))
+    assert np.abs(_z_scores(r)["element"]).max() > NEGATIVE_Z
