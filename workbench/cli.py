@@ -146,6 +146,8 @@ def _build_parser() -> argparse.ArgumentParser:
     render.add_argument("--workers", type=int, metavar="N", help="start a local dask cluster with N worker processes")
     render.add_argument("--quiet", action="store_true", help="no progress bar")
     render.add_argument("--force", action="store_true", help="replace a different render (its EXR, PNG and JSON) at --out")
+    render.add_argument("--no-plan", action="store_true",
+                        help="build whole efficiency tables instead of the parts this camera needs (`workbench plan`)")
     add_cache_option(render)
 
     synth = commands.add_parser("synth", help="synthetic raw photographs (DNG) with known truth")
@@ -297,7 +299,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             from renderer.render import render as run_render
 
             kwargs = dict(preset=args.preset, spp=args.spp, resolution=args.resolution, integrator=args.integrator,
-                          mode=args.mode, seed=args.seed, progress=not args.quiet, force=args.force)
+                          mode=args.mode, seed=args.seed, progress=not args.quiet, force=args.force, plan=not args.no_plan)
             if args.workers is not None and args.workers < 1:
                 raise UserInputError("must be at least 1", field="--workers", got=args.workers)
             if args.scheduler or args.workers:
