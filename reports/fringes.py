@@ -24,10 +24,12 @@ How (per image: photo, render, or the prediction of reports.prediction):
   the contrast, within ``RAMP_REACH_PX``) and crossed with the half level. The prediction's
   own edges are found the same way on its lit fraction (background 0).
 * Quality: ``missing`` (no crossing inside the window), ``overlap`` (another order's band
-  reaches into the window: the edge is ambiguous), ``clipped`` (saturated photo pixels in
-  the band), ``weak`` (contrast under ``SNR_MIN`` noise sigmas or under
-  ``MIN_RELATIVE_CONTRAST`` of the background, or the edge's position uncertainty over
-  ``EDGE_SIGMA_MAX_PX``), else ``ok``.
+  reaches into the window: the edge is ambiguous), ``weak`` (contrast under ``SNR_MIN``
+  noise sigmas or under ``MIN_RELATIVE_CONTRAST`` of the background, or the edge's position
+  uncertainty over ``EDGE_SIGMA_MAX_PX``), ``clipped`` (otherwise fine, but saturated photo
+  pixels in the band: the half level is not half the band's maximum, so the edge is not
+  compared with the prediction; it is compared with a render passed through the photo's
+  own saturation, reports.images.through_photo_sensor), else ``ok``.
 
 Why this quality rule (measured on cornell_cd_view2 at 640 x 480: a 64 spp synthetic
 photo against a 256 spp render): the large photo-render offsets came from gentle edges
@@ -74,6 +76,7 @@ EDGE_SIGMA_MAX_PX = 0.35  # an edge's position uncertainty over this is weak: tw
 RAMP_LEVELS = (0.2, 0.8)  # the edge's ramp: where the profile lies between these fractions of the band's contrast
 RAMP_REACH_PX = 2.5  # the ramp fit uses samples at most this far from the first crossing
 NOISE_CORRELATION_PX = 1.0  # profile samples closer than a pixel share their pixels' noise (bilinear sampling)
+CLIPPED_NOISE_SHARE = 0.8  # in a saturated band the noise is measured on samples below this share of the contrast
 MOSAIC_CORRELATION_PX = 2.0  # a raw photo's channel is sampled every 2 px of its Bayer mosaic and demosaiced
 # bilinearly: its noise is shared over 2 px
 TOP_SMOOTH_PX = 1.0  # the band's maximum is read on the profile smoothed by a Gaussian of this sigma
@@ -222,10 +225,12 @@ def _profile_noise(raw: np.ndarray, band: _Band, lag: int) -> float:
     samples ``lag`` apart (two pixels, so that interpolation and the median across the
     profile do not correlate them; a linear ramp of the signal cancels), over sqrt(6)."""
     segment = raw[band.start:band.stop + 1]
-    segment = segment[np.isfinite(segment)]
     if len(segment) < 2 * lag + 4:
         return float("inf")
     d = segment[2 * lag:] - 2.0 * segment[lag:-lag] + segment[:-2 * lag]
+    d = d[np.isfinite(d)]  # only triples of samples that are all there (nan: outside the image, or left out)
+    if len(d) < 4:
+        return float("inf")
     return MAD_TO_SIGMA * float(np.median(np.abs(d - np.median(d)))) / np.sqrt(6.0)
 
 
@@ -264,8 +269,14 @@ def _profile_edges(values: np.ndarray | None, raw: np.ndarray | None, clipped: n
         band_peak = float(np.max(lit[band.order_index, band.channel, band.start:band.stop + 1]))
         others = np.delete(lit[:, band.channel, w0:w1 + 1], band.order_index, axis=0)
         overlapping = bool(others.size) and float(others.max()) > max(OTHER_ORDER_SHARE * band_peak, OTHER_ORDER_LIT)
-        sigma = 0.0 if raw is None else _profile_noise(raw[band.channel], band, max(2 * hold, 1))
         is_clipped = clipped is not None and bool(clipped[band.start:band.stop + 1].any())
+        noisy = None if raw is None else raw[band.channel]
+        where = band
+        if noisy is not None and is_clipped:  # a saturated plateau has no noise: measure it below the plateau,
+            # over the whole window (the band's ramps and the background beside them)
+            noisy = np.where(noisy < background + CLIPPED_NOISE_SHARE * contrast, noisy, np.nan)
+            where = _Band(band.order_index, band.channel, w0, w1, band.number)
+        sigma = 0.0 if noisy is None else _profile_noise(noisy, where, max(2 * hold, 1))
         for side, direction, limit in (("start", -1, w0), ("end", 1, w1)):
             if (side == "start" and band.start == 0) or (side == "end" and band.stop == n - 1):
                 continue  # the band runs past the profile's end (into the rim or the hole): no edge there
@@ -284,8 +295,8 @@ def _profile_edges(values: np.ndarray | None, raw: np.ndarray | None, clipped: n
             sigma_px = sigma / slope * px / np.sqrt(independent) if slope > 0 else float("inf")
             snr = contrast / sigma if sigma > 0 else float("inf")
             faint = not own_prediction and contrast < MIN_RELATIVE_CONTRAST * abs(background)
-            quality = ("overlap" if overlapping else "clipped" if is_clipped else
-                       "weak" if (snr < SNR_MIN or sigma_px > EDGE_SIGMA_MAX_PX or faint) else "ok")
+            quality = ("overlap" if overlapping else
+                       "weak" if (snr < SNR_MIN or sigma_px > EDGE_SIGMA_MAX_PX or faint) else "clipped" if is_clipped else "ok")
             found.append((band, side, float(position), sigma_px, contrast, snr, quality))
     return found
 
@@ -355,15 +366,17 @@ def _signed_offset(polar: PolarGrid, a: Edge, b: Edge) -> float:
     return float(np.sign(d) * distance)
 
 
-def pair_edges(polar: PolarGrid, a: list[Edge], b: list[Edge], focal_px: float, *, require_ok: bool = True) -> list[EdgePair]:
-    """Edges of ``a`` and ``b`` that are the same predicted edge, both found (and ``ok`` when asked)."""
+def pair_edges(polar: PolarGrid, a: list[Edge], b: list[Edge], focal_px: float, *, require_ok: bool = True,
+               accept: tuple[str, ...] = ("ok",)) -> list[EdgePair]:
+    """Edges of ``a`` and ``b`` that are the same predicted edge, both found (and of a quality in
+    ``accept`` when ``require_ok``: ``clipped`` too where both images saw the same saturation)."""
     by_key = {e.key(): e for e in b}
     pairs = []
     for ea in a:
         eb = by_key.get(ea.key())
         if eb is None or not (np.isfinite(ea.position) and np.isfinite(eb.position)):
             continue
-        if require_ok and (ea.quality != "ok" or eb.quality != "ok"):
+        if require_ok and (ea.quality not in accept or eb.quality not in accept):
             continue
         px = _signed_offset(polar, ea, eb)
         if polar.kind == "circle":
@@ -380,6 +393,203 @@ def offset_summary(pairs: list[EdgePair]) -> dict:
     if not len(values):
         return {"median": float("nan"), "p95": float("nan"), "count": 0}
     return {"median": float(np.median(values)), "p95": float(np.percentile(values, 95)), "count": int(len(values))}
+
+
+# ---------------------------------------------------------------- hue crossings
+
+
+HUE_LEVELS_NM = tuple(range(440, 661, 20))  # equivalent wavelengths whose crossings are located
+HUE_MIN_SATURATION = 0.08  # white-balanced chromaticity's distance from white below which hue is not measurable
+HUE_LOCUS_MIN_SATURATION = 0.2  # the spectral locus is used where monochromatic light is at least this saturated
+HUE_MIN_TURN_DEG = 0.5  # wavelengths 5 nm apart whose hues differ by less are not told apart
+HUE_SMOOTH_PX = 1.0  # the equivalent wavelength is averaged over this (Gaussian sigma) along the profile
+HUE_MIN_SIGNAL = 0.25  # the band's signal (above background) over its maximum below which hue is not measured
+HUE_SIGMA_MAX_PX = EDGE_SIGMA_MAX_PX  # the same rule as the band edges
+ANGLE_ROUND_OFF = 1e-9  # radians: a hue at the scale's end computed twice differs by round-off
+
+
+@dataclass(frozen=True)
+class HueScale:
+    """Camera hue to equivalent wavelength: the hue angle of monochromatic light, over the
+    part of the spectrum where it turns monotonically (the camera tells wavelengths apart)."""
+
+    wavelengths_nm: np.ndarray
+    angles: np.ndarray  # increasing, unwrapped (radians), times ``sign``
+    white: np.ndarray  # (3,) the camera RGB of the light (white balance)
+    sign: float = 1.0  # the way hue turns with wavelength
+
+    def wavelength(self, rgb: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(equivalent wavelength in nm, saturation) of linear camera RGB (..., 3); nan where the
+        hue lies off the scale (purples: red and blue together, which no one wavelength gives)."""
+        angle, saturation = hue_angle(rgb, self.white)
+        angle = self.sign * angle
+        lo, hi = self.angles[0], self.angles[-1]
+        angle = lo + np.mod(angle - lo + ANGLE_ROUND_OFF, 2 * np.pi) - ANGLE_ROUND_OFF
+        angle = np.where((angle > hi) & (angle <= hi + ANGLE_ROUND_OFF), hi, angle)  # the scale's ends, to round-off
+        nm = np.interp(angle, self.angles, self.wavelengths_nm, left=np.nan, right=np.nan)
+        return nm, saturation
+
+
+def hue_angle(rgb: np.ndarray, white: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Hue angle (radians) and saturation of camera RGB white-balanced on ``white``: the
+    chromaticity b / sum(b) (b = rgb / white) in an opponent plane, (R - G) / sqrt 2 and
+    (R + G - 2 B) / sqrt 6, about the white point (1/3, 1/3, 1/3)."""
+    b = np.asarray(rgb, float) / np.asarray(white, float)
+    total = b.sum(axis=-1)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        x = b / total[..., None]
+    a1 = (x[..., 0] - x[..., 1]) / np.sqrt(2.0)
+    a2 = (x[..., 0] + x[..., 1] - 2.0 * x[..., 2]) / np.sqrt(6.0)
+    saturation = np.where(total > 0, np.hypot(a1, a2), np.nan)
+    return np.arctan2(a2, a1), saturation
+
+
+def hue_scale(wavelengths_nm: np.ndarray, weights: np.ndarray, white: np.ndarray) -> HueScale:
+    """The scale from the camera's channel weights S_c E normalised per channel (reports.prediction.
+    channel_weights: monochromatic light at lambda, white-balanced on the light, is ``weights[:, lambda]``)
+    and the light's camera RGB ``white``. From the shortest wavelength on, a wavelength joins
+    the scale when its monochromatic hue is at least ``HUE_LOCUS_MIN_SATURATION`` saturated and
+    has turned on by ``HUE_MIN_TURN_DEG`` past the last one kept: where the hue stands still
+    (a camera whose channels do not overlap there) wavelengths cannot be told apart by hue."""
+    angle, saturation = hue_angle(weights.T * white[None], white)
+    angle = np.unwrap(angle)
+    sign = 1.0 if angle[-1] >= angle[0] else -1.0
+    angle = sign * angle
+    keep: list[int] = []
+    for k in range(len(angle)):
+        if saturation[k] < HUE_LOCUS_MIN_SATURATION:
+            continue
+        if not keep or angle[k] > angle[keep[-1]] + np.radians(HUE_MIN_TURN_DEG):
+            keep.append(k)
+    if len(keep) < 2:
+        raise ValueError("the camera's hue does not change with wavelength: no hue scale")
+    angles = angle[keep]
+    return HueScale(np.asarray(wavelengths_nm, float)[keep], angles, np.asarray(white, float), sign)
+
+
+def _smooth_where(values: np.ndarray, usable: np.ndarray, sigma_samples: float) -> np.ndarray:
+    """Gaussian smoothing over the usable samples only (normalised convolution); nan elsewhere."""
+    weight = usable.astype(float)
+    filled = np.where(usable, values, 0.0)
+    top = gaussian_filter1d(filled, sigma_samples, mode="nearest")
+    bottom = gaussian_filter1d(weight, sigma_samples, mode="nearest")
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return np.where(usable & (bottom > 0), top / bottom, np.nan)
+
+
+def _level_crossings(nm: np.ndarray, usable: np.ndarray, level: float, first: int, last: int) -> list[float]:
+    """Fractional positions in [first, last] where ``nm`` passes ``level`` between usable samples."""
+    found = []
+    for k in range(first, last):
+        if usable[k] and usable[k + 1]:
+            a, b = nm[k] - level, nm[k + 1] - level
+            if a == 0 or a * b < 0:
+                found.append(k + (a / (a - b) if a != b else 0.0))
+    return found
+
+
+def _hue_position(nm: np.ndarray, usable: np.ndarray, crossing: float, level: float, px: float) -> tuple[float, float, int]:
+    """The crossing refined by a line fitted to nm within ``RAMP_REACH_PX``: (position, |slope| per sample, samples)."""
+    reach = int(np.ceil(RAMP_REACH_PX / max(px, 1e-6)))
+    centre = int(round(crossing))
+    idx = np.arange(max(centre - reach, 0), min(centre + reach, len(nm) - 1) + 1)
+    idx = idx[usable[idx]]
+    if len(idx) < 3:
+        return crossing, float("nan"), len(idx)
+    slope, intercept = np.polyfit(idx.astype(float), nm[idx], 1)
+    position = (level - intercept) / slope if slope != 0 else crossing
+    if not idx[0] - 1.0 <= position <= idx[-1] + 1.0:
+        position = crossing
+    return float(position), float(abs(slope)), len(idx)
+
+
+def find_hue_crossings(polar: PolarGrid, pred_samples: np.ndarray, orders: list[int], scale: HueScale,
+                       image: np.ndarray | None = None, correlation_px: float = NOISE_CORRELATION_PX,
+                       levels: tuple[int, ...] = HUE_LEVELS_NM, clipped: np.ndarray | None = None) -> list[Edge]:
+    """Where the equivalent wavelength (HueScale) passes each of ``levels`` inside each order's
+    predicted band, along every profile of ``polar``: Edges with channel ``hue`` and side
+    ``"<level> nm"`` (so photo, render and prediction pair as band edges do). Meant for the
+    circle grid: along a circle the hue changes fast (about 8-17 nm per pixel on
+    cornell_cd_view2 at 640 x 480 and 320 x 240) and the median across the profile runs along
+    the radius, where it changes about 0.5 nm per pixel; along a radius it is the other way
+    round (measured: 0.15 px median from the known wavelength along circles, 0.9 px along radii).
+
+    The image's signal is its profile minus the background (the median of the window where no
+    order is predicted lit, per channel); for the prediction (``image`` None) the lit fractions
+    times the light's white. Hue is measurable where the signal is at least ``HUE_MIN_SIGNAL``
+    of the band's maximum, ``HUE_MIN_SATURATION`` saturated and not ``clipped``; the wavelength is then averaged over
+    ``HUE_SMOOTH_PX``. Quality: ``ambiguous`` (the level is passed at places more than 2
+    ``RAMP_REACH_PX`` apart), ``overlap`` (another order lit there),
+    ``weak`` (position uncertainty, wavelength noise / (slope sqrt(N)), over ``HUE_SIGMA_MAX_PX``),
+    else ``ok``."""
+    periodic = polar.kind == "circle"
+    pred = smooth(np.moveaxis(pred_samples, 3 if periodic else 2, -1), periodic)  # (orders, 3, profiles, n)
+    if image is not None:
+        raw = np.moveaxis(sample(image, polar, robust=True), (2, 1 if periodic else 0), (0, -1))
+        values = smooth(raw, periodic)
+    clip = (np.moveaxis(sample(clipped.astype(np.float32), polar), 1 if periodic else 0, -1) > 0
+            if clipped is not None else None)
+    steps = polar.step_px()
+    steps = steps if periodic else steps.T
+    edges: list[Edge] = []
+    n = pred.shape[-1]
+    for p in range(polar.profile_count):
+        roll = _seam(pred[:, :, p].sum(axis=(0, 1))) if periodic else 0
+        lit = np.roll(np.nan_to_num(pred[:, :, p]), -roll, axis=-1)  # (orders, 3, n)
+        step = np.roll(steps[p], -roll)
+        mean_step = float(np.nanmean(step)) if np.any(np.isfinite(step)) else 1.0
+        total = lit.sum(axis=1)  # (orders, n)
+        lit_any = (total > np.maximum(LIT_THRESHOLD * total.max(axis=1, keepdims=True), OTHER_ORDER_LIT)).any(axis=0)
+        if image is None:
+            rgb = None
+        else:
+            rgb = np.roll(values[:, p], -roll, axis=-1)
+        for i in range(len(orders)):
+            if not total[i].max() > 0:
+                continue
+            for number, (first, last) in enumerate(_runs(total[i] > LIT_THRESHOLD * total[i].max())):
+                if total[i, first:last + 1].max() < 3 * MIN_BAND_LIT:
+                    continue
+                if rgb is None:
+                    signal = lit[i] * scale.white[:, None]
+                    noise = 0.0
+                else:
+                    dark = ~lit_any & np.isfinite(rgb).all(axis=0)
+                    background = np.median(rgb[:, dark], axis=1) if dark.any() else np.nanmin(rgb, axis=1)
+                    signal = rgb - background[:, None]
+                nm, saturation = scale.wavelength(np.moveaxis(signal, 0, -1))
+                strength = (signal / scale.white[:, None]).sum(axis=0)
+                peak = np.nanmax(strength[first:last + 1])
+                usable = (np.isfinite(nm) & (saturation >= HUE_MIN_SATURATION) & (strength >= HUE_MIN_SIGNAL * peak))
+                usable[:first] = False
+                usable[last + 1:] = False
+                if clip is not None:
+                    usable &= ~np.roll(clip[p], -roll)  # a saturated pixel's hue is not its light's
+                if rgb is not None:
+                    noise = _profile_noise(np.where(usable, nm, np.nan), _Band(i, 0, first, last, number),
+                                           max(2 * int(np.ceil(HOLD_PX / max(mean_step, 1e-6))), 1))
+                others = np.delete(total[:, first:last + 1], i, axis=0)
+                overlapping = bool(others.size) and float(others.max()) > max(OTHER_ORDER_SHARE * total[i].max(), OTHER_ORDER_LIT)
+                nm = _smooth_where(nm, usable, HUE_SMOOTH_PX / max(mean_step, 1e-6))
+                for level in levels:
+                    found = _level_crossings(nm, usable, float(level), first, last)
+                    if not found:
+                        continue
+                    crossing = float(np.median(found))
+                    spread_px = (max(found) - min(found)) * mean_step
+                    px = float(step[int(round(crossing))]) if np.isfinite(step[int(round(crossing))]) else mean_step
+                    position, slope, samples = _hue_position(nm, usable, crossing, float(level), px)
+                    independent = max(1.0, samples * px / correlation_px)
+                    sigma_px = noise / slope * px / np.sqrt(independent) if slope > 0 else float("inf")
+                    quality = ("ambiguous" if spread_px > 2 * RAMP_REACH_PX else "overlap" if overlapping else
+                               "weak" if not sigma_px <= HUE_SIGMA_MAX_PX else "ok")
+                    original = (position + roll) % n if periodic else position
+                    xy = polar.point(p, original)
+                    sat = float(saturation[int(round(position)) % n])
+                    edges.append(Edge(polar.kind, p, polar.profile_label(p), orders[i], "hue", number, f"{level} nm",
+                                      float(original), polar.coordinate(original), float(xy[0]), float(xy[1]),
+                                      float(sigma_px), sat, float(slope / noise) if noise > 0 else float("inf"), quality))
+    return edges
 
 
 # ---------------------------------------------------------------- the rim

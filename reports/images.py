@@ -52,6 +52,8 @@ class Photo:
     clipped: np.ndarray
     source: str
     kind: str  # "raw" or "linear"
+    channel: np.ndarray | None = None  # (H, W) the Bayer site's channel (0 R, 1 G, 2 B) of a raw photo
+    clip_level: float | None = None  # the value a saturated site reads, where the photo has some
 
 
 def read_linear(path: str | Path, what: str) -> np.ndarray:
@@ -95,7 +97,8 @@ def _read_raw(path: Path) -> Photo:
 
     try:
         with rawpy.imread(str(path)) as raw:
-            black = np.asarray(raw.black_level_per_channel, float)[raw.raw_colors_visible]
+            colours = np.asarray(raw.raw_colors_visible)
+            black = np.asarray(raw.black_level_per_channel, float)[colours]
             white = float(raw.white_level)
             mosaic = raw.raw_image_visible.astype(float)
             counts = raw.postprocess(gamma=(1, 1), no_auto_bright=True, use_camera_wb=False, use_auto_wb=False,
@@ -109,8 +112,27 @@ def _read_raw(path: Path) -> Photo:
     clipped = cv2.dilate(clipped_sites.astype(np.uint8), np.ones((3, 3), np.uint8)) > 0
     rgb = counts.astype(np.float32) / 65535.0  # LibRaw scales (raw - black) / (white - black) to 16 bits
     if rgb.shape[:2] != clipped.shape:
-        clipped = np.zeros(rgb.shape[:2], bool)
-    return Photo(rgb, clipped, str(path), "raw")
+        return Photo(rgb, np.zeros(rgb.shape[:2], bool), str(path), "raw")
+    sites = np.where(colours == 3, 1, colours)  # the second green is green
+    level = float(np.max(rgb[clipped_sites, sites[clipped_sites]])) if clipped_sites.any() else None
+    return Photo(rgb, clipped, str(path), "raw", sites, level)
+
+
+def through_photo_sensor(render: np.ndarray, photo: Photo) -> np.ndarray:
+    """The render as the photo's sensor would record it: each pixel's Bayer channel kept, clipped
+    at the photo's saturation level, demosaiced bilinearly (calibration.decode.bilinear_demosaic).
+    So a band that saturates the photo saturates the render alike, and both are blurred by the
+    same demosaicing: their band edges stay comparable (reports.fringes). The render must be in
+    the photo's units (photometric_scale). A photo that is not raw: the render as it is."""
+    if photo.channel is None:
+        return render
+    from calibration.decode import bilinear_demosaic
+
+    h, w = photo.channel.shape
+    mosaic = np.take_along_axis(np.asarray(render, np.float32)[:h, :w], photo.channel[..., None], axis=2)[..., 0]
+    if photo.clip_level is not None:
+        mosaic = np.minimum(mosaic, photo.clip_level)
+    return bilinear_demosaic(mosaic, photo.channel)
 
 
 # ---------------------------------------------------------------- regions

@@ -164,6 +164,7 @@ class Prediction:
     lit: np.ndarray
     on_cd: np.ndarray
     lit_nm: np.ndarray
+    white: np.ndarray  # (3,) the light's camera RGB (light_white): the hue's white point
     seconds: float = 0.0
 
     def full(self, image: np.ndarray, fill: float = 0.0) -> np.ndarray:
@@ -185,6 +186,19 @@ class Prediction:
 def channel_weights(spec: SceneSpec, step_nm: float = PREDICTION_STEP_NM) -> tuple[np.ndarray, np.ndarray]:
     """Wavelengths over the camera's range (step ``step_nm``) and each channel's weights
     S_c(lambda) E(lambda), normalised to sum 1 (renderer.build's sensitivities and light spectrum)."""
+    wavelengths, spectra = channel_spectra(spec, step_nm)
+    return wavelengths, spectra / spectra.sum(axis=1, keepdims=True)
+
+
+def light_white(spec: SceneSpec, step_nm: float = PREDICTION_STEP_NM) -> np.ndarray:
+    """(3,) the camera RGB of the light on a white diffuser, up to one scale: sum_lambda S_c E.
+    Dividing an image by it white-balances it on the light (the hue's white point)."""
+    _, spectra = channel_spectra(spec, step_nm)
+    return spectra.sum(axis=1) / spectra.sum()
+
+
+def channel_spectra(spec: SceneSpec, step_nm: float = PREDICTION_STEP_NM) -> tuple[np.ndarray, np.ndarray]:
+    """Wavelengths over the camera's range and S_c(lambda) E(lambda) (3, L), not normalised."""
     from renderer.build import camera_sensitivities, light_spectrum
     from renderer.checks import visible_range
 
@@ -196,11 +210,10 @@ def channel_weights(spec: SceneSpec, step_nm: float = PREDICTION_STEP_NM) -> tup
     light_wl, light_values = light_spectrum(spec.light.spectrum)
     emission = np.interp(wavelengths, light_wl, light_values, left=0.0, right=0.0)
     weights = np.stack([np.interp(wavelengths, w, s, left=0, right=0) for w, s in sens]) * emission[None]
-    sums = weights.sum(axis=1, keepdims=True)
-    if np.any(sums <= 0):
+    if np.any(weights.sum(axis=1) <= 0):
         raise UserInputError("a camera channel sees none of the light's spectrum", field="camera.sensitivities",
                              got=spec.camera.sensitivities)
-    return wavelengths, weights / sums
+    return wavelengths, weights
 
 
 def cd_bbox(camera: CameraModel, cd: CDGeometry, margin: int = BBOX_MARGIN_PX) -> tuple[int, int, int, int] | None:
@@ -399,7 +412,7 @@ def predict(spec: SceneSpec, camera: CameraModel | None = None, *, cd_index: int
     lit_nm = np.stack([lo_img[:, :, c, :, c], hi_img[:, :, c, :, c]], axis=1)
     lit_nm = np.where(np.isfinite(lit_nm), lit_nm, np.nan)
     return Prediction(camera, cd, [orders[i] for i in keep], wavelengths, weights, x0, y0, lit, on_cd, lit_nm,
-                      time.perf_counter() - started)
+                      light_white(spec, step_nm), time.perf_counter() - started)
 
 
 CAMERA_STD_KEYS = ("fx", "fy", "cx", "cy", "rotation_deg", "translation_m")

@@ -14,6 +14,10 @@ DIR/report.html the page (reports.page). Steps:
    (reports.prediction); band edges along circles and radii (reports.fringes) in photo,
    render and prediction, paired, offsets in pixels and degrees. Also relative to each
    image's own CD: the photo's grid moved by the affine map between the two rim ellipses.
+   Hue crossings (reports.fringes.find_hue_crossings: where the equivalent wavelength
+   passes 440, 460, ... nm) along the circles, paired the same way (``hue_offset_px``).
+   The prediction's uncertainty band: cameras drawn within the calibration's standard
+   deviations (prediction_band), plotted on the fringe plot.
 5. Error maps (reports.metrics) and per-region statistics.
 
 Problems that do not stop the rest (the CD not in view, no fringes visible, no rim found)
@@ -108,19 +112,45 @@ def _correlation(photo: images.Photo) -> float:
 def measure_fringes(pred: Prediction, photo: images.Photo, render: np.ndarray, grids: tuple[polar.PolarGrid, ...],
                     focal_px: float) -> dict[str, Any]:
     """Band edges in prediction, photo and render on ``grids``; pairs and summaries."""
-    edges: dict[str, list] = {"prediction": [], "photo": [], "render": []}
+    edges: dict[str, list] = {"prediction": [], "photo": [], "render": [], "render_through_photo_sensor": []}
     pairs: dict[str, list] = {"photo_render": [], "prediction_photo": [], "prediction_render": []}
+    as_photo = images.through_photo_sensor(render, photo)
     for grid in grids:
         sampled = _sampled_prediction(pred, grid)
         found = {"prediction": fringes.find_edges(grid, sampled, pred.orders),
                  "photo": fringes.find_edges(grid, sampled, pred.orders, photo.rgb, photo.clipped, _correlation(photo)),
-                 "render": fringes.find_edges(grid, sampled, pred.orders, render)}
+                 "render": fringes.find_edges(grid, sampled, pred.orders, render),
+                 "render_through_photo_sensor": fringes.find_edges(grid, sampled, pred.orders, as_photo, photo.clipped,
+                                                                   _correlation(photo))}
         for name, e in found.items():
             edges[name] += [(grid.kind, x) for x in e]
-        pairs["photo_render"] += fringes.pair_edges(grid, found["photo"], found["render"], focal_px)
+        # photo and render alike: the render through the photo's sensor (its mosaic and saturation), so that bands
+        # that saturate the photo are compared too
+        pairs["photo_render"] += fringes.pair_edges(grid, found["photo"], found["render_through_photo_sensor"], focal_px,
+                                                    accept=("ok", "clipped"))
         pairs["prediction_photo"] += fringes.pair_edges(grid, found["prediction"], found["photo"], focal_px)
         pairs["prediction_render"] += fringes.pair_edges(grid, found["prediction"], found["render"], focal_px)
-    return {"edges": edges, "pairs": pairs, "summary": {k: fringes.offset_summary(v) for k, v in pairs.items()}}
+    hue = measure_hue(pred, photo, render, grids[0], focal_px)
+    summary = {k: fringes.offset_summary(v) for k, v in pairs.items()}
+    return {"edges": edges, "pairs": pairs, "summary": summary, "hue": hue}
+
+
+def measure_hue(pred: Prediction, photo: images.Photo, render: np.ndarray, circles: polar.PolarGrid,
+                focal_px: float) -> dict[str, Any]:
+    """Hue crossings (reports.fringes.find_hue_crossings) along the circles in prediction, photo
+    and render; pairs and summaries, as for the band edges."""
+    scale = fringes.hue_scale(pred.wavelengths_nm, pred.weights, pred.white)
+    sampled = _sampled_prediction(pred, circles)
+    found = {"prediction": fringes.find_hue_crossings(circles, sampled, pred.orders, scale),
+             "photo": fringes.find_hue_crossings(circles, sampled, pred.orders, scale, photo.rgb, _correlation(photo),
+                                                 clipped=photo.clipped),
+             "render": fringes.find_hue_crossings(circles, sampled, pred.orders, scale, render)}
+    pairs = {"photo_render": fringes.pair_edges(circles, found["photo"], found["render"], focal_px),
+             "prediction_photo": fringes.pair_edges(circles, found["prediction"], found["photo"], focal_px),
+             "prediction_render": fringes.pair_edges(circles, found["prediction"], found["render"], focal_px)}
+    return {"edges": {k: [(circles.kind, e) for e in v] for k, v in found.items()}, "pairs": pairs,
+            "summary": {k: fringes.offset_summary(v) for k, v in pairs.items()},
+            "scale_nm": [float(scale.wavelengths_nm[0]), float(scale.wavelengths_nm[-1])]}
 
 
 def _quality_counts(edges: list) -> dict[str, int]:
@@ -194,6 +224,12 @@ def analyse_cd(spec, fitted: FittedCamera, photo: images.Photo, render: np.ndarr
                 "photo": photo_rim.to_json() if photo_rim else None, "render": render_rim.to_json() if render_rim else None},
         "edge_quality": {name: _quality_counts(e) for name, e in measured["edges"].items()},
         "offsets": measured["summary"],
+        "hue": {"offsets": measured["hue"]["summary"], "scale_nm": measured["hue"]["scale_nm"],
+                "levels_nm": list(fringes.HUE_LEVELS_NM),
+                "quality": {name: _quality_counts(e) for name, e in measured["hue"]["edges"].items()},
+                "how": "along circles, where the camera's hue (white-balanced on the light) turned into an equivalent "
+                       "wavelength with its spectral sensitivities passes each level; the prediction's hue leaves out "
+                       "the diffraction efficiency's change with wavelength, so its offsets carry that bias"},
     }
     if photo_rim and render_rim:
         result["rim"]["photo_minus_render_center_px"] = [photo_rim.center[0] - render_rim.center[0],
@@ -374,13 +410,16 @@ def build_report(inputs: Inputs) -> dict[str, Any]:
     offsets = cd.get("offsets", {})
     report["fringe_offset_px"] = offsets.get("photo_render", {"median": None, "p95": None, "count": 0})
     report["prediction_offset_px"] = {"photo": offsets.get("prediction_photo"), "render": offsets.get("prediction_render")}
+    hue_offsets = (cd.get("hue") or {}).get("offsets", {})
+    report["hue_offset_px"] = hue_offsets.get("photo_render", {"median": None, "p95": None, "count": 0})
 
     edge_rows, pair_rows = [], []
     if "_measured" in cd:
-        for name, edges in cd["_measured"]["edges"].items():
-            for kind, e in edges:
-                edge_rows += _edge_rows(name, kind, [e])
-        pair_rows = _pair_rows(cd["_measured"]["pairs"]["photo_render"])
+        for group in (cd["_measured"]["edges"], cd["_measured"]["hue"]["edges"]):  # band edges, then hue crossings
+            for name, edges in group.items():
+                for kind, e in edges:
+                    edge_rows += _edge_rows(name, kind, [e])
+        pair_rows = _pair_rows(cd["_measured"]["pairs"]["photo_render"] + cd["_measured"]["hue"]["pairs"]["photo_render"])
     report["seconds"] = time.perf_counter() - started
 
     inputs.out.mkdir(parents=True, exist_ok=True)
@@ -407,8 +446,12 @@ def _page(report, inputs: Inputs, photo_display, render_display, exposure, maps,
     for name, s in (cd.get("offsets") or {}).items():
         summary_rows.append({"comparison": OFFSET_LABELS.get(name, name), "median px": s.get("median"),
                              "p95 px": s.get("p95"), "edges": s.get("count")})
+    for name, s in ((cd.get("hue") or {}).get("offsets") or {}).items():
+        summary_rows.append({"comparison": "hue crossings: " + OFFSET_LABELS.get(name, name), "median px": s.get("median"),
+                             "p95 px": s.get("p95"), "edges": s.get("count")})
     fringe_html = page.table(summary_rows, caption=f"band-edge offsets (fringe_offset_px: median {fo.get('median')}, "
-                                                   f"p95 {fo.get('p95')}, count {fo.get('count')})")
+                                                   f"p95 {fo.get('p95')}, count {fo.get('count')}); hue crossings "
+                                                   f"(equivalent wavelength {(cd.get('hue') or {}).get('levels_nm')} nm)")
     if "_measured" in cd:
         radius_px = cd["_radius_px"]
         plot = _fringe_plot(cd["_measured"], radius_px, cd.get("_band"))
