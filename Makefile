@@ -80,6 +80,7 @@ bench: install
 	$(BIN)/python -m benchmarks.bench_render
 	$(BIN)/python -m benchmarks.bench_corners
 	$(BIN)/python -m benchmarks.bench_calibration
+	$(BIN)/python -m benchmarks.bench_report
 
 clean:
 	rm -rf build $(VENV)
