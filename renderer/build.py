@@ -166,29 +166,64 @@ def table_plan(element, where: str = "element", scene_file: str | None = None, n
     settings = settings_for(structure, preset, **options)
     key = request_key(structure, settings)
     whole = TablePlan(entry_path("tables", f"{structure.name}-{key[:16]}.zarr"), key, structure, settings)
-    if nodes is None or _finished_table(whole.path, key):
+    if nodes is None or _finished_table(whole.path, key) is not None:
         return whole
+    serving = _planned_superset(whole.path, nodes, structure)
+    if serving is not None:
+        return serving
     settings = planned(settings, nodes)
-    key = request_key(structure, settings)
-    return TablePlan(entry_path("tables", f"{structure.name}-{key[:16]}-planned.zarr"), key, structure, settings, nodes)
+    planned_key = request_key(structure, settings)
+    return TablePlan(whole.path.with_name(f"{whole.path.stem}-planned-{planned_key[:12]}.zarr"), planned_key, structure,
+                     settings, nodes)
 
 
-def _finished_table(path: Path, key: str) -> bool:
+def _finished_table(path: Path, key: str | None = None) -> dict | None:
+    """The metadata of a finished table at ``path`` (of request ``key`` when given), or None."""
     from rcwa.table import read_table_metadata
 
     try:
         meta = read_table_metadata(path)
     except UserInputError:
-        return False
-    return meta.get("key") == key and bool(meta.get("complete"))
+        return None
+    return meta if meta.get("complete") and key in (None, meta.get("key")) else None
 
 
-def planned_nodes(spec: SceneSpec) -> dict[str, Any]:
-    """The planner's rcwa.table.NodePlan per element key (``cd[0]``) the camera sees."""
+def _planned_superset(whole: Path, nodes, structure) -> TablePlan | None:
+    """A finished planned table of the same request whose exactly solved nodes include
+    ``nodes``' with the same fill: it serves this plan (another camera's plan, a run's plan
+    for the scene's camera with a margin)."""
+    import zarr
+
+    for path in sorted(whole.parent.glob(f"{whole.stem}-planned-*.zarr")):
+        meta = _finished_table(path)
+        if meta is None or meta.get("planned", {}).get("fill_orders") != list(nodes.fill_orders):
+            continue
+        try:
+            mask = np.asarray(zarr.open_array(str(path / "planned_nodes"), mode="r")[...], bool)
+        except Exception:  # unreadable: not a candidate
+            continue
+        if mask.shape == nodes.mask.shape and not np.any(nodes.mask & ~mask):
+            return TablePlan(path, meta["key"], structure, None)  # built: checked like a table a scene names
+    return None
+
+
+def planned_nodes(spec: SceneSpec, margin: int = 0) -> dict[str, Any]:
+    """The planner's rcwa.table.NodePlan per element key (``cd[0]``).
+
+    ``margin``: grow each mask by this many grid nodes in theta and phi, so that the
+    table also serves cameras near this one (a run plans with the scene's camera and
+    renders with the fitted one; _planned_superset then finds the table)."""
+    from scipy.ndimage import binary_dilation
+
+    from rcwa.table import NodePlan
     from renderer.planner import plan_scene
 
     plan = plan_scene(spec, measure_cost=False)
-    return {e.key: e.node_plan() for e in plan.elements}
+    nodes = {e.key: e.node_plan() for e in plan.elements}
+    if margin:
+        grow = np.ones((1, 2 * margin + 1, 2 * margin + 1), bool)
+        nodes = {k: NodePlan(binary_dilation(n.mask, grow), n.fill_orders) for k, n in nodes.items()}
+    return nodes
 
 
 def table_keys(spec: SceneSpec) -> list[str]:

@@ -53,7 +53,7 @@ def _renders(spec, monkeypatch, nodes_rule=None) -> dict[str, np.ndarray]:
         monkeypatch.setattr(build, "planned_nodes", lambda s: {k: nodes_rule(v) for k, v in original(s).items()})
     planned_d, planned_built = build.scene_dict(mi, spec, spp=SPP, plan=True)  # first: a whole table would serve it
     whole_d, _ = build.scene_dict(mi, spec, spp=SPP, plan=False)
-    assert all(path.endswith("-planned.zarr") for path in planned_built["tables"])
+    assert all("-planned-" in path for path in planned_built["tables"])
     render = lambda d, seed: np.array(mi.render(mi.load_dict(d), seed=seed))  # noqa: E731
     return {"planned": render(planned_d, 1), "whole": render(whole_d, 1), "whole_other": render(whole_d, 2),
             "element": element_mask(mi, whole_d)}
@@ -82,3 +82,26 @@ def test_a_plan_that_marks_no_node_is_caught(tmp_path, monkeypatch) -> None:
     monkeypatch.setenv(ENVIRONMENT_VARIABLE, str(tmp_path / "cache"))
     r = _renders(_small("grating2d_gold"), monkeypatch, lambda n: NodePlan(np.zeros_like(n.mask), n.fill_orders))
     assert np.abs(_z_scores(r)["element"]).max() > NEGATIVE_Z
+
+
+def test_a_planned_table_serves_every_plan_it_covers(tmp_path, monkeypatch) -> None:
+    """A finished planned table whose exact nodes include a new plan's (same fill) serves it;
+    one that misses a node does not (a new planned table is built)."""
+    from rcwa.table import build_table
+    from renderer.build import table_plan
+
+    monkeypatch.setenv(ENVIRONMENT_VARIABLE, str(tmp_path / "cache"))
+    spec = _small("cornell_cd")
+    cd = spec.cds[0]
+    first = table_plan(cd, "cd[0]", None, _checkerboard(table_plan(cd).settings, (7,)))
+    build_table(first.structure, first.settings, first.path, progress=False, nodes=first.nodes)
+    subset = NodePlan(first.nodes.mask & (np.arange(first.nodes.mask.shape[0]) < 3)[:, None, None], (7,))
+    assert table_plan(cd, "cd[0]", None, subset).path == first.path
+    other = NodePlan(~first.nodes.mask, (7,))
+    assert table_plan(cd, "cd[0]", None, other).path != first.path
+    assert table_plan(cd, "cd[0]", None, NodePlan(subset.mask, (9,))).path != first.path  # another fill
+
+
+def _checkerboard(settings, fill: tuple[int, ...]) -> NodePlan:
+    shape = (len(settings.wavelengths_nm), len(settings.theta_deg), len(settings.phi_deg))
+    return NodePlan(np.indices(shape).sum(axis=0) % 2 == 0, fill)
