@@ -44,6 +44,13 @@ ramp (per pixel) and N the ramp's length in pixels (samples closer than
 edges' 95 % interval stays under the 1.5 px bar (``EDGE_SIGMA_MAX_PX``). An edge that
 fails is not dropped from the CSV: it is flagged ``weak`` and left out of the offsets.
 
+Hue crossings (the second measure, issue 15): the camera's hue, white-balanced on the light,
+turned into an equivalent wavelength with the camera's spectral sensitivities (HueScale:
+the hue angle of monochromatic light, over the wavelengths the camera tells apart), and
+the places along each circle where it passes 440, 460, ... nm inside an order's band
+(find_hue_crossings), with their own quality flags. A pixel of a band receives some 300 nm
+at once, so its equivalent wavelength is its light's dominant one, not one it receives alone.
+
 The rim: edges of the CD's disk are found along normals of the expected rim (the camera's
 projection of the rim circle), at the strongest brightness gradient (parabolic sub-pixel
 peak), and an ellipse is fitted to them (cv2.fitEllipse, outliers over

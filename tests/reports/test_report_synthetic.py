@@ -8,6 +8,7 @@ are noise (Monte Carlo, shot and read noise, the Bayer mosaic): the band edges m
 to issue 15's bars, and the grating-equation prediction must agree with both.
 """
 
+import dataclasses
 import json
 
 import numpy as np
@@ -29,23 +30,31 @@ PREDICTION_BAR_PX = 0.5  # issue 15: the prediction within 0.5 px (median) of bo
 MIN_EDGES = 8  # band edges of quality ok in both images: fewer would make the p95 a guess
 BUILD_SECONDS = 30.0  # issue 15: a 640 x 480 report builds in under 30 s on 2 cores
 SIZE_BYTES = 15e6  # issue 15: the report folder under 15 MB
+KNOWN_ERROR_BAR_PX = 0.5  # issue 15: a known camera error is reported as the offset the grating equation gives, to 0.5 px
+KNOWN_ERROR_SPP = 32  # the wrong camera's render: the photo's noise dominates the pairs' anyway (64 spp measured 0.31 px)
+MIN_KNOWN_EDGES = 20
 
 
-def _render(dataset, path):
-    import dataclasses
-
-    import OpenImageIO as oiio
-
-    from renderer.fit import FitRenderer
+def _spec(camera):
     from renderer.render import with_resolution
     from renderer.scene import load_scene
 
-    camera = read_camera(dataset / "truth.json", PHOTO).model
     spec = with_resolution(load_scene(SCENE), (camera.width, camera.height))
-    spec = dataclasses.replace(spec, camera=dataclasses.replace(spec.camera, model=camera))
-    fit = FitRenderer(spec, resolution=(camera.width, camera.height), spp=RENDER_SPP)
+    return dataclasses.replace(spec, camera=dataclasses.replace(spec.camera, model=camera))
+
+
+def _render_image(camera, spp=RENDER_SPP):
+    from renderer.fit import FitRenderer
+
+    fit = FitRenderer(_spec(camera), resolution=(camera.width, camera.height), spp=spp)
     fit.set(camera=camera)
-    image = np.ascontiguousarray(fit.render(seed=RENDER_SEED), np.float32)
+    return np.ascontiguousarray(fit.render(seed=RENDER_SEED), np.float32)
+
+
+def _render(dataset, path):
+    import OpenImageIO as oiio
+
+    image = _render_image(read_camera(dataset / "truth.json", PHOTO).model)
     out = oiio.ImageOutput.create(str(path))
     assert out is not None
     out.open(str(path), oiio.ImageSpec(image.shape[1], image.shape[0], 3, oiio.FLOAT))
@@ -74,3 +83,55 @@ def test_report_on_a_synthetic_pair_meets_the_bars(tmp_path_factory, tmp_path, c
     assert sum(f.stat().st_size for f in out.iterdir()) < SIZE_BYTES
     csv_text = (out / "fringes.csv").read_text()
     assert ",hue," in csv_text and ",R," in csv_text
+
+
+def _turned(camera, degrees):
+    from scipy.spatial.transform import Rotation
+
+    turn = Rotation.from_rotvec(np.radians([0.0, degrees, 0.0])).as_matrix()
+    pose = camera.world_to_camera.copy()
+    pose[:3, :3], pose[:3, 3] = turn @ pose[:3, :3], turn @ pose[:3, 3]
+    return dataclasses.replace(camera, world_to_camera=pose)
+
+
+def _wider(camera, degrees):
+    fov = 2 * np.arctan(0.5 * camera.width / camera.fx)
+    fx = 0.5 * camera.width / np.tan(0.5 * fov + np.radians(degrees) / 2)
+    return dataclasses.replace(camera, fx=fx, fy=camera.fy * fx / camera.fx)
+
+
+KNOWN_ERRORS = {"rotated 0.3 deg": lambda camera: _turned(camera, 0.3), "FOV +0.2 deg": lambda camera: _wider(camera, 0.2)}
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("error", sorted(KNOWN_ERRORS))
+def test_known_camera_error_is_reported_as_the_predicted_offset(tmp_path_factory, error):
+    """The calibration is wrong by a known amount (issue 15: the truth camera turned by 0.3 deg,
+    or its field of view changed by 0.2 deg): the report's camera is the wrong one, the render
+    is made with it and compared with the photo (taken with the truth camera). Edge by edge,
+    the measured photo-render offset must be what the grating equation predicts: the offset
+    between the prediction for the wrong camera and that for the right one."""
+    from reports import fringes, images, polar
+    from reports.prediction import predict
+    from reports.report import _sampled_prediction, measure_fringes
+
+    dataset = synthetic_dataset(tmp_path_factory, SEED, SCENE)
+    truth = read_camera(dataset / "truth.json", PHOTO).model
+    wrong = KNOWN_ERRORS[error](truth)
+    spec = _spec(wrong)
+    photo = images.read_photo(dataset / "brackets" / PHOTO)
+    render = _render_image(wrong, KNOWN_ERROR_SPP)
+    scale, _ = images.photometric_scale(photo.rgb, render, images.region_masks(spec), photo.clipped)
+    right, bad = predict(spec, truth), predict(spec, wrong)
+    grids = polar.standard_grids(wrong, bad.cd)
+    measured = measure_fringes(bad, photo, render * scale, grids, wrong.fx)["pairs"]["photo_render"]
+    predicted = {}
+    for grid in grids:
+        own = fringes.find_edges(grid, _sampled_prediction(bad, grid), bad.orders)
+        true = fringes.find_edges(grid, _sampled_prediction(right, grid), right.orders)
+        predicted.update({p.key: p.offset_px for p in fringes.pair_edges(grid, true, own, wrong.fx)})  # wrong - right
+    differences = [p.offset_px - predicted[p.key] for p in measured if p.key in predicted]  # render (wrong) - photo (right)
+    assert len(differences) >= MIN_KNOWN_EDGES
+    assert np.median(np.abs(differences)) < KNOWN_ERROR_BAR_PX
+    if error.startswith("rotated"):
+        assert np.median(np.abs([p.offset_px for p in measured])) > 1.0  # the turn moves the fringes by pixels
