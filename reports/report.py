@@ -256,7 +256,8 @@ def analyse_cd(spec, fitted: FittedCamera, photo: images.Photo, render: np.ndarr
     if not cd.top_dispersive:
         messages.append("CD: the scene's polycarbonate top is not dispersive (the mean index over 360-830 nm): the "
                         "render's colours may shift by 2-4 nm against a real CD's; the prediction uses the same top")
-    ok_photo = result["edge_quality"]["photo"].get("ok", 0)
+    photo_quality = result["edge_quality"]["photo"]
+    ok_photo = photo_quality.get("ok", 0) + photo_quality.get("clipped", 0)  # a saturated band is visible
     if ok_photo < MIN_OK_EDGES:
         problems.append(f"CD: no fringes visible in the photo where the grating equation puts them ({ok_photo} band "
                         f"edges of quality ok; {result['edge_quality']['photo']})")
@@ -295,7 +296,7 @@ def _fringe_plot(measured: dict, cd_radius_px: float, band: dict[tuple, float] |
     styles = {"prediction": ("k", "."), "photo": ("tab:blue", "o"), "render": ("tab:orange", "x")}
     for name, (colour, marker) in styles.items():
         points = [(e.coordinate if kind == "circle" else e.label, (e.label if kind == "circle" else e.coordinate) * cd_radius_px)
-                  for kind, e in measured["edges"][name] if np.isfinite(e.position) and e.quality in ("ok", "overlap")]
+                  for kind, e in measured["edges"][name] if np.isfinite(e.position) and e.quality in ("ok", "overlap", "clipped")]
         if points:
             azimuth, radius = np.array(points).T
             ax.scatter(azimuth, radius, s=9 if marker != "." else 4, c=colour, marker=marker, label=name,

@@ -14,7 +14,7 @@ from scipy.spatial.transform import Rotation
 
 from renderer.render import with_resolution
 from renderer.scene import load_scene
-from reports import fringes, polar
+from reports import fringes, images, polar
 from reports.prediction import predict
 
 RESOLUTION = (320, 240)
@@ -22,6 +22,8 @@ EXPOSURE_INVARIANCE_PX = 1e-6  # a half-maximum crossing does not move with a sc
 NOISY_OFFSET_PX = 0.3  # median |measured - predicted| offset with 1 % noise: well under the issue's 0.5 px bar
 RIM_CENTRE_PX = 0.1  # an anti-aliased ellipse's centre is found to a tenth of a pixel
 RIM_AXES_PX = 0.3
+SAME_SENSOR_PX = 1e-4  # one image through one sensor model twice: the same edges, to interpolation round-off
+SATURATION_SHIFT_PX = 0.2  # a band clipped at a fifth of its peak has its half level far down its ramp: edges move out
 
 
 @pytest.fixture(scope="module")
@@ -132,3 +134,41 @@ def test_rim_ellipse_is_found_where_it_was_drawn():
     assert rim is not None
     assert np.hypot(rim.center[0] - centre[0], rim.center[1] - centre[1]) < RIM_CENTRE_PX
     assert abs(max(rim.axes) - axes[0]) < RIM_AXES_PX and abs(min(rim.axes) - axes[1]) < RIM_AXES_PX
+
+
+def _sensor(image, clip_level):
+    """A raw photo of ``image``: an RGGB mosaic clipped at ``clip_level``, demosaiced bilinearly."""
+    from calibration.decode import bilinear_demosaic
+
+    h, w = image.shape[:2]
+    channel = np.ones((h, w), int)
+    channel[0::2, 0::2], channel[1::2, 1::2] = 0, 2
+    mosaic = np.minimum(np.take_along_axis(image, channel[..., None], axis=2)[..., 0], clip_level)
+    photo = images.Photo(bilinear_demosaic(mosaic, channel), np.zeros((h, w), bool), "photo", "raw", channel, clip_level)
+    photo.clipped = cv2.dilate((mosaic >= clip_level).astype(np.uint8), np.ones((3, 3), np.uint8)) > 0
+    return photo
+
+
+def test_saturated_bands_compare_through_the_photos_sensor(predictions):
+    """A photo whose bands saturate: its edges are not half-maximum edges (flagged ``clipped``),
+    but the same scene's render passed through the photo's sensor (reports.images.
+    through_photo_sensor) has them at the same places, and the render as it is does not."""
+    pred, _ = predictions
+    circles, _radii = polar.standard_grids(pred.camera, pred.cd)
+    scene = _image(pred, [1.0, 2.0, 0.5, 1.5][: len(pred.orders)], 0.05)
+    photo = _sensor(scene, 0.2)
+    assert photo.clipped.any()
+    sampled = np.stack([polar.sample(pred.channel_image(m).transpose(1, 2, 0), circles, robust=True)
+                        for m in pred.orders]).transpose(0, 3, 1, 2)
+
+    def found(image):
+        return fringes.find_edges(circles, sampled, pred.orders, image, photo.clipped, fringes.MOSAIC_CORRELATION_PX)
+
+    clipped = [e for e in found(photo.rgb) if e.quality == "clipped"]
+    through = {e.key(): e for e in found(images.through_photo_sensor(scene, photo))}
+    raw = {e.key(): e for e in _edges(pred, circles, scene)}
+    same = [abs(e.position - through[e.key()].position) for e in clipped if np.isfinite(e.position)]
+    moved = [abs(e.x - raw[e.key()].x) + abs(e.y - raw[e.key()].y) for e in clipped
+             if np.isfinite(e.position) and np.isfinite(raw[e.key()].position)]
+    assert len(same) >= 10 and max(same) < SAME_SENSOR_PX
+    assert np.median(moved) > SATURATION_SHIFT_PX
