@@ -113,7 +113,7 @@ def test_no_band_no_edge_of_quality_ok(predictions):
     pred, _ = predictions
     circles, _ = polar.standard_grids(pred.camera, pred.cd)
     flat = np.full((pred.camera.height, pred.camera.width, 3), 0.3, np.float32)
-    flat += np.random.default_rng(3).normal(0.0, 0.01, flat.shape).astype(np.float32)
+    flat += np.asarray(np.random.default_rng(3).normal(0.0, 0.01, flat.shape), np.float32)
     assert not [e for e in _edges(pred, circles, flat) if e.quality == "ok"]
 
 

@@ -21,6 +21,7 @@ def _write_exr(path, image):
     import OpenImageIO as oiio
 
     out = oiio.ImageOutput.create(str(path))
+    assert out is not None
     out.open(str(path), oiio.ImageSpec(image.shape[1], image.shape[0], 3, oiio.FLOAT))
     out.write_image(np.ascontiguousarray(image, np.float32))
     out.close()
