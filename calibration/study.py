@@ -362,21 +362,22 @@ def _plot(data: dict, out: Path) -> None:
     from workbench.core.plots import new_figure, save_figure
 
     fig, axes = new_figure(3, size=(16, 4.4))
-    marks = {"fine": "o-", "scale": "s-", "render_spp": "^-"}
+    style = {"fine": ("o", "C0"), "scale": ("s", "C1"), "render_spp": ("^", "C2")}
     for factor in FACTORS:
         rows = sorted((r for r in data["error_vs_time"] if r["factor"] == factor), key=lambda r: r["seconds"])
         seconds = [r["seconds"] for r in rows]
-        axes[0].loglog(seconds, [max(r["rotation_deg"], 1e-6) for r in rows], marks[factor], label=f"rotation, {factor}")
-        axes[0].loglog(seconds, [max(r["centre_mm"] / 10, 1e-6) for r in rows], marks[factor][0] + "--", mfc="none",
-                       label=f"centre / 10 mm, {factor}")
-        axes[1].loglog(seconds, [max(r["exposure_pct"], 1e-6) for r in rows], marks[factor], label=factor)
-    axes[0].set(xlabel="pose fits, wall time (s)", ylabel="worst photo's error (deg; mm / 10)",
-                title="pose against time (one factor varied)")
+        mark, colour = style[factor]
+        axes[0].loglog(seconds, [max(r["rotation_deg"], 1e-6) for r in rows], mark + "-", color=colour,
+                       label=f"rotation (deg), {factor}")
+        axes[0].loglog(seconds, [max(r["centre_mm"] / 10, 1e-6) for r in rows], mark + "--", color=colour, mfc="none",
+                       label=f"centre (mm / 10), {factor}")
+        axes[1].loglog(seconds, [max(r["exposure_pct"], 1e-6) for r in rows], mark + "-", color=colour, label=factor)
+    axes[0].set(xlabel="pose fits, wall time (s)", ylabel="worst photo's error", title="pose against time (one factor varied)")
     axes[1].set(xlabel="pose fits, wall time (s)", ylabel="exposure x light power error (%)", title="photometry against time")
     knots = data["response_knots"]
     if knots:
-        axes[2].loglog([k["seconds"] for k in knots], [k["response_rms_pct"] for k in knots], "o-", label="parametric fit")
+        axes[2].semilogy([k["knots"] for k in knots], [k["response_rms_pct"] for k in knots], "o-", label="parametric fit")
         for k in knots:
-            axes[2].annotate(f"{k['knots']} knots", (k["seconds"], k["response_rms_pct"]), fontsize=8)
-    axes[2].set(xlabel="fit time (s)", ylabel="response RMS over values 0.05-0.95 (%)", title="response curve: knots")
+            axes[2].annotate(f"{k['seconds']:.2f} s", (k["knots"], k["response_rms_pct"]), fontsize=8)
+    axes[2].set(xlabel="knots", ylabel="response RMS over values 0.05-0.95 (%)", title="response curve: knots (fit time)")
     save_figure(fig, axes, out, "study_calibrate")
