@@ -118,8 +118,9 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--seeds", default="0,1", help="comma-separated dataset seeds")
     parser.add_argument("--spp", default="64,256", help="comma-separated render spp")
+    parser.add_argument("--work", type=Path, help="keep datasets and renders here (a dataset already there is reused)")
     args = parser.parse_args()
-    work = Path(tempfile.mkdtemp(prefix="bench_report-"))
+    work = args.work or Path(tempfile.mkdtemp(prefix="bench_report-"))
     try:
         print(f"workbench report on draft synthetic datasets of {SCENE} ({PHOTO}) with a truth-camera render "
               f"(bars: median < {BARS['median']}, p95 < {BARS['p95']} px, prediction < {BARS['prediction']} px, "
@@ -129,7 +130,8 @@ def main() -> None:
         first = None
         for seed in (int(s) for s in args.seeds.split(",")):
             dataset = work / f"seed{seed}" / "dataset"
-            synth(SCENE, dataset, seed=seed, progress=False)
+            if not (dataset / "truth.json").exists():
+                synth(SCENE, dataset, seed=seed, progress=False)
             first = first or dataset
             for spp in (int(s) for s in args.spp.split(",")):
                 path = write_exr(render(dataset, spp), work / f"seed{seed}" / f"render{spp}.exr")
@@ -147,7 +149,8 @@ def main() -> None:
             print(f"  {name:<16} edges {k['count']:>4}  measured median |offset| {k['measured_median']:.3f} px  "
                   f"median |measured - predicted| {k['difference_median']:.3f} px{miss}", flush=True)
     finally:
-        shutil.rmtree(work, ignore_errors=True)
+        if args.work is None:
+            shutil.rmtree(work, ignore_errors=True)
 
 
 if __name__ == "__main__":
