@@ -510,6 +510,52 @@ def _hue_position(nm: np.ndarray, usable: np.ndarray, crossing: float, level: fl
     return float(position), float(abs(slope)), len(idx)
 
 
+def _above_background(rgb: np.ndarray, lit_any: np.ndarray) -> np.ndarray:
+    """A profile (3, n) minus its background: per channel, the median where no order is predicted lit."""
+    dark = ~lit_any & np.isfinite(rgb).all(axis=0)
+    background = np.median(rgb[:, dark], axis=1) if dark.any() else np.nanmin(rgb, axis=1)
+    return rgb - background[:, None]
+
+
+def _band_hue_crossings(signal: np.ndarray, band: _Band, total: np.ndarray, scale: HueScale, clip_row: np.ndarray | None,
+                        step: np.ndarray, correlation_px: float, levels: tuple[int, ...], measured: bool) -> list[tuple]:
+    """The hue crossings of one order's band (find_hue_crossings): (level, position, sigma_px,
+    saturation, slope over noise, quality) for each level passed. ``signal`` (3, n) above the
+    background; ``total`` (orders, n) every order's predicted lit fraction; ``measured``: an
+    image (its noise is measured) rather than the prediction."""
+    i, first, last = band.order_index, band.start, band.stop
+    mean_step = float(np.nanmean(step)) if np.any(np.isfinite(step)) else 1.0
+    nm, saturation = scale.wavelength(np.moveaxis(signal, 0, -1))
+    strength = (signal / scale.white[:, None]).sum(axis=0)
+    peak = np.nanmax(strength[first:last + 1])
+    usable = np.isfinite(nm) & (saturation >= HUE_MIN_SATURATION) & (strength >= HUE_MIN_SIGNAL * peak)
+    usable[:first] = False
+    usable[last + 1:] = False
+    if clip_row is not None:
+        usable &= ~clip_row  # a saturated pixel's hue is not its light's
+    noise = _profile_noise(np.where(usable, nm, np.nan), band, max(2 * int(np.ceil(HOLD_PX / max(mean_step, 1e-6))), 1)) \
+        if measured else 0.0
+    others = np.delete(total[:, first:last + 1], i, axis=0)
+    overlapping = bool(others.size) and float(others.max()) > max(OTHER_ORDER_SHARE * total[i].max(), OTHER_ORDER_LIT)
+    nm = _smooth_where(nm, usable, HUE_SMOOTH_PX / max(mean_step, 1e-6))
+    out = []
+    for level in levels:
+        found = _level_crossings(nm, usable, float(level), first, last)
+        if not found:
+            continue
+        crossing = float(np.median(found))
+        spread_px = (max(found) - min(found)) * mean_step
+        px = float(step[int(round(crossing))]) if np.isfinite(step[int(round(crossing))]) else mean_step
+        position, slope, samples = _hue_position(nm, usable, crossing, float(level), px)
+        independent = max(1.0, samples * px / correlation_px)
+        sigma_px = noise / slope * px / np.sqrt(independent) if slope > 0 else float("inf")
+        quality = ("ambiguous" if spread_px > 2 * RAMP_REACH_PX else "overlap" if overlapping else
+                   "weak" if not sigma_px <= HUE_SIGMA_MAX_PX else "ok")
+        out.append((level, position, float(sigma_px), float(saturation[int(round(position)) % len(nm)]),
+                    float(slope / noise) if noise > 0 else float("inf"), quality))
+    return out
+
+
 def find_hue_crossings(polar: PolarGrid, pred_samples: np.ndarray, orders: list[int], scale: HueScale,
                        image: np.ndarray | None = None, correlation_px: float = NOISE_CORRELATION_PX,
                        levels: tuple[int, ...] = HUE_LEVELS_NM, clipped: np.ndarray | None = None) -> list[Edge]:
@@ -544,58 +590,25 @@ def find_hue_crossings(polar: PolarGrid, pred_samples: np.ndarray, orders: list[
         roll = _seam(pred[:, :, p].sum(axis=(0, 1))) if periodic else 0
         lit = np.roll(np.nan_to_num(pred[:, :, p]), -roll, axis=-1)  # (orders, 3, n)
         step = np.roll(steps[p], -roll)
-        mean_step = float(np.nanmean(step)) if np.any(np.isfinite(step)) else 1.0
         total = lit.sum(axis=1)  # (orders, n)
         lit_any = (total > np.maximum(LIT_THRESHOLD * total.max(axis=1, keepdims=True), OTHER_ORDER_LIT)).any(axis=0)
-        if image is None:
-            rgb = None
-        else:
-            rgb = np.roll(values[:, p], -roll, axis=-1)
+        rgb = None if image is None else np.roll(values[:, p], -roll, axis=-1)
+        clip_row = np.roll(clip[p], -roll) if clip is not None else None
         for i in range(len(orders)):
             if not total[i].max() > 0:
                 continue
             for number, (first, last) in enumerate(_runs(total[i] > LIT_THRESHOLD * total[i].max())):
                 if total[i, first:last + 1].max() < 3 * MIN_BAND_LIT:
                     continue
-                if rgb is None:
-                    signal = lit[i] * scale.white[:, None]
-                    noise = 0.0
-                else:
-                    dark = ~lit_any & np.isfinite(rgb).all(axis=0)
-                    background = np.median(rgb[:, dark], axis=1) if dark.any() else np.nanmin(rgb, axis=1)
-                    signal = rgb - background[:, None]
-                nm, saturation = scale.wavelength(np.moveaxis(signal, 0, -1))
-                strength = (signal / scale.white[:, None]).sum(axis=0)
-                peak = np.nanmax(strength[first:last + 1])
-                usable = (np.isfinite(nm) & (saturation >= HUE_MIN_SATURATION) & (strength >= HUE_MIN_SIGNAL * peak))
-                usable[:first] = False
-                usable[last + 1:] = False
-                if clip is not None:
-                    usable &= ~np.roll(clip[p], -roll)  # a saturated pixel's hue is not its light's
-                if rgb is not None:
-                    noise = _profile_noise(np.where(usable, nm, np.nan), _Band(i, 0, first, last, number),
-                                           max(2 * int(np.ceil(HOLD_PX / max(mean_step, 1e-6))), 1))
-                others = np.delete(total[:, first:last + 1], i, axis=0)
-                overlapping = bool(others.size) and float(others.max()) > max(OTHER_ORDER_SHARE * total[i].max(), OTHER_ORDER_LIT)
-                nm = _smooth_where(nm, usable, HUE_SMOOTH_PX / max(mean_step, 1e-6))
-                for level in levels:
-                    found = _level_crossings(nm, usable, float(level), first, last)
-                    if not found:
-                        continue
-                    crossing = float(np.median(found))
-                    spread_px = (max(found) - min(found)) * mean_step
-                    px = float(step[int(round(crossing))]) if np.isfinite(step[int(round(crossing))]) else mean_step
-                    position, slope, samples = _hue_position(nm, usable, crossing, float(level), px)
-                    independent = max(1.0, samples * px / correlation_px)
-                    sigma_px = noise / slope * px / np.sqrt(independent) if slope > 0 else float("inf")
-                    quality = ("ambiguous" if spread_px > 2 * RAMP_REACH_PX else "overlap" if overlapping else
-                               "weak" if not sigma_px <= HUE_SIGMA_MAX_PX else "ok")
+                band = _Band(i, 0, int(first), int(last), number)
+                signal = lit[i] * scale.white[:, None] if rgb is None else _above_background(rgb, lit_any)
+                for level, position, sigma_px, sat, snr, quality in _band_hue_crossings(
+                        signal, band, total, scale, clip_row, step, correlation_px, levels, rgb is not None):
                     original = (position + roll) % n if periodic else position
                     xy = polar.point(p, original)
-                    sat = float(saturation[int(round(position)) % n])
                     edges.append(Edge(polar.kind, p, polar.profile_label(p), orders[i], "hue", number, f"{level} nm",
                                       float(original), polar.coordinate(original), float(xy[0]), float(xy[1]),
-                                      float(sigma_px), sat, float(slope / noise) if noise > 0 else float("inf"), quality))
+                                      sigma_px, sat, snr, quality))
     return edges
 
 
