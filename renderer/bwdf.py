@@ -183,7 +183,7 @@ class GratingBWDF(DeltaLobesBSDF):
          - float in [0, 1]
          - Improved mode: the share of the diffracted-order choice made uniformly over the
            orders that carry light, the rest in proportion to efficiency (a defensive
-           mixture). 0.5 gave the lowest noise on cornell_cd's CD (relative pixel noise
+           mixture). 0.5 gave the lowest noise on cornell_cd's CD, then lying flat (relative pixel noise
            at 128 spp: 0.75 at 0, 0.51 at 0.5, 0.54 at 0.8, 0.58 at 1;
            benchmarks/bench_render.py). *Exposed* in improved mode.
          - 0.5
