@@ -30,8 +30,9 @@ version. A stage runs in ``RUN/.staging/NAME`` (marked with its key) and, once c
 the folder is moved into place in one rename, carrying the key in ``.stage-key``: a
 finished stage is one whose folder holds its current key, and is skipped. A killed run
 leaves the staging folder; the next run with the same key keeps it (a render resumes
-from its saved passes and finished photos, the table build from its finished chunks)
-and a changed key clears it. RUN/run.json records the settings, versions, each stage's
+from its saved passes and finished photos, the report from its finished photos, the
+table build from its finished chunks in the cache; the calibration, one optimisation,
+starts again) and a changed key clears it. RUN/run.json records the settings, versions, each stage's
 key, status, estimate and timings, and the summary. verify never reads truth.json
 (``workbench score`` does, workbench.score).
 """
@@ -60,6 +61,7 @@ PRESETS: dict[str, dict[str, Any]] = {"draft": {"tables": "draft", "spp": 256}, 
 PAPER_RESOLUTION = (978, 734)  # the paper's frame (renderer.render's paper preset)
 KEY_FILE = ".stage-key"  # in a finished stage's folder: the key it was made for
 DONE_FILE = ".stage-done"  # in a staging folder whose work finished (moved into place next)
+VERSIONED = ("numpy", "scipy", "mitsuba", "drjit", "opencv-contrib-python-headless", "rawpy", "nlopt", "zarr")
 OWN_NAMES = (*STAGES, ".staging", "scene.toml", "run.json")  # what a run writes in RUN; --force removes only these
 # The scene's image aspect may differ from the photos' by its resolution's rounding: one pixel
 # of 245 (cornell_cd: 326 x 245 for a 25 x 18.8 mm sensor) is 0.4 %; a different camera is off by far more.
@@ -218,9 +220,22 @@ def run_scene_text(spec, table_preset: str) -> str:
 # ---------------------------------------------------------------- the run's folder
 
 
+def versions() -> dict[str, str]:
+    """The workbench's, Python's and the main libraries' versions (those installed)."""
+    from importlib import metadata
+
+    found = {"workbench": workbench_version, "python": platform.python_version()}
+    for name in VERSIONED:
+        try:
+            found[name] = metadata.version(name)
+        except metadata.PackageNotFoundError:
+            continue
+    return found
+
+
 def _new_record(identity: dict[str, str], settings: VerifySettings) -> dict[str, Any]:
     return {"format": RUN_FORMAT, "identity": identity, "status": "running", "settings": settings.to_json(),
-            "versions": {"workbench": workbench_version, "python": platform.python_version()},
+            "versions": versions(),
             "started": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()), "stages": {}}
 
 
@@ -267,7 +282,7 @@ def open_run(root: Path, identity: dict[str, str], settings: VerifySettings, for
         _remove_own(root)
         return _new_record(identity, settings)
     record.update(status="running", settings=settings.to_json())
-    record["versions"]["workbench"] = workbench_version
+    record["versions"] = versions()
     return record
 
 
@@ -466,7 +481,10 @@ def _stage_report(run: _Run) -> dict:
         reports = {}
         for photo in tqdm(run.photos, desc="report", unit="photo", disable=not run.settings.progress):
             out = folder / photo.stem
-            report = build_report(Inputs(photo, renders[photo.name], calibration, str(run.scene), out))
+            if (out / "report.html").is_file():  # finished by a killed run with these inputs (written after report.json)
+                report = json.loads((out / "report.json").read_text())
+            else:
+                report = build_report(Inputs(photo, renders[photo.name], calibration, str(run.scene), out))
             reports[photo.name] = {"html": f"{photo.stem}/report.html", "fringe_offset_px": report["fringe_offset_px"],
                                    "problems": report.get("problems", []), "seconds": report["seconds"]}
         return {"reports": reports}
