@@ -51,6 +51,7 @@ DELTA_E_MAX = 20.0
 UNCERTAINTY_DRAWS = 4  # cameras drawn within the calibration's standard deviations (about 1.7 s each at 640 x 480)
 BAND_SIGMAS = 2.0  # the plotted band: the predicted edge +- this many RMS spreads (about 95 %)
 MIN_OK_EDGES = 3  # fewer good edges in the photo than this: "no fringes visible"
+MIN_PREDICTION_EDGES = 5  # fewer unsaturated photo edges than this: the prediction-photo median is said to rest on few
 OFFSET_LABELS = {"photo_render": "photo vs render", "prediction_photo": "prediction vs photo",
                  "prediction_render": "prediction vs render",
                  "photo_render_relative_to_rim": "photo vs render, each relative to its own rim"}
@@ -256,6 +257,11 @@ def analyse_cd(spec, fitted: FittedCamera, photo: images.Photo, render: np.ndarr
     if not cd.top_dispersive:
         messages.append("CD: the scene's polycarbonate top is not dispersive (the mean index over 360-830 nm): the "
                         "render's colours may shift by 2-4 nm against a real CD's; the prediction uses the same top")
+    unsaturated = result["offsets"]["prediction_photo"]["count"]
+    if unsaturated < MIN_PREDICTION_EDGES and photo.clipped.any():
+        messages.append(f"CD: the prediction is compared with the photo on {unsaturated} band edges only: the photo's bands "
+                        "saturate (a saturated band's edge is not a half-maximum edge); photo and render are compared "
+                        "through the photo's saturation instead")
     photo_quality = result["edge_quality"]["photo"]
     ok_photo = photo_quality.get("ok", 0) + photo_quality.get("clipped", 0)  # a saturated band is visible
     if ok_photo < MIN_OK_EDGES:
