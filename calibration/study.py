@@ -143,7 +143,8 @@ def centre_error_mm(a: np.ndarray, b: np.ndarray) -> float:
     return 1e3 * float(np.linalg.norm(-a[:3, :3].T @ a[:3, 3] + b[:3, :3].T @ b[:3, 3]))
 
 
-def _fov_deg(size: float, focal: float) -> float:
+def fov_deg(size: float, focal: float) -> float:
+    """The full field of view (degrees) of ``size`` pixels at focal length ``focal`` pixels."""
     return 2 * math.degrees(math.atan(size / (2 * focal)))
 
 
@@ -163,8 +164,8 @@ def photo_errors(camera, exposure_scale: float | None, truth: dict, photo: str) 
     exposure = (100 * abs(exposure_scale / expected_exposure_scale(truth, photo) - 1)
                 if exposure_scale is not None else float("nan"))
     return {"rotation_deg": rotation_error_deg(fitted, true), "centre_mm": centre_error_mm(fitted, true),
-            "fov_deg": max(abs(_fov_deg(camera.width, camera.fx) - _fov_deg(t["width"], t["fx"])),
-                           abs(_fov_deg(camera.height, camera.fy) - _fov_deg(t["height"], t["fy"]))),
+            "fov_deg": max(abs(fov_deg(camera.width, camera.fx) - fov_deg(t["width"], t["fx"])),
+                           abs(fov_deg(camera.height, camera.fy) - fov_deg(t["height"], t["fy"]))),
             "principal_point_pct": 100 * max(abs(camera.cx - t["cx"]) / t["width"], abs(camera.cy - t["cy"]) / t["height"]),
             "exposure_pct": exposure}
 

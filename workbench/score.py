@@ -19,36 +19,17 @@ to RUN/score.json. Only ``score`` reads the truth; ``verify`` never does.
 from __future__ import annotations
 
 import json
-import math
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from calibration.study import centre_error_mm, expected_exposure_scale, fov_deg, rotation_error_deg
 from workbench.core.errors import UserInputError
 from workbench.core.files import atomic_write_text
 
 SCORE_FORMAT = "workbench-score"
 WORST_KEYS = ("rotation_deg", "centre_mm", "fov_deg", "principal_point_pct", "exposure_light_pct", "response_rms_pct")
-
-
-def rotation_error_deg(a: np.ndarray, b: np.ndarray) -> float:
-    return math.degrees(math.acos(float(np.clip((np.trace(a[:3, :3] @ b[:3, :3].T) - 1) / 2, -1.0, 1.0))))
-
-
-def centre_error_mm(a: np.ndarray, b: np.ndarray) -> float:
-    return 1e3 * float(np.linalg.norm(-a[:3, :3].T @ a[:3, 3] + b[:3, :3].T @ b[:3, 3]))
-
-
-def fov_deg(size: int, focal: float) -> float:
-    return 2 * math.degrees(math.atan(size / (2 * focal)))
-
-
-def expected_scale(truth: dict, photo: str) -> float:
-    """The synthetic photo's normalised raw value per unit of the scene file's render (datasets_synthetic.sensor)."""
-    sensor = truth["sensor"]
-    return (truth["light_power_scale"] * truth["exposure_time_s"][photo] * sensor["electrons_per_unit"] * sensor["gain"]
-            / (sensor["white_level"] - sensor["black_level"]))
 
 
 def calibration_errors(result: dict, truth: dict) -> dict[str, Any]:
@@ -63,7 +44,7 @@ def calibration_errors(result: dict, truth: dict) -> dict[str, Any]:
         scale = (result.get("exposure_scale") or {}).get(photo)
         per_photo[photo] = {"rotation_deg": rotation_error_deg(fitted, true), "centre_mm": centre_error_mm(fitted, true),
                             "exposure_light_pct": None if scale is None
-                            else 100 * abs(scale / expected_scale(truth, photo) - 1)}
+                            else 100 * abs(scale / expected_exposure_scale(truth, photo) - 1)}
     errors: dict[str, Any] = {
         "rotation_deg": max(float(p["rotation_deg"]) for p in per_photo.values()),
         "centre_mm": max(float(p["centre_mm"]) for p in per_photo.values()),
