@@ -105,13 +105,13 @@ DenseModes::DenseModes(Mat W, Mat V, CVec kz) : W_(W), V_(V), luW_(std::move(W))
     kz_ = std::move(kz);
 }
 
-std::unique_ptr<LayerModes> general_modes(const Harmonics& h, const Mat& E, const Mat& Exx,
-                                          const Mat& Exy, const Mat& Eyx, const Mat& Eyy) {
+void pq_matrices(const Harmonics& h, const Mat& E, const Mat& Exx, const Mat& Exy, const Mat& Eyx, const Mat& Eyy,
+                 Mat& P, Mat& Q) {
     const int n = h.size();
     const LU luE(E);
     const Mat Z = luE.inverse();
-    // P and Q as in the header comment.
-    Mat P(2 * n, 2 * n), Q(2 * n, 2 * n);
+    P = Mat(2 * n, 2 * n);
+    Q = Mat(2 * n, 2 * n);
     for (int j = 0; j < n; ++j) {
         for (int i = 0; i < n; ++i) {
             const cplx z = Z(i, j);
@@ -131,6 +131,13 @@ std::unique_ptr<LayerModes> general_modes(const Harmonics& h, const Mat& E, cons
         Q(n + j, j) -= h.ky[j] * h.ky[j];
         Q(n + j, n + j) += h.ky[j] * h.kx[j];
     }
+}
+
+std::unique_ptr<LayerModes> general_modes(const Harmonics& h, const Mat& E, const Mat& Exx,
+                                          const Mat& Exy, const Mat& Eyx, const Mat& Eyy) {
+    const int n = h.size();
+    Mat P, Q;
+    pq_matrices(h, E, Exx, Exy, Eyx, Eyy, P, Q);
     Eigen e = eig(matmul(P, Q));
     CVec kz(2 * static_cast<std::size_t>(n));
     for (int i = 0; i < 2 * n; ++i) kz[i] = layer_kz(e.values[i]);

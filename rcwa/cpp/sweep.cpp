@@ -1,6 +1,7 @@
 #include "sweep.hpp"
 
 #include "polarized.hpp"
+#include "sectors.hpp"
 
 #include <algorithm>
 #include <atomic>
@@ -127,8 +128,12 @@ StackSolution solve_decoupled(const SweepProblem& pr, const StackProblem& sp, In
     return out;
 }
 
-StackSolution solve_with(const SweepProblem& pr, std::size_t p, const SharedEigen& eig) {
+// `mirrors`: those every layer respects (respected_mirrors), tried first (sectors.hpp).
+StackSolution solve_with(const SweepProblem& pr, std::size_t p, const SharedEigen& eig,
+                         const std::vector<Mirror>& mirrors = {}) {
     StackProblem sp = stack_problem(pr, p);
+    if (!mirrors.empty())
+        if (auto sectors = solve_sectors(pr, sp, mirrors, Incidence::Both)) return std::move(*sectors);
     std::vector<std::unique_ptr<LayerModes>> modes;
     for (std::size_t k = 0; k < pr.layers.size(); ++k) {
         const LayerInput& in = pr.layers[k];
@@ -182,17 +187,26 @@ std::vector<std::vector<std::size_t>> groups_by_kx(const std::vector<double>& kx
 }
 
 // Groups [first, last) of neighbouring kx0, each group's eigen-solves seeded by the
-// previous group's. Returns (lamellar eigen-solves, of which refined).
-std::pair<std::size_t, std::size_t> solve_block(const SweepProblem& pr, const std::vector<Mat>& Z,
-                                                const std::vector<std::vector<std::size_t>>& groups,
-                                                std::size_t first, std::size_t last, SweepResult& out) {
-    std::size_t solves = 0, refined = 0;
+// previous group's. Returns the lamellar eigen-solves, of which refined, and the points
+// solved in mirror sectors.
+struct BlockWork {
+    std::size_t solves = 0, refined = 0, sectors = 0;
+};
+
+BlockWork solve_block(const SweepProblem& pr, const std::vector<Mat>& Z, const std::vector<Mirror>& mirrors,
+                      const std::vector<std::vector<std::size_t>>& groups, std::size_t first, std::size_t last,
+                      SweepResult& out) {
+    std::size_t solves = 0, refined = 0, sectors = 0;
     SharedEigen previous;
     for (std::size_t g = first; g < last; ++g) {
         const auto& points = groups[g];
         SharedEigen eig = shared_eigen(pr, Z, harmonics_at(pr, pr.kx0[points[0]], pr.ky0[points[0]]),
                                        g > first ? &previous : nullptr);
-        for (std::size_t p : points) keep_rows(pr, solve_with(pr, p, eig), out, p);
+        for (std::size_t p : points) {
+            const StackSolution s = solve_with(pr, p, eig, mirrors);
+            if (s.sectors_total > 0) ++sectors;
+            keep_rows(pr, s, out, p);
+        }
         for (const auto& layer : eig)
             if (layer) {
                 solves += 2;
@@ -200,7 +214,7 @@ std::pair<std::size_t, std::size_t> solve_block(const SweepProblem& pr, const st
             }
         previous = std::move(eig);
     }
-    return {solves, refined};
+    return {solves, refined, sectors};
 }
 
 }  // namespace
@@ -274,10 +288,13 @@ StackSolution solve_point(const SweepProblem& pr, std::size_t p, Incidence incid
     if (fast_paths) {
         const StackProblem sp = stack_problem(pr, p);
         if (decoupled_point(pr, sp)) return solve_decoupled(pr, sp, incidence);
+        const std::vector<Mirror> mirrors = respected_mirrors(pr);
+        if (!mirrors.empty())
+            if (auto sectors = solve_sectors(pr, sp, mirrors, incidence)) return std::move(*sectors);
     }
     const SharedEigen eig =
         shared_eigen(pr, inverse_laurent(pr), harmonics_at(pr, pr.kx0[p], pr.ky0[p]), nullptr, fast_paths);
-    StackSolution out = solve_with(pr, p, eig);
+    StackSolution out = solve_with(pr, p, eig);  // no sectors: fast_paths is false, or none applies
     for (const auto& layer : eig)
         if (layer) out.hermitian_solves += layer->hermitian;
     return out;
@@ -296,6 +313,7 @@ SweepResult sweep(const SweepProblem& pr) {
     out.kz_substrate.resize(np * out.kept);
     const std::vector<std::vector<std::size_t>> groups = groups_by_kx(pr.kx0);
     const std::vector<Mat> Z = inverse_laurent(pr);
+    const std::vector<Mirror> mirrors = respected_mirrors(pr);
 
     // Blocks of kBlock consecutive kx0: within a block each group's eigen-solve is seeded
     // by the one before, the next block starts afresh. The blocks do not depend on the
@@ -303,16 +321,16 @@ SweepResult sweep(const SweepProblem& pr) {
     constexpr std::size_t kBlock = 32;
     const std::size_t threads = static_cast<std::size_t>(std::max(1, pr.threads));
     const std::size_t blocks = (groups.size() + kBlock - 1) / kBlock;
-    std::atomic<std::size_t> next{0}, solves{0}, refined{0};
+    std::atomic<std::size_t> next{0}, solves{0}, refined{0}, sectors{0};
     std::exception_ptr failure;
     std::mutex failure_lock;
     auto worker = [&]() {
         try {
             for (std::size_t b = next++; b < blocks; b = next++) {
-                const auto [n_solves, n_refined] = solve_block(
-                    pr, Z, groups, b * kBlock, std::min((b + 1) * kBlock, groups.size()), out);
-                solves += n_solves;
-                refined += n_refined;
+                const BlockWork work = solve_block(pr, Z, mirrors, groups, b * kBlock, std::min((b + 1) * kBlock, groups.size()), out);
+                solves += work.solves;
+                refined += work.refined;
+                sectors += work.sectors;
             }
         } catch (...) {
             std::lock_guard<std::mutex> lock(failure_lock);
@@ -328,6 +346,7 @@ SweepResult sweep(const SweepProblem& pr) {
     if (failure) std::rethrow_exception(failure);
     out.eigen_solves = solves;
     out.eigen_refined = refined;
+    out.sector_points = sectors;
     return out;
 }
 
