@@ -7,6 +7,7 @@ through ``peer_runner.py`` in a subprocess, so their pinned numpy never meets ou
     .venv/bin/python benchmarks/bench_solve.py [--out build/bench/rcwa_solve.json]
                      [--repeats 5] [--rounds 5] [--peers meent,grcwa] [--cases a1,a2,p2c,p2k,cd0,cd30,b]
                      [--no-reference] [--peers-only | --no-peers] [--base SITE_DIR]
+                     [--no-sectors | --sectors-only]
 
 Cases p2c / p2k: P2 (Moharam et al. 1995, Fig. 2) in classical (phi 0) and conical (phi 30)
 mount; cd0 / cd30: the CD at phi 0 and 30. ``--base DIR`` times another build of our
@@ -14,7 +15,11 @@ solver in the same rounds (a subprocess importing rcwa from DIR first), e.g. the
 commit: ``git worktree add /tmp/base HEAD; pip wheel --no-build-isolation --no-deps
 /tmp/base -w /tmp/wheel; pip install --no-deps --target /tmp/base_site /tmp/wheel/*.whl``.
 A second table prints ours for s, p and s+p against the eigen-solve floor (eigen_floor)
-and the base build.
+and the base build. A third prints gold2d (rcwa/structures/gold2d.toml) at 9 x 9 and 15 x 15
+orders, at normal incidence and in its xz mirror plane, solved in mirror-symmetry sectors
+(rcwa/cpp/sectors.hpp) and by the general path, and estimates the gold2d paper-preset
+table's time with and without them from sampled sweeps (``--no-sectors`` skips it,
+``--sectors-only`` runs only it).
 
 Cases (each is one JSON-able dict; ``"structure"`` is exactly the project's structure-file
 format as a dict; lengths in micrometres, wavelength in nm, angles in degrees)::
@@ -562,6 +567,130 @@ def print_floor_table(rows: list[dict]) -> None:
     print("(goal <= 1.3). base: the --base build in the same run; gain = base / ours.")
 
 
+# --------------------------------------------------------------------------------------------
+# Mirror-symmetry sectors (issue 17 item 4): gold2d with and without them
+# --------------------------------------------------------------------------------------------
+
+SECTOR_ORDERS = ((9, 9), (15, 15))
+SECTOR_WAVELENGTH_NM = 600.0
+# Directions that respect gold2d's mirrors: normal incidence (both), the xz plane (y -> -y).
+SECTOR_DIRECTIONS = (("normal", 0.0, 0.0), ("xz plane 20 deg", 20.0, 0.0))
+# Samples of the paper table's grid (theta, phi): directions in a mirror plane or normal
+# (solved in sectors), and directions off them (the general path).
+TABLE_SAMPLE_MIRROR = ((0.0, 0.0), (0.0, 44.0), (20.0, 0.0), (46.0, 90.0), (70.0, 0.0), (84.0, 90.0))
+TABLE_SAMPLE_GENERAL = ((20.0, 30.0), (46.0, 62.0), (70.0, 10.0), (10.0, 80.0), (84.0, 44.0), (34.0, 2.0))
+
+
+def time_sectors(rcwa, structure, orders: tuple[int, int], theta: float, phi: float, repeats: int) -> dict[str, float]:
+    """CPU seconds per solve (median of ``repeats`` after a warm-up, interleaved): with the
+    sectors for pol s, p and s+p, and the general path (fast_paths=False) for s+p (in 2D it
+    solves both polarizations whatever is asked)."""
+    calls: dict[str, dict[str, str | bool]] = {"s": {"pol": "s"}, "p": {"pol": "p"}, "both": {"pol": "unpolarized"},
+                                               "general": {"pol": "unpolarized", "fast_paths": False}}
+    times: dict[str, list[float]] = {key: [] for key in calls}
+    for key, kw in calls.items():  # warm-up, and the sectors really are used
+        res = rcwa.solve(structure, SECTOR_WAVELENGTH_NM, theta, phi, orders, **kw)
+        if key != "general" and "mirror_sectors" not in res.fast_paths:
+            raise BenchError(f"gold2d at theta {theta}, phi {phi}: the sectors were not used ({res.fast_paths})")
+    for _ in range(repeats):
+        for key, kw in calls.items():
+            t0 = cpu_time()
+            rcwa.solve(structure, SECTOR_WAVELENGTH_NM, theta, phi, orders, **kw)
+            times[key].append(cpu_time() - t0)
+    return {key: statistics.median(v) for key, v in times.items()}
+
+
+def _sweep_seconds(structure, settings, points, sectors: bool, repeats: int) -> float:
+    """CPU seconds of one single-thread sweep over ``points`` (median of ``repeats``)."""
+    import numpy as np
+
+    from rcwa.sweep import sweep_directions
+
+    theta = np.array([t for t, _ in points])
+    phi = np.array([p for _, p in points])
+    times = []
+    for _ in range(repeats):
+        t0 = cpu_time()
+        sw = sweep_directions(structure, SECTOR_WAVELENGTH_NM, theta, phi, settings.orders, keep=settings.keep,
+                              threads=1, sectors=sectors)
+        times.append(cpu_time() - t0)
+    expected = sum(1 for t, p in points if t == 0.0 or p % 90.0 == 0.0) if sectors else 0
+    if sw.sector_points != expected:
+        raise BenchError(f"the table sample solved {sw.sector_points} points in sectors, expected {expected}")
+    return statistics.median(times)
+
+
+def table_estimate(rcwa, repeats: int) -> dict:
+    """The gold2d paper-preset table's single-thread time with and without the sectors,
+    from sweeps over sampled directions: per-point seconds of mirror-plane (and normal)
+    directions with and without sectors and of the other directions, times their counts
+    in the table's grid, times the wavelengths (the per-wavelength Fourier matrices timed
+    apart and added once per wavelength)."""
+    import numpy as np
+
+    from rcwa.solver import prepare
+    from rcwa.table import GRAZING_THETA_DEG, settings_for
+
+    structure = rcwa.load_structure("gold2d")
+    settings = settings_for(structure, "paper")
+    theta = np.minimum(np.array(settings.theta_deg), GRAZING_THETA_DEG)
+    th, ph = np.meshgrid(theta, np.array(settings.phi_deg), indexing="ij")
+    in_mirror = (th == 0.0) | (np.mod(ph, 90.0) == 0.0)
+    n_mirror, n_other = int(in_mirror.sum()), int((~in_mirror).sum())
+    t0 = cpu_time()
+    for _ in range(repeats):
+        prepare(structure, SECTOR_WAVELENGTH_NM, settings.orders)
+    t_prepare = (cpu_time() - t0) / repeats
+    per_point = {}
+    for key, points, sectors in (("mirror_sectors", TABLE_SAMPLE_MIRROR, True),
+                                 ("mirror_general", TABLE_SAMPLE_MIRROR, False),
+                                 ("other", TABLE_SAMPLE_GENERAL, True)):
+        per_point[key] = max(0.0, _sweep_seconds(structure, settings, points, sectors, repeats) - t_prepare) / len(points)
+    n_wl = len(settings.wavelengths_nm)
+    without = n_wl * (t_prepare + n_mirror * per_point["mirror_general"] + n_other * per_point["other"])
+    with_sectors = n_wl * (t_prepare + n_mirror * per_point["mirror_sectors"] + n_other * per_point["other"])
+    return {"orders": list(settings.orders), "keep": list(settings.keep), "wavelengths": n_wl,
+            "directions": int(th.size), "directions_in_mirror_planes": n_mirror, "seconds_per_point": per_point,
+            "seconds_prepare": t_prepare, "table_seconds_without": without, "table_seconds_with": with_sectors}
+
+
+def run_sectors(rcwa, repeats: int) -> dict:
+    structure = rcwa.load_structure("gold2d")
+    rows = []
+    for orders in SECTOR_ORDERS:
+        for name, theta, phi in SECTOR_DIRECTIONS:
+            print(f"[sectors] gold2d {orders[0]}x{orders[1]} {name} ...", file=sys.stderr, flush=True)
+            rows.append({"orders": list(orders), "direction": name, "theta_deg": theta, "phi_deg": phi,
+                         "seconds": time_sectors(rcwa, structure, orders, theta, phi, repeats)})
+    print("[sectors] gold2d paper-preset table estimate ...", file=sys.stderr, flush=True)
+    return {"wavelength_nm": SECTOR_WAVELENGTH_NM, "solves": rows, "table": table_estimate(rcwa, repeats)}
+
+
+def print_sectors(result: dict) -> None:
+    head = (f"{'gold2d':8s} {'direction':16s} {'sectors s':>10s} {'p':>7s} {'s+p':>7s} | {'general':>8s} | "
+            f"{'gain s':>6s} {'s+p':>5s}")
+    print()
+    print(head)
+    print("-" * len(head))
+    for r in result["solves"]:
+        t = r["seconds"]
+        print(f"{r['orders'][0]:>2d} x {r['orders'][1]:<3d} {r['direction']:16s} {fmt_ms(t['s'], 10)} {fmt_ms(t['p'], 7)} "
+              f"{fmt_ms(t['both'], 7)} | {fmt_ms(t['general'])} | {t['general'] / t['s']:6.1f} "
+              f"{t['general'] / t['both']:5.1f}")
+    print(f"CPU ms per solve at {result['wavelength_nm']:g} nm (one thread, medians): in mirror-symmetry sectors")
+    print("(rcwa/cpp/sectors.hpp) for pol s / p / unpolarized, and the general path (fast_paths=False, both")
+    print("polarizations). gain = general / sectors.")
+    tab = result["table"]
+    per = tab["seconds_per_point"]
+    print(f"gold2d paper-preset table ({tab['wavelengths']} wavelengths x {tab['directions']} directions, "
+          f"{tab['orders'][0]}x{tab['orders'][1]} orders), one thread, estimated from sampled sweeps:")
+    print(f"  {tab['directions_in_mirror_planes']} directions per wavelength in a mirror plane or normal: "
+          f"{per['mirror_general'] * 1e3:.1f} ms each without sectors, {per['mirror_sectors'] * 1e3:.1f} ms with; "
+          f"the other {tab['directions'] - tab['directions_in_mirror_planes']}: {per['other'] * 1e3:.1f} ms each")
+    print(f"  table: {tab['table_seconds_without'] / 60:.1f} min without sectors, {tab['table_seconds_with'] / 60:.1f} min "
+          f"with (factor {tab['table_seconds_without'] / tab['table_seconds_with']:.3f}); divide by the cores a build uses")
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--out", type=Path, default=DEFAULT_OUT,
@@ -577,6 +706,9 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--base", type=Path, default=None,
                     help="a site directory with another build of rcwa (e.g. the base commit's wheel, pip install "
                          "--no-deps --target DIR) timed in the same rounds")
+    ap.add_argument("--no-sectors", action="store_true",
+                    help="skip gold2d with and without mirror-symmetry sectors and the paper-table estimate")
+    ap.add_argument("--sectors-only", action="store_true", help="only gold2d's sectors and the paper-table estimate")
     ap.add_argument("--emit-ours", action="store_true", help=argparse.SUPPRESS)
     args = ap.parse_args(argv)
     if args.emit_ours:
@@ -589,7 +721,7 @@ def main(argv: list[str] | None = None) -> int:
         bad = [c for c in cases if c not in CASES]
         if bad:
             raise BenchError(f"--cases: unknown {bad}; expected some of {list(CASES)}")
-        peers = [] if args.no_peers else [p.strip() for p in args.peers.split(",") if p.strip()]
+        peers = [] if (args.no_peers or args.sectors_only) else [p.strip() for p in args.peers.split(",") if p.strip()]
         bad = [p for p in peers if p not in ALL_PEERS]
         if bad:
             raise BenchError(f"--peers: unknown {bad}; expected some of {list(ALL_PEERS)}")
@@ -597,15 +729,19 @@ def main(argv: list[str] | None = None) -> int:
             check_peer_env()
         rcwa = None if args.peers_only else import_rcwa()
         rows = []
-        for cid in cases:
+        for cid in [] if args.sectors_only else cases:
             print(f"[{cid}] {CASES[cid]['name']} ...", file=sys.stderr, flush=True)
             rows.append(run_case(cid, rcwa, peers, args))
+        sectors = None if (rcwa is None or args.no_sectors) else run_sectors(rcwa, args.repeats)
     except BenchError as exc:
         print(f"bench_solve: {exc}", file=sys.stderr)
         return 2
 
-    print_table(rows)
-    print_floor_table(rows)
+    if rows:
+        print_table(rows)
+        print_floor_table(rows)
+    if sectors is not None:
+        print_sectors(sectors)
     for r in rows:
         for o in r["ours"]:
             o["efficiencies"] = jsonable(o["efficiencies"])
@@ -619,6 +755,7 @@ def main(argv: list[str] | None = None) -> int:
         "repeats": args.repeats,
         "rounds": args.rounds,
         "cases": rows,
+        "sectors": sectors,
     }
     args.out.parent.mkdir(parents=True, exist_ok=True)
     args.out.write_text(json.dumps(report, indent=1) + "\n", encoding="utf-8")

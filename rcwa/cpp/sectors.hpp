@@ -2,10 +2,14 @@
 // of each harmonic and its mirror image, one sector at a time, and only the sectors the
 // incident wave excites.
 //
-// The reduction is the group-theoretic one of Bai & Li (2006, "Group-theoretic approach
-// to enhancing the Fourier modal method for crossed gratings with one or two reflection
-// symmetries", J. Opt. A 8, 43; and Bai & Li 2005, JOSA A 22, 654 for C4), written here
-// for the PQ form of modes.hpp and the enhanced transmittance stack. The derivation:
+// The reduction is the group-theoretic one of Bai & Li ("Group-theoretic approach to the
+// enhancement of the Fourier modal method for crossed gratings: C2 symmetry case", JOSA A
+// 22, 654 (2005); the C4 case in J. Opt. A 7, doi:10.1088/1464-4258/7/12/012 (2005)): the
+// problem is split into symmetry modes of the grating's group, each solved with the
+// unknowns its symmetry leaves, and the solutions superposed. Here the group is that of
+// the cell's mirrors ({e, sigma_x}, {e, sigma_y} or C2v = {e, sigma_x, sigma_y, C2}),
+// written for the PQ form of modes.hpp and the enhanced transmittance stack. The
+// derivation:
 //
 // A mirror sigma: x -> 2c - x of every layer (the same c for all) maps a solution of
 // Maxwell's equations to another: E'(r) = M E(sigma r), h'(r) = -M h(sigma r) (E is a
@@ -32,9 +36,12 @@
 // Eigen-solves cost (2N / |G|)^3 each: a quarter (one mirror, both sectors) or an
 // eighth (two mirrors, two of four sectors, unpolarized) of the full one.
 //
+// At normal incidence the sectors use s-hat = y for the specular order (every mirror maps
+// it to +-itself), whatever the caller's; r is measured and t converted in the caller's.
 // Where the problem does not respect a mirror (kx0 != 0 for x -> -x, ky0 != 0 for
-// y -> -y, an s-hat at kt = 0 that is neither along x nor y, matrices that do not
-// commute), that mirror is dropped; with none left the general path runs.
+// y -> -y, to 1e-14; matrices that do not commute with it, such as the normal-vector
+// rule's for shapes off the origin, whose sampled normal field is symmetric to ~5e-11
+// only), that mirror is dropped; with none left the general path runs.
 #pragma once
 
 #include <optional>
