@@ -105,11 +105,9 @@ DenseModes::DenseModes(Mat W, Mat V, CVec kz) : W_(W), V_(V), luW_(std::move(W))
     kz_ = std::move(kz);
 }
 
-void pq_matrices(const Harmonics& h, const Mat& E, const Mat& Exx, const Mat& Exy, const Mat& Eyx, const Mat& Eyy,
+void pq_matrices(const Harmonics& h, const Mat& Z, const Mat& Exx, const Mat& Exy, const Mat& Eyx, const Mat& Eyy,
                  Mat& P, Mat& Q) {
     const int n = h.size();
-    const LU luE(E);
-    const Mat Z = luE.inverse();
     P = Mat(2 * n, 2 * n);
     Q = Mat(2 * n, 2 * n);
     for (int j = 0; j < n; ++j) {
@@ -133,11 +131,11 @@ void pq_matrices(const Harmonics& h, const Mat& E, const Mat& Exx, const Mat& Ex
     }
 }
 
-std::unique_ptr<LayerModes> general_modes(const Harmonics& h, const Mat& E, const Mat& Exx,
+std::unique_ptr<LayerModes> general_modes(const Harmonics& h, const Mat& Z, const Mat& Exx,
                                           const Mat& Exy, const Mat& Eyx, const Mat& Eyy) {
     const int n = h.size();
     Mat P, Q;
-    pq_matrices(h, E, Exx, Exy, Eyx, Eyy, P, Q);
+    pq_matrices(h, Z, Exx, Exy, Eyx, Eyy, P, Q);
     Eigen e = eig(matmul(P, Q));
     CVec kz(2 * static_cast<std::size_t>(n));
     for (int i = 0; i < 2 * n; ++i) kz[i] = layer_kz(e.values[i]);

@@ -108,12 +108,13 @@ LamellarEigen lamellar_eigen(const std::vector<double>& kx, const Mat& E, const 
 std::unique_ptr<LayerModes> lamellar_modes(const std::vector<double>& kx, const LamellarEigen& eig,
                                            double ky);
 
-// P and Q of the header comment (2N x 2N) for a general layer.
-void pq_matrices(const Harmonics& h, const Mat& E, const Mat& Exx, const Mat& Exy, const Mat& Eyx, const Mat& Eyy,
+// P and Q of the header comment (2N x 2N) for a general layer; Z = [[eps]]^-1 is given
+// (it depends on the wavelength only, so a sweep takes it once: sweep.cpp).
+void pq_matrices(const Harmonics& h, const Mat& Z, const Mat& Exx, const Mat& Exy, const Mat& Eyx, const Mat& Eyy,
                  Mat& P, Mat& Q);
 
-// A general (2D, or anisotropic) layer: one 2N x 2N eigen-solve of P Q.
-std::unique_ptr<LayerModes> general_modes(const Harmonics& h, const Mat& E, const Mat& Exx,
+// A general (2D, or anisotropic) layer: one 2N x 2N eigen-solve of P Q (Z as above).
+std::unique_ptr<LayerModes> general_modes(const Harmonics& h, const Mat& Z, const Mat& Exx,
                                           const Mat& Exy, const Mat& Eyx, const Mat& Eyy);
 
 // Dense modes (W, V given), with LU factorizations for the inverses.

@@ -329,8 +329,41 @@ std::vector<Mirror> respected_mirrors(const SweepProblem& pr) {
     return out;
 }
 
+Mat laurent_inverse(const Mat& E, const std::vector<Mirror>& mirrors) {
+    const int n = E.rows;
+    if (mirrors.empty()) return LU(E).inverse();
+    std::vector<Element> group;
+    const int k = static_cast<int>(mirrors.size());
+    for (int subset = 0; subset < (1 << k); ++subset) {
+        Element g{identity_action(n), {}};
+        for (int m = 0; m < k; ++m)
+            if (subset & (1 << m)) {
+                g.action = compose(Action{mirrors[m].partner, mirrors[m].phase}, g.action);
+                g.mirrors.push_back(m);
+            }
+        group.push_back(std::move(g));
+    }
+    Mat Z(n, n);
+    int total = 0;
+    for (int s = 0; s < (1 << k); ++s) {
+        std::vector<double> chi(k);
+        for (int m = 0; m < k; ++m) chi[m] = (s & (1 << m)) ? -1.0 : 1.0;
+        const Columns U = sector_columns(group, chi, n);
+        if (U.empty()) continue;
+        total += static_cast<int>(U.size());
+        const Mat Zb = LU(reduce(E, U, U)).inverse();
+        for (int b = 0; b < Zb.cols; ++b)
+            for (int a = 0; a < Zb.rows; ++a)
+                for (const Entry& ea : U[a])
+                    for (const Entry& eb : U[b]) Z(ea.row, eb.row) += ea.coef * Zb(a, b) * std::conj(eb.coef);
+    }
+    if (total != n) return LU(E).inverse();
+    return Z;
+}
+
 std::optional<StackSolution> solve_sectors(const SweepProblem& pr, const StackProblem& sp,
-                                           const std::vector<Mirror>& mirrors, Incidence incidence) {
+                                           const std::vector<Mirror>& mirrors, Incidence incidence,
+                                           const std::vector<Mat>& Z) {
     if (pr.method != StackMethod::EnhancedTransmittance || pr.layers.empty()) return std::nullopt;
     const int n = sp.harmonics.size(), n2 = 2 * n;
     // The sectors' own s and p basis: where kt = 0 (normal incidence) s-hat = y, which every
@@ -408,7 +441,7 @@ std::optional<StackSolution> solve_sectors(const SweepProblem& pr, const StackPr
             sh.uniform[l] = uniform_modes(sp.harmonics, in.eps);
         } else {
             const auto& M = in.matrices;
-            pq_matrices(sp.harmonics, M[0], M[1], M[2], M[3], M[4], sh.P[l], sh.Q[l]);
+            pq_matrices(sp.harmonics, Z[l], M[1], M[2], M[3], M[4], sh.P[l], sh.Q[l]);
         }
     }
     Mat psi(n2, 2), phi(n2, 2);

@@ -59,11 +59,19 @@ constexpr double kSymmetryTolerance = 1e-11;
 // ones whose matrices commute with the mirror (above). Checked once per problem.
 std::vector<Mirror> respected_mirrors(const SweepProblem& problem);
 
+// Z = E^-1 for the Laurent matrix E of a layer that commutes with every scalar mirror
+// action of `mirrors` (from respected_mirrors; for scalar fields, whatever the incidence):
+// E is block-diagonal in their sectors, so Z is taken block by block (a sixteenth of the
+// work with two mirrors). Without mirrors, an LU inverse.
+Mat laurent_inverse(const Mat& E, const std::vector<Mirror>& mirrors);
+
 // One point (`point`: its harmonics, media, s-hat and thicknesses; its layers are not
 // read) of `problem` (its layers' inputs) solved sector by sector in the `mirrors` (from
 // respected_mirrors) this point respects, or nothing where none applies (see above) or
 // the stack is not the ETM. Columns of r and t that `incidence` does not ask for are NaN.
+// Z: each general layer's laurent_inverse (others empty).
 std::optional<StackSolution> solve_sectors(const SweepProblem& problem, const StackProblem& point,
-                                           const std::vector<Mirror>& mirrors, Incidence incidence);
+                                           const std::vector<Mirror>& mirrors, Incidence incidence,
+                                           const std::vector<Mat>& Z);
 
 }  // namespace rcwa

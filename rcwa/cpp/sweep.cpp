@@ -48,11 +48,14 @@ void keep_freed_memory() {
 
 using SharedEigen = std::vector<std::unique_ptr<LamellarEigen>>;
 
-// Z = E^-1 of every lamellar layer: it depends on the wavelength only.
-std::vector<Mat> inverse_laurent(const SweepProblem& pr) {
+// Z = E^-1 of every patterned layer: it depends on the wavelength only. Block by block
+// in the sectors of the layers' mirrors where there are some (sectors.hpp).
+std::vector<Mat> inverse_laurent(const SweepProblem& pr, const std::vector<Mirror>& mirrors = {}) {
     std::vector<Mat> out(pr.layers.size());
-    for (std::size_t k = 0; k < pr.layers.size(); ++k)
+    for (std::size_t k = 0; k < pr.layers.size(); ++k) {
         if (pr.layers[k].kind == LayerKind::Lamellar) out[k] = LU(pr.layers[k].matrices[0]).inverse();
+        if (pr.layers[k].kind == LayerKind::General) out[k] = laurent_inverse(pr.layers[k].matrices[0], mirrors);
+    }
     return out;
 }
 
@@ -129,11 +132,12 @@ StackSolution solve_decoupled(const SweepProblem& pr, const StackProblem& sp, In
 }
 
 // `mirrors`: those every layer respects (respected_mirrors), tried first (sectors.hpp).
-StackSolution solve_with(const SweepProblem& pr, std::size_t p, const SharedEigen& eig,
+// Z: inverse_laurent.
+StackSolution solve_with(const SweepProblem& pr, std::size_t p, const SharedEigen& eig, const std::vector<Mat>& Z,
                          const std::vector<Mirror>& mirrors = {}) {
     StackProblem sp = stack_problem(pr, p);
     if (!mirrors.empty())
-        if (auto sectors = solve_sectors(pr, sp, mirrors, Incidence::Both)) return std::move(*sectors);
+        if (auto sectors = solve_sectors(pr, sp, mirrors, Incidence::Both, Z)) return std::move(*sectors);
     std::vector<std::unique_ptr<LayerModes>> modes;
     for (std::size_t k = 0; k < pr.layers.size(); ++k) {
         const LayerInput& in = pr.layers[k];
@@ -143,7 +147,7 @@ StackSolution solve_with(const SweepProblem& pr, std::size_t p, const SharedEige
             modes.push_back(lamellar_modes(sp.harmonics.kx, *eig[k], sp.harmonics.ky[0]));
         } else {
             const auto& M = in.matrices;
-            modes.push_back(general_modes(sp.harmonics, M[0], M[1], M[2], M[3], M[4]));
+            modes.push_back(general_modes(sp.harmonics, Z[k], M[1], M[2], M[3], M[4]));
         }
         sp.layers.push_back(modes.back().get());
     }
@@ -203,7 +207,7 @@ BlockWork solve_block(const SweepProblem& pr, const std::vector<Mat>& Z, const s
         SharedEigen eig = shared_eigen(pr, Z, harmonics_at(pr, pr.kx0[points[0]], pr.ky0[points[0]]),
                                        g > first ? &previous : nullptr);
         for (std::size_t p : points) {
-            const StackSolution s = solve_with(pr, p, eig, mirrors);
+            const StackSolution s = solve_with(pr, p, eig, Z, mirrors);
             if (s.sectors_total > 0) ++sectors;
             keep_rows(pr, s, out, p);
         }
@@ -285,16 +289,17 @@ StackSolution solve_point(const SweepProblem& pr, std::size_t p, Incidence incid
     check_problem(pr);
     if (p >= pr.kx0.size()) throw std::invalid_argument("point " + std::to_string(p) + " outside the problem's points");
     keep_freed_memory();
+    std::vector<Mirror> mirrors;
     if (fast_paths) {
         const StackProblem sp = stack_problem(pr, p);
         if (decoupled_point(pr, sp)) return solve_decoupled(pr, sp, incidence);
-        const std::vector<Mirror> mirrors = respected_mirrors(pr);
-        if (!mirrors.empty())
-            if (auto sectors = solve_sectors(pr, sp, mirrors, incidence)) return std::move(*sectors);
+        mirrors = respected_mirrors(pr);
     }
-    const SharedEigen eig =
-        shared_eigen(pr, inverse_laurent(pr), harmonics_at(pr, pr.kx0[p], pr.ky0[p]), nullptr, fast_paths);
-    StackSolution out = solve_with(pr, p, eig);  // no sectors: fast_paths is false, or none applies
+    const std::vector<Mat> Z = inverse_laurent(pr, mirrors);
+    if (!mirrors.empty())
+        if (auto sectors = solve_sectors(pr, stack_problem(pr, p), mirrors, incidence, Z)) return std::move(*sectors);
+    const SharedEigen eig = shared_eigen(pr, Z, harmonics_at(pr, pr.kx0[p], pr.ky0[p]), nullptr, fast_paths);
+    StackSolution out = solve_with(pr, p, eig, Z);  // no sectors: fast_paths is false, or none applies
     for (const auto& layer : eig)
         if (layer) out.hermitian_solves += layer->hermitian;
     return out;
@@ -312,8 +317,8 @@ SweepResult sweep(const SweepProblem& pr) {
     out.kz_superstrate.resize(np * out.kept);
     out.kz_substrate.resize(np * out.kept);
     const std::vector<std::vector<std::size_t>> groups = groups_by_kx(pr.kx0);
-    const std::vector<Mat> Z = inverse_laurent(pr);
     const std::vector<Mirror> mirrors = respected_mirrors(pr);
+    const std::vector<Mat> Z = inverse_laurent(pr, mirrors);
 
     // Blocks of kBlock consecutive kx0: within a block each group's eigen-solve is seeded
     // by the one before, the next block starts afresh. The blocks do not depend on the

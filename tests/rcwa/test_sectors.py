@@ -4,7 +4,7 @@ A 2D cell with a mirror the incidence respects (x -> -x at k_x = 0, y -> -y at k
 is solved in the sectors of that mirror's symmetry group, only those the incident wave
 excites (rcwa/cpp/sectors.hpp). In exact arithmetic this is the general path's
 computation in another basis, so the two agree to round-off: 1e-12 (issue 17's bound;
-measured <= 4e-14 on these cases), on every complex amplitude of every retained harmonic
+measured <= 8e-14 on these cases), on every complex amplitude of every retained harmonic
 and on the efficiencies, for s, p and unpolarized light, at normal incidence (also with
 an s-hat along neither axis) and in a mirror plane. A cell that only looks symmetric is
 not treated as symmetric.
@@ -52,8 +52,8 @@ CASES = {
     "gold2d in the yz plane, at -90": (GOLD2D, 600.0, 35.0, -90.0, 7, (1, 2, 2)),
     "layered off-origin, normal": (LAYERED, 700.0, 0.0, 90.0, 5, (1, 2, 4)),
     "layered off-origin, xz plane at 180": (LAYERED, 700.0, 25.0, 180.0, 5, (1, 2, 2)),
-    "circle (normal-vector rule), normal": (CIRCLE, 650.0, 0.0, 0.0, 7, (1, 2, 4)),
-    "circle (normal-vector rule), yz plane": (CIRCLE, 650.0, 30.0, 90.0, 7, (1, 2, 2)),
+    "circle (normal-vector rule), normal": (CIRCLE, 650.0, 0.0, 0.0, 5, (1, 2, 4)),
+    "circle (normal-vector rule), yz plane": (CIRCLE, 650.0, 30.0, 90.0, 5, (1, 2, 2)),
     "y mirror only, xz plane": (Y_ONLY, 650.0, 15.0, 0.0, 5, (1, 2, 2)),
 }
 AMPLITUDES = ("r_s_from_s", "r_p_from_s", "r_s_from_p", "r_p_from_p",
