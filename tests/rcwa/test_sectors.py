@@ -6,7 +6,8 @@ excites (rcwa/cpp/sectors.hpp). In exact arithmetic this is the general path's
 computation in another basis, so the two agree to round-off: 1e-12 (issue 17's bound;
 measured <= 8e-14 on these cases), on every complex amplitude of every retained harmonic
 and on the efficiencies, for s, p and unpolarized light, at normal incidence (also with
-an s-hat along neither axis) and in a mirror plane. A cell that only looks symmetric is
+an s-hat along neither axis and at a Rayleigh point) and in a mirror plane, with uniform
+and patterned layers, lossy and metallic media. A cell that only looks symmetric is
 not treated as symmetric.
 """
 
@@ -38,6 +39,12 @@ LAYERED = structure([0.8, 0.9], nk(1.0), nk(1.5), [
 CIRCLE = structure([1.0, 1.0], nk(1.0), nk(1.5), [
     {"thickness": 0.25, "material": nk(1.0), "shapes": [{"material": nk(2.2, 0.05), "circle": {"center": [0.5, 0.5],
                                                                                                  "radius": 0.3}}]}])
+# A uniform film on top (its modes in closed form, reduced to the sectors), a metal substrate.
+FILM_ON_TOP = structure([0.7, 0.7], nk(1.0), GOLD, [
+    {"thickness": 0.1, "material": nk(1.45)},
+    {"thickness": 0.12, "material": nk(1.0), "shapes": [{"material": nk(2.2), "rect": {"center": [0.1, 0.2],
+                                                                                        "size": [0.3, 0.2]}}]},
+    {"thickness": 0.03, "material": nk(1.6, 0.01)}])
 # Mirror-symmetric in y only: a second block beside the first in x.
 Y_ONLY = structure([1.0, 1.0], nk(1.0), nk(1.5), [
     {"thickness": 0.3, "material": nk(1.0), "shapes": [
@@ -50,6 +57,10 @@ CASES = {
     "gold2d normal, s-hat at 30 deg": (GOLD2D, 550.0, 0.0, 30.0, 7, (2, 2, 4)),
     "gold2d in the xz plane": (GOLD2D, 600.0, 20.0, 0.0, 7, (1, 2, 2)),
     "gold2d in the yz plane, at -90": (GOLD2D, 600.0, 35.0, -90.0, 7, (1, 2, 2)),
+    # lambda = period: orders (+-1, 0), (0, +-1) graze both half-spaces (Rayleigh anomaly)
+    "gold2d at a Rayleigh point, normal": (GOLD2D, 1000.0, 0.0, 0.0, 5, (1, 2, 4)),
+    "film on top, metal below, normal": (FILM_ON_TOP, 600.0, 0.0, 0.0, 5, (1, 2, 4)),
+    "film on top, metal below, yz plane": (FILM_ON_TOP, 600.0, 25.0, 90.0, 5, (1, 2, 2)),
     "layered off-origin, normal": (LAYERED, 700.0, 0.0, 90.0, 5, (1, 2, 4)),
     "layered off-origin, xz plane at 180": (LAYERED, 700.0, 25.0, 180.0, 5, (1, 2, 2)),
     "circle (normal-vector rule), normal": (CIRCLE, 650.0, 0.0, 0.0, 5, (1, 2, 4)),
