@@ -107,6 +107,12 @@ class StackSolution:
         """
 
     @property
+    def real_solves(self) -> int:
+        """
+        Of hermitian_solves, those done in real arithmetic (dsyevd, dsygvd): the layer is symmetric about a point, and moving the origin there makes its matrices real (linalg.hpp, real_by_phase).
+        """
+
+    @property
     def sectors_solved(self) -> int:
         """
         Mirror-symmetry sectors solved (sectors.hpp), of sectors_total; 0 of 0 where none were used. A polarization not asked for then has NaN amplitudes.

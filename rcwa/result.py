@@ -78,6 +78,7 @@ class SolveResult:
     # general path; "te_tm_decoupled" (1D, k_y = 0: TE and TM on N x N blocks),
     # "single_polarization" (only the requested one solved; the other's values are NaN),
     # "hermitian_eigensolver" (lossless 1D layers solved as Hermitian problems),
+    # "real_arithmetic" (of those, layers symmetric about a point, solved in real arithmetic),
     # "mirror_sectors" (a 2D cell's mirror-symmetry sectors, only those the incidence excites:
     # rcwa/cpp/sectors.hpp; with "single_polarization" for pol "s" or "p").
     fast_paths: tuple[str, ...] = ()

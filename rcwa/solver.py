@@ -144,7 +144,9 @@ def solve(
         ``pol="s"`` or ``"p"`` only that one: the other polarization's efficiencies and
         amplitudes are then NaN. Lossless 1D layers (real permittivity everywhere) are
         solved with Hermitian eigen-solvers (zheevd / zhegvd), their inverses taken from the
-        eigenvectors. A 2D cell with a mirror (rcwa.symmetry) the incidence respects
+        eigenvectors, and in real arithmetic (dsyevd / dsygvd, "real_arithmetic") where the
+        layer is symmetric about a point (moving the origin there makes its matrices real).
+        A 2D cell with a mirror (rcwa.symmetry) the incidence respects
         (x -> -x at k_x = 0: normal incidence or phi = +-90; y -> -y at k_y = 0: phi = 0
         or 180) is solved in mirror-symmetry sectors (rcwa/cpp/sectors.hpp), only those
         the asked polarization excites (for ``"s"`` or ``"p"`` the other's values are
@@ -189,6 +191,8 @@ def _fast_paths(sol: _core.StackSolution, pol: Polarization) -> tuple[str, ...]:
         paths += ("mirror_sectors",) + single
     if sol.hermitian_solves:
         paths += ("hermitian_eigensolver",)
+    if sol.real_solves:
+        paths += ("real_arithmetic",)
     return paths
 
 

@@ -222,6 +222,9 @@ void bind_results(nb::module_& m) {
                 "polarization not asked for then has NaN amplitudes.")
         .def_ro("hermitian_solves", &rcwa::StackSolution::hermitian_solves,
                 "Eigen-solves of lossless 1D layers done by Hermitian solvers (zheevd, zhegvd) instead of zgeev.")
+        .def_ro("real_solves", &rcwa::StackSolution::real_solves,
+                "Of hermitian_solves, those done in real arithmetic (dsyevd, dsygvd): the layer is symmetric about a "
+                "point, and moving the origin there makes its matrices real (linalg.hpp, real_by_phase).")
         .def_ro("sectors_solved", &rcwa::StackSolution::sectors_solved,
                 "Mirror-symmetry sectors solved (sectors.hpp), of sectors_total; 0 of 0 where none were used. A "
                 "polarization not asked for then has NaN amplitudes.")

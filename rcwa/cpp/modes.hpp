@@ -81,6 +81,7 @@ struct LamellarEigen {
     Mat M3;        // VB^-1 Kx WA muA^-1 WA^-1
     int refined = 0;    // how many of the two eigen-solves were refined from `near` (0-2)
     int hermitian = 0;  // how many were solved as Hermitian problems (0-2; see LamellarParts)
+    int real = 0;       // of those, how many in real arithmetic (real_by_phase)
 };
 // Which parts of a LamellarEigen to compute. At ky = 0 the families never couple: the TE
 // family (A) alone serves s incidence, the TM family (B) alone p incidence, and the
@@ -99,6 +100,9 @@ struct LamellarParts {
     bool hermitian = false;
 };
 constexpr double kHermitianTolerance = 1e-14;
+// |Im| of D A D^H (real_by_phase) below which a lossless layer is solved in real arithmetic,
+// relative to A's largest entry: round-off of the Fourier coefficients and of Z = E^-1.
+constexpr double kRealTolerance = 1e-13;
 // Z = E^-1 is passed in (it depends on the wavelength only; unused when only the TE
 // family is asked for). `near`: the solution at a nearby kx, whose eigenvectors seed
 // eig_from_guess (linalg.hpp) instead of a full eigen-solve; nullptr, or a guess that does

@@ -27,6 +27,7 @@ struct StackSolution {
     int sectors_solved = 0;  // mirror-symmetry sectors solved, of sectors_total (sectors.hpp); 0 of 0: not used
     int sectors_total = 0;
     int hermitian_solves = 0;  // eigen-solves done by Hermitian solvers (lossless layers: LamellarParts)
+    int real_solves = 0;       // of those, done in real arithmetic (dsyevd / dsygvd: real_by_phase)
 };
 
 // kz of every harmonic in a half-space of permittivity eps, outgoing branch (outgoing_sqrt).

@@ -100,7 +100,7 @@ StackSolution solve_decoupled(const SweepProblem& pr, const StackProblem& sp, In
     const bool te = incidence != Incidence::P, tm = incidence != Incidence::S;
     const int n = sp.harmonics.size();
     std::vector<PolarizedModes> te_layers, tm_layers;
-    int hermitian_solves = 0;
+    int hermitian_solves = 0, real_solves = 0;
     for (const LayerInput& in : pr.layers) {
         if (in.kind == LayerKind::Uniform) {
             if (te) te_layers.push_back(uniform_polarized(sp.harmonics.kx, in.eps, Polarization::TE));
@@ -111,6 +111,7 @@ StackSolution solve_decoupled(const SweepProblem& pr, const StackProblem& sp, In
         const LamellarEigen e =
             lamellar_eigen(sp.harmonics.kx, in.matrices[0], in.matrices[1], Z, nullptr, LamellarParts{te, tm, false, true});
         hermitian_solves += e.hermitian;
+        real_solves += e.real;
         if (te) te_layers.push_back(lamellar_polarized(e, Polarization::TE));
         if (tm) tm_layers.push_back(lamellar_polarized(e, Polarization::TM));
     }
@@ -121,6 +122,7 @@ StackSolution solve_decoupled(const SweepProblem& pr, const StackProblem& sp, In
     out.t = Mat(2 * n, 2);
     out.decoupled = true;
     out.hermitian_solves = hermitian_solves;
+    out.real_solves = real_solves;
     const cplx not_solved(std::nan(""), std::nan(""));
     for (int i = 0; i < 2 * n; ++i) {
         if (!te) out.r(i, 0) = out.t(i, 0) = not_solved;
@@ -301,7 +303,10 @@ StackSolution solve_point(const SweepProblem& pr, std::size_t p, Incidence incid
     const SharedEigen eig = shared_eigen(pr, Z, harmonics_at(pr, pr.kx0[p], pr.ky0[p]), nullptr, fast_paths);
     StackSolution out = solve_with(pr, p, eig, Z);  // no sectors: fast_paths is false, or none applies
     for (const auto& layer : eig)
-        if (layer) out.hermitian_solves += layer->hermitian;
+        if (layer) {
+            out.hermitian_solves += layer->hermitian;
+            out.real_solves += layer->real;
+        }
     return out;
 }
 
