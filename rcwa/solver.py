@@ -388,13 +388,13 @@ def _result(prep: PreparedStructure, theta_deg, phi_deg, pol, kx, ky, r, t, kz_s
         on_R, on_T = flags_R[j], flags_T[j]
         R_j, T_j, R_s, R_p, T_s, T_p = eff[j]
         orders.append(
-            OrderResult(
+            OrderResult.from_fields(dict(
                 m=ms[j], n=ns[j], R=R_j if on_R else 0.0, T=T_j if on_T else 0.0,
                 R_s=R_s, R_p=R_p, T_s=T_s, T_p=T_p, propagating_R=on_R, propagating_T=on_T,
                 direction_R=(math.degrees(math.asin(min(1.0, kts[j] / root_sup))), azs[j]) if on_R else None,
                 direction_T=(math.degrees(math.asin(min(1.0, kts[j] / root_sub))), azs[j]) if on_T else None,
                 amplitudes=dict(zip(amp_names, amps[j], strict=True)),
-            )
+            ))
         )
     R_total = float(np.sum(R_pol))
     T_total = float(np.sum(T_pol))
