@@ -131,12 +131,30 @@ void pq_matrices(const Harmonics& h, const Mat& Z, const Mat& Exx, const Mat& Ex
     }
 }
 
+Mat pq_product(const Harmonics& h, const Mat& Z, const Mat& Q) {
+    // P = [Kx; Ky] Z [Ky, -Kx] + [[0, I], [-I, 0]] (pq_matrices), so
+    // P Q = [Kx; Ky] (Z S) + [Q_bottom; -Q_top] with S = Ky Q_top - Kx Q_bottom (N x 2N):
+    // one N x N by N x 2N product instead of a 2N x 2N one (a quarter of the work).
+    const int n = h.size();
+    Mat S(n, 2 * n);
+    for (int j = 0; j < 2 * n; ++j)
+        for (int i = 0; i < n; ++i) S(i, j) = h.ky[i] * Q(i, j) - h.kx[i] * Q(n + i, j);
+    const Mat T = matmul(Z, S);
+    Mat PQ(2 * n, 2 * n);
+    for (int j = 0; j < 2 * n; ++j)
+        for (int i = 0; i < n; ++i) {
+            PQ(i, j) = h.kx[i] * T(i, j) + Q(n + i, j);
+            PQ(n + i, j) = h.ky[i] * T(i, j) - Q(i, j);
+        }
+    return PQ;
+}
+
 std::unique_ptr<LayerModes> general_modes(const Harmonics& h, const Mat& Z, const Mat& Exx,
                                           const Mat& Exy, const Mat& Eyx, const Mat& Eyy) {
     const int n = h.size();
     Mat P, Q;
     pq_matrices(h, Z, Exx, Exy, Eyx, Eyy, P, Q);
-    Eigen e = eig(matmul(P, Q));
+    Eigen e = eig(pq_product(h, Z, Q));
     CVec kz(2 * static_cast<std::size_t>(n));
     for (int i = 0; i < 2 * n; ++i) kz[i] = layer_kz(e.values[i]);
     Mat V = matmul(Q, e.vectors);

@@ -116,6 +116,9 @@ std::unique_ptr<LayerModes> lamellar_modes(const std::vector<double>& kx, const 
 // (it depends on the wavelength only, so a sweep takes it once: sweep.cpp).
 void pq_matrices(const Harmonics& h, const Mat& Z, const Mat& Exx, const Mat& Exy, const Mat& Eyx, const Mat& Eyy,
                  Mat& P, Mat& Q);
+// P Q from Z and Q, using P's structure (a rank-N product plus a block permutation): a
+// quarter of the products of the 2N x 2N matmul(P, Q); equal to it to round-off.
+Mat pq_product(const Harmonics& h, const Mat& Z, const Mat& Q);
 
 // A general (2D, or anisotropic) layer: one 2N x 2N eigen-solve of P Q (Z as above).
 std::unique_ptr<LayerModes> general_modes(const Harmonics& h, const Mat& Z, const Mat& Exx,
