@@ -1,16 +1,19 @@
 """Side-by-side benchmark of one RCWA solve: our solver against open-source peers.
 
-Runs in the project's ``.venv``; the peers (meent, grcwa) run in their own ``.venv-bench``
-through ``peer_runner.py`` in a subprocess, so their pinned numpy never meets ours::
+Runs in the project's ``.venv``; the peers (meent, grcwa, fmmax) run in their own ``.venv-bench``
+through ``peer_runner.py --serve`` in a subprocess per case and peer (warmed up once, then
+one timed round per request), so their pinned numpy never meets ours::
 
     bash benchmarks/setup_peers.sh           # once (``make bench`` does it)
     .venv/bin/python benchmarks/bench_solve.py [--out build/bench/rcwa_solve.json]
-                     [--repeats 5] [--rounds 5] [--peers meent,grcwa] [--cases a1,a2,p2c,p2k,cd0,cd30,b]
+                     [--repeats 3] [--rounds 2] [--peers meent,grcwa,fmmax]
+                     [--cases p2c,p2k,cd0,cd30,g9,g15 (default; also a1,a2,b)] [--factorizations li,nv]
                      [--no-reference] [--peers-only | --no-peers] [--base SITE_DIR]
                      [--no-sectors | --sectors-only]
 
 Cases p2c / p2k: P2 (Moharam et al. 1995, Fig. 2) in classical (phi 0) and conical (phi 30)
-mount; cd0 / cd30: the CD at phi 0 and 30. ``--base DIR`` times another build of our
+mount; cd0 / cd30: the CD at phi 0 and 30; g9 / g15: gold2d at 9 x 9 and 15 x 15 orders
+off its mirror planes (theta 20, phi 30). ``--base DIR`` times another build of our
 solver in the same rounds (a subprocess importing rcwa from DIR first), e.g. the base
 commit: ``git worktree add /tmp/base HEAD; pip wheel --no-build-isolation --no-deps
 /tmp/base -w /tmp/wheel; pip install --no-deps --target /tmp/base_site /tmp/wheel/*.whl``.
@@ -44,12 +47,17 @@ for the peers):
   what meent uses). The structure is built once, outside the timing (the peers'
   rasterization is outside theirs too). "ours s+p" is one unpolarized call; a 1D
   classical-mount s or p call solves only that polarization (rcwa/cpp/polarized.hpp).
-* each peer: the median time to get the efficiencies of both polarizations (meent gets
-  both from one solve; grcwa re-solves the excitation), model and Fourier matrices
-  included.
+* each peer: the median CPU time (``time.process_time`` in its process, one BLAS and XLA
+  thread) to get the efficiencies of s, of p, and of both, each by the peer's fastest
+  route (meent: its TE-only / TM-only solver in classical mount, else one solve for both;
+  grcwa and fmmax: one excitation per polarization; s+p: the cheaper of one
+  two-polarization solve and an s plus a p solve), model and Fourier matrices included.
 * ``--rounds`` interleave ours and the peers; each keeps its best per-round median, so a
   burst of background load does not decide the ratio.
-* ratio = peer s+p time / ours s+p time (> 1: we are faster).
+* ratio = peer time / ours, per polarization (> 1: we are faster; issue 17's goal: >= 2).
+* floor: the eigen-decompositions the case needs, timed alone in the same rounds with the
+  best LAPACK routine that applies (floor_jobs); ours / floor is issue 17's second goal
+  (<= 1.3). The last table (print_summary) puts these together.
 * max |dDE|: the largest difference of an efficiency (R or T, s or p) over the orders either
   side lists (a missing order counts as 0). Over an absorbing substrate T is not a
   plane-flux efficiency (ours reports T = 0 there), so only R is compared per order and the
@@ -870,8 +878,10 @@ def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--out", type=Path, default=DEFAULT_OUT,
                     help=f"JSON results (default {DEFAULT_OUT.relative_to(ROOT)})")
-    ap.add_argument("--repeats", type=int, default=5, help="timed repeats per round after one warm-up (default 5)")
-    ap.add_argument("--rounds", type=int, default=5, help="interleaved rounds, best median kept (default 5)")
+    # Defaults sized so that the whole run (six cases, three peers, the sectors table) takes
+    # about five minutes of CPU on the 2-core development machine.
+    ap.add_argument("--repeats", type=int, default=3, help="timed repeats per round after one warm-up (default 3)")
+    ap.add_argument("--rounds", type=int, default=2, help="interleaved rounds, best median kept (default 2)")
     ap.add_argument("--peers", default=",".join(ALL_PEERS), help="comma-separated peers (default: all)")
     ap.add_argument("--cases", default=",".join(DEFAULT_CASES),
                     help=f"comma-separated subset of {list(CASES)} (default {','.join(DEFAULT_CASES)})")
