@@ -73,7 +73,20 @@ Mat LU::solve_right(const Mat& B) const {
     return X;
 }
 
-Mat LU::inverse() const { return solve(Mat::identity(lu_.rows)); }
+Mat LU::inverse() const {
+    // zgetri from the factors: two thirds of the work of solving with the identity (zgetrs).
+    Mat X = lu_;
+    const int n = lu_.rows;
+    if (n == 0) return X;
+    cplx query;
+    int info = scipy_LAPACKE_zgetri_work(LAPACK_COL_MAJOR, n, X.ptr(), n, ipiv_.data(), &query, -1);
+    if (info != 0) throw std::runtime_error("LU::inverse: zgetri workspace query failed");
+    std::vector<cplx> work(static_cast<std::size_t>(std::max(1, static_cast<int>(query.real()))));
+    info = scipy_LAPACKE_zgetri_work(LAPACK_COL_MAJOR, n, X.ptr(), n, ipiv_.data(), work.data(),
+                                     static_cast<int>(work.size()));
+    if (info != 0) throw std::runtime_error("LU::inverse: zgetri failed");
+    return X;
+}
 
 Eigen eig(Mat A) {
     if (A.rows != A.cols) throw std::invalid_argument("eig: matrix is not square");

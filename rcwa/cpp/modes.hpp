@@ -132,6 +132,8 @@ class DenseModes : public LayerModes {
     Mat apply_V(const Mat& B) const override { return matmul(V_, B); }
     Mat apply_W_inverse(const Mat& B) const override { return luW_.solve(B); }
     Mat apply_V_inverse(const Mat& B) const override { return luV_.solve(B); }
+    Mat W_inverse() const override { return luW_.inverse(); }
+    Mat V_inverse() const override { return luV_.inverse(); }
     Mat W() const override { return W_; }
     Mat V() const override { return V_; }
 
