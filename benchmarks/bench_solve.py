@@ -1,20 +1,28 @@
 """Side-by-side benchmark of one RCWA solve: our solver against open-source peers.
 
-Runs in the project's ``.venv``; the peers (meent, grcwa) run in their own ``.venv-bench``
-through ``peer_runner.py`` in a subprocess, so their pinned numpy never meets ours::
+Runs in the project's ``.venv``; the peers (meent, grcwa, fmmax) run in their own ``.venv-bench``
+through ``peer_runner.py --serve`` in a subprocess per case and peer (warmed up once, then
+one timed round per request), so their pinned numpy never meets ours::
 
     bash benchmarks/setup_peers.sh           # once (``make bench`` does it)
     .venv/bin/python benchmarks/bench_solve.py [--out build/bench/rcwa_solve.json]
-                     [--repeats 5] [--rounds 5] [--peers meent,grcwa] [--cases a1,a2,p2c,p2k,cd0,cd30,b]
+                     [--repeats 3] [--rounds 2] [--peers meent,grcwa,fmmax]
+                     [--cases p2c,p2k,cd0,cd30,g9,g15 (default; also a1,a2,b)] [--factorizations li,nv]
                      [--no-reference] [--peers-only | --no-peers] [--base SITE_DIR]
+                     [--no-sectors | --sectors-only]
 
 Cases p2c / p2k: P2 (Moharam et al. 1995, Fig. 2) in classical (phi 0) and conical (phi 30)
-mount; cd0 / cd30: the CD at phi 0 and 30. ``--base DIR`` times another build of our
+mount; cd0 / cd30: the CD at phi 0 and 30; g9 / g15: gold2d at 9 x 9 and 15 x 15 orders
+off its mirror planes (theta 20, phi 30). ``--base DIR`` times another build of our
 solver in the same rounds (a subprocess importing rcwa from DIR first), e.g. the base
 commit: ``git worktree add /tmp/base HEAD; pip wheel --no-build-isolation --no-deps
 /tmp/base -w /tmp/wheel; pip install --no-deps --target /tmp/base_site /tmp/wheel/*.whl``.
 A second table prints ours for s, p and s+p against the eigen-solve floor (eigen_floor)
-and the base build.
+and the base build. A third prints gold2d (rcwa/structures/gold2d.toml) at 9 x 9 and 15 x 15
+orders, at normal incidence and in its xz mirror plane, solved in mirror-symmetry sectors
+(rcwa/cpp/sectors.hpp) and by the general path, and estimates the gold2d paper-preset
+table's time with and without them from sampled sweeps (``--no-sectors`` skips it,
+``--sectors-only`` runs only it).
 
 Cases (each is one JSON-able dict; ``"structure"`` is exactly the project's structure-file
 format as a dict; lengths in micrometres, wavelength in nm, angles in degrees)::
@@ -39,12 +47,17 @@ for the peers):
   what meent uses). The structure is built once, outside the timing (the peers'
   rasterization is outside theirs too). "ours s+p" is one unpolarized call; a 1D
   classical-mount s or p call solves only that polarization (rcwa/cpp/polarized.hpp).
-* each peer: the median time to get the efficiencies of both polarizations (meent gets
-  both from one solve; grcwa re-solves the excitation), model and Fourier matrices
-  included.
+* each peer: the median CPU time (``time.process_time`` in its process, one BLAS and XLA
+  thread) to get the efficiencies of s, of p, and of both, each by the peer's fastest
+  route (meent: its TE-only / TM-only solver in classical mount, else one solve for both;
+  grcwa and fmmax: one excitation per polarization; s+p: the cheaper of one
+  two-polarization solve and an s plus a p solve), model and Fourier matrices included.
 * ``--rounds`` interleave ours and the peers; each keeps its best per-round median, so a
   burst of background load does not decide the ratio.
-* ratio = peer s+p time / ours s+p time (> 1: we are faster).
+* ratio = peer time / ours, per polarization (> 1: we are faster; issue 17's goal: >= 2).
+* floor: the eigen-decompositions the case needs, timed alone in the same rounds with the
+  best LAPACK routine that applies (floor_jobs); ours / floor is issue 17's second goal
+  (<= 1.3). The last table (print_summary) puts these together.
 * max |dDE|: the largest difference of an efficiency (R or T, s or p) over the orders either
   side lists (a missing order counts as 0). Over an absorbing substrate T is not a
   plane-flux efficiency (ours reports T = 0 there), so only R is compared per order and the
@@ -82,7 +95,7 @@ ROOT = HERE.parent
 PEER_RUNNER = HERE / "peer_runner.py"
 PEER_PYTHON = ROOT / ".venv-bench" / "bin" / "python"
 DEFAULT_OUT = ROOT / "build" / "bench" / "rcwa_solve.json"
-ALL_PEERS = ("meent", "grcwa")
+ALL_PEERS = ("meent", "grcwa", "fmmax")
 
 AIR = {"n": 1.0, "k": 0.0}
 GLASS = {"n": 1.5, "k": 0.0}
@@ -105,6 +118,17 @@ CD_BASE = {
                     "shapes": [{"material": ALUMINIUM_633NM, "x": [0.5, 1.1]}]}],
     },
 }
+
+GOLD2D_BASE = {
+    "wavelength_nm": 600.0, "theta_deg": 20.0, "phi_deg": 30.0,
+    "structure": {
+        "period": [1.0, 1.0], "superstrate": AIR, "substrate": AIR,
+        "layers": [{"thickness": 1.0, "material": AIR,
+                    "shapes": [{"material": GOLD_600NM, "rect": {"center": [0.5, 0.5], "size": [0.5, 0.5]}}]}],
+    },
+}
+# The cases issue 17 asks for (the default of --cases); a1, a2 and b can be asked for.
+DEFAULT_CASES = ("p2c", "p2k", "cd0", "cd30", "g9", "g15")
 
 CASES: dict[str, dict] = {
     "a1": {
@@ -134,6 +158,11 @@ CASES: dict[str, dict] = {
     # The CD of rcwa/structures/cd.toml with its materials' indices at 633 nm.
     "cd0": {"name": "cd_phi0", **CD_BASE, "phi_deg": 0.0},
     "cd30": {"name": "cd_phi30", **CD_BASE, "phi_deg": 30.0},
+    # gold2d (rcwa/structures/gold2d.toml: 0.5 x 0.5 x 1 um gold blocks, period 1 um, in air)
+    # with gold at a fixed index, in a direction off its mirror planes (the paper table's
+    # common case: no symmetry sectors).
+    "g9": {"name": "gold2d_9x9", **GOLD2D_BASE, "orders": [9, 9]},
+    "g15": {"name": "gold2d_15x15", **GOLD2D_BASE, "orders": [15, 15]},
     "b": {
         "name": "square_pillars_2d",
         "wavelength_nm": 600.0, "theta_deg": 30.0, "phi_deg": 30.0, "orders": [11, 11],
@@ -148,9 +177,9 @@ CASES: dict[str, dict] = {
 
 # Factorization rules our solver is timed with, per dimension: "auto" is the default a user
 # gets (Li 1996 in 1D; in 2D Li 1997 for cells made of rectangles, else the normal vector
-# method); in 2D the normal vector method is timed too, since curved shapes get it.
-# A rule that resolves to one already timed is dropped.
-OUR_FACTORIZATIONS = {1: ("auto",), 2: ("auto", "li", "nv")}
+# method). ``--factorizations li,nv`` adds others; a rule that resolves to one already
+# timed is dropped.
+OUR_FACTORIZATIONS = {1: ("auto",), 2: ("auto",)}
 OUR_FORMULATION = {
     (1, "li"): "Moharam 1995 conical + Li 1996 inverse rule (eps_x), ETM stack",
     (1, "nv"): "Moharam 1995 conical + Li 1996 inverse rule (eps_x), ETM stack",
@@ -254,7 +283,8 @@ def summarize_ours(case: dict, factorization: str, rounds: list[dict], t_build: 
     res = rounds[-1]["res_s"]
     kind = len(case["structure"]["period"])
     rule = str(getattr(res, "factorization", factorization))
-    med = {key: statistics.median([t for r in rounds for t in r["times_" + key]]) for key, _ in POLS}
+    # The best (min) of the per-round medians, as for the peers.
+    med = {key: min(statistics.median(r["times_" + key]) for r in rounds) for key, _ in POLS}
     return {
         "factorization": rule,
         "formulation": OUR_FORMULATION.get((kind, rule), rule),
@@ -272,46 +302,109 @@ def summarize_ours(case: dict, factorization: str, rounds: list[dict], t_build: 
     }
 
 
-def eigen_floor(rcwa, structure, case: dict, repeats: int) -> dict[str, float] | None:
-    """CPU seconds of the eigen-decompositions a 1D case needs, timed alone with the best
-    LAPACK routine that applies (scipy): per lamellar layer, TE: E - Kx^2 (zheevd when the
-    layer is lossless, else zgeev), TM: Exx (I - Kx E^-1 Kx) (zhegvd on the pencil
-    (Exx B Exx, Exx) when lossless, else zgeev). Classical mount: s needs TE, p needs TM;
-    conical: both for either. None for 2D cases (not measured here)."""
+REAL_TOLERANCE = 1e-13  # |Im| / max|.| below which a shifted layer matrix counts as real
+
+
+def _real_by_shift(mats: list, m, period: float, centres: list[float]) -> list | None:
+    """The layer matrices with the origin moved to one of ``centres`` where that makes them all
+    real (a layer symmetric about that point), else None. A shift by x0 multiplies entry
+    (i, j) by exp(-+i (m_i - m_j) 2 pi x0 / period), which changes no efficiency."""
+    import numpy as np
+
+    for x0 in centres:
+        for sign in (1.0, -1.0):
+            d = np.exp(sign * 2j * np.pi * m * x0 / period)
+            shifted = [d[:, None] * a * d.conj()[None, :] for a in mats]
+            if all(np.abs(a.imag).max() <= REAL_TOLERANCE * np.abs(a).max() for a in shifted):
+                return [np.ascontiguousarray(a.real) for a in shifted]
+    return None
+
+
+def _shape_centres(case: dict) -> list[float]:
+    return sorted({0.5 * (sh["x"][0] + sh["x"][1]) for lay in case["structure"]["layers"]
+                   for sh in lay.get("shapes", []) if "x" in sh} | {0.0})
+
+
+def floor_jobs(structure, case: dict) -> tuple[dict[str, list], dict[str, tuple[str, ...]], dict[str, str]]:
+    """The eigen-decompositions a case needs, as callables, with the best LAPACK routine that
+    applies (scipy), which of them each of s, p and s+p needs, and the routines' names.
+
+    1D, per lamellar layer: TE: E - Kx^2 - Ky^2 (Hermitian when the layer is lossless: dsyevd
+    when moving the origin to a stripe's centre makes it real, else zheevd; zgeev when
+    lossy); TM: Exx (I - Kx E^-1 Kx) (lossless: the symmetric-definite pencil (Exx B Exx,
+    Exx), dsygvd / zhegvd; lossy: zgeev). Classical mount: s needs TE, p needs TM; conical:
+    both for either. 2D, per patterned layer: the 2N x 2N matrix P Q of the layer (zgeev;
+    it is not Hermitian in general), which every polarization needs off the mirror planes."""
     import numpy as np
     import scipy.linalg as sla
 
     from rcwa.solver import prepare
 
-    if len(case["structure"]["period"]) != 1:
-        return None
     prep = prepare(structure, case["wavelength_nm"], orders_arg(case))
     theta, phi = (float(np.radians(case[k])) for k in ("theta_deg", "phi_deg"))
-    kx = np.sqrt(prep.eps_sup.real) * np.sin(theta) * np.cos(phi) + prep.dkx
-    work: dict[str, list] = {"te": [], "tm": []}
-    for layer in prep.layers:
-        if not layer.matrices:
-            continue
-        E, Exx = layer.matrices
+    n_sup = np.sqrt(prep.eps_sup.real)
+    kx = n_sup * np.sin(theta) * np.cos(phi) + prep.dkx
+    ky = n_sup * np.sin(theta) * np.sin(phi) + prep.dky
+    patterned = [layer.matrices for layer in prep.layers if layer.matrices]
+    if len(case["structure"]["period"]) == 2:
+        jobs: dict[str, list] = {"full": []}
+        for E, exx, exy, eyx, eyy in patterned:
+            Ei = np.linalg.inv(E)
+            KxEi, KyEi = kx[:, None] * Ei, ky[:, None] * Ei
+            P = np.block([[KxEi * ky[None, :], np.eye(kx.size) - KxEi * kx[None, :]],
+                          [KyEi * ky[None, :] - np.eye(kx.size), -KyEi * kx[None, :]]])
+            Q = np.block([[np.diag(kx * ky) - exy, eyy - np.diag(kx * kx)], [np.diag(ky * ky) - exx, eyx - np.diag(kx * ky)]])
+            jobs["full"].append(lambda M=P @ Q: sla.eig(M, left=False, right=True, check_finite=False))
+        full: dict[str, tuple[str, ...]] = {key: ("full",) for key in ("s", "p", "both")}
+        return jobs, full, {"full": "zgeev (2N x 2N)"}
+    jobs = {"te": [], "tm": []}
+    names: dict[str, set[str]] = {"te": set(), "tm": set()}
+    for E, Exx in patterned:
         lossless = np.allclose(E, E.conj().T, rtol=0, atol=1e-14 * np.abs(E).max())
-        MA = E - np.diag(kx**2)
-        B = np.eye(kx.size) - kx[:, None] * np.linalg.inv(E) * kx[None, :]
         if lossless:
-            work["te"].append(lambda MA=MA: sla.eigh(MA, driver="evd"))
-            work["tm"].append(lambda A=Exx @ B @ Exx, Exx=Exx: sla.eigh(A, Exx, driver="gvd"))
+            real = _real_by_shift([E, Exx], prep.harmonics.m, float(case["structure"]["period"][0]), _shape_centres(case))
+            E_, Exx_ = real if real is not None else (E, Exx)
+            MA = E_ - np.diag(kx**2 + ky**2)
+            B = np.eye(kx.size) - kx[:, None] * np.linalg.inv(E_) * kx[None, :]
+            jobs["te"].append(lambda MA=MA: sla.eigh(MA, driver="evd", check_finite=False))
+            jobs["tm"].append(lambda A=Exx_ @ B @ Exx_, Exx=Exx_: sla.eigh(A, Exx, driver="gvd", check_finite=False))
+            names["te"].add("dsyevd" if real is not None else "zheevd")
+            names["tm"].add("dsygvd" if real is not None else "zhegvd")
         else:
-            work["te"].append(lambda MA=MA: sla.eig(MA, left=False, right=True))
-            work["tm"].append(lambda M=Exx @ B: sla.eig(M, left=False, right=True))
-    times: dict[str, list[float]] = {"te": [], "tm": []}
+            MA = E - np.diag(kx**2 + ky**2)
+            B = np.eye(kx.size) - kx[:, None] * np.linalg.inv(E) * kx[None, :]
+            jobs["te"].append(lambda MA=MA: sla.eig(MA, left=False, right=True, check_finite=False))
+            jobs["tm"].append(lambda M=Exx @ B: sla.eig(M, left=False, right=True, check_finite=False))
+            names["te"].add("zgeev")
+            names["tm"].add("zgeev")
+    classical = case["phi_deg"] == 0.0
+    one_pol: tuple[str, ...] = ("te", "tm")
+    need = {"s": ("te",) if classical else one_pol, "p": ("tm",) if classical else one_pol, "both": one_pol}
+    return jobs, need, {k: "+".join(sorted(v)) for k, v in names.items()}
+
+
+def floor_round(jobs: dict[str, list], repeats: int) -> dict[str, float]:
+    """One round of the floor: per job group, the median CPU seconds of ``repeats`` runs after a warm-up."""
+    times: dict[str, list[float]] = {key: [] for key in jobs}
+    for key in jobs:
+        for job in jobs[key]:
+            job()
     for _ in range(repeats):
-        for key in times:
+        for key, group in jobs.items():
             t0 = cpu_time()
-            for job in work[key]:
+            for job in group:
                 job()
             times[key].append(cpu_time() - t0)
-    te, tm = (statistics.median(times[k]) for k in ("te", "tm"))
-    classical = case["phi_deg"] == 0.0
-    return {"s": te if classical else te + tm, "p": tm if classical else te + tm, "both": te + tm}
+    return {key: statistics.median(v) for key, v in times.items()}
+
+
+def eigen_floor(need: dict[str, tuple[str, ...]], rounds: list[dict[str, float]], routines: dict[str, str]) -> dict:
+    """CPU seconds of the eigen-decompositions each of s, p and s+p needs: per group the best
+    (min) of the per-round medians, summed over the groups that polarization needs."""
+    best = {key: min(r[key] for r in rounds) for key in rounds[0]}
+    out: dict = {pol: sum(best[k] for k in groups) for pol, groups in need.items()}
+    out["routines"] = routines
+    return out
 
 
 # --------------------------------------------------------------------------------------------
@@ -324,6 +417,8 @@ def peer_env() -> dict[str, str]:
     for var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "VECLIB_MAXIMUM_THREADS",
                 "NUMEXPR_NUM_THREADS"):
         env[var] = "1"
+    env["XLA_FLAGS"] = "--xla_cpu_multi_thread_eigen=false intra_op_parallelism_threads=1"  # fmmax (JAX)
+    env["JAX_PLATFORMS"] = "cpu"
     env.pop("PYTHONPATH", None)  # the peer environment must not see our packages
     return env
 
@@ -336,7 +431,13 @@ def check_peer_env() -> None:
             f"(`make bench` runs it first), or run with --no-peers to time our solver alone")
 
 
+def _peer_output(out: dict) -> dict:
+    out["efficiencies"] = {(o["m"], o["n"]): {k: o[k] for k in KEYS} for o in out.pop("orders")}
+    return out
+
+
 def run_peer(case: dict, peer: str, repeats: int) -> dict:
+    """One run of peer_runner (a warm-up and ``repeats`` timed calls) in its environment."""
     with tempfile.NamedTemporaryFile("w", suffix=".json", delete=False) as fh:
         json.dump(case, fh)
         path = fh.name
@@ -348,9 +449,44 @@ def run_peer(case: dict, peer: str, repeats: int) -> dict:
         os.unlink(path)
     if proc.returncode != 0:
         raise BenchError(f"peer {peer} failed on {case['name']} (exit {proc.returncode}):\n{proc.stderr.strip()}")
-    out = json.loads(proc.stdout)
-    out["efficiencies"] = {(o["m"], o["n"]): {k: o[k] for k in KEYS} for o in out.pop("orders")}
-    return out
+    return _peer_output(json.loads(proc.stdout))
+
+
+class PeerServer:
+    """peer_runner --serve for one case and peer: warmed up once (fmmax's jit compilation
+    costs seconds), then one timed round per :meth:`round`, interleaved with ours."""
+
+    def __init__(self, case: dict, peer: str) -> None:
+        self.name, self.peer = case["name"], peer
+        with tempfile.NamedTemporaryFile("w", suffix=".json", delete=False) as fh:
+            json.dump(case, fh)
+            self.path = fh.name
+        self.err = tempfile.TemporaryFile("w+")
+        self.proc = subprocess.Popen(
+            [str(PEER_PYTHON), str(PEER_RUNNER), self.path, "--peer", peer, "--serve"],
+            stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=self.err, text=True, env=peer_env(), cwd=str(ROOT))
+        self._expect("ready")
+
+    def _expect(self, what: str) -> str:
+        assert self.proc.stdout is not None
+        line = self.proc.stdout.readline()
+        if not line or (what == "ready" and line.strip() != "ready"):
+            self.err.seek(0)
+            self.close()
+            raise BenchError(f"peer {self.peer} failed on {self.name}:\n{self.err.read().strip()}")
+        return line
+
+    def round(self, repeats: int) -> dict:
+        assert self.proc.stdin is not None
+        self.proc.stdin.write(f"{repeats}\n")
+        self.proc.stdin.flush()
+        return _peer_output(json.loads(self._expect("round")))
+
+    def close(self) -> None:
+        if self.proc.stdin is not None and not self.proc.stdin.closed:
+            self.proc.stdin.close()
+        self.proc.wait(timeout=60)
+        os.unlink(self.path)
 
 
 def reference_case(case: dict) -> dict:
@@ -365,6 +501,11 @@ def summarize_peer(runs: list[dict]) -> dict:
     """Merge the rounds of one peer: min over rounds of the per-round medians."""
     out = dict(runs[-1])
     out["seconds_per_solve"] = min(r["seconds_per_solve"] for r in runs)
+    for key in ("seconds_s", "seconds_p"):
+        out[key] = min(r.get(key, r["seconds_per_solve"]) for r in runs)
+    # Both polarizations by the peer's fastest route: one two-polarization solve, or two
+    # single ones where those are cheaper (meent's TE-only / TM-only solver in classical mount).
+    out["seconds_both_best"] = min(out["seconds_per_solve"], out["seconds_s"] + out["seconds_p"])
     out["seconds_all"] = [t for r in runs for t in r["seconds_all"]]
     out["rounds"] = len(runs)
     return out
@@ -425,7 +566,7 @@ def print_table(rows: list[dict]) -> None:
         for ours in ours_list:
             for peer in r["peers"] or [{}]:
                 name = peer.get("peer", "-")
-                pt = peer.get("seconds_per_solve")
+                pt = peer.get("seconds_both_best", peer.get("seconds_per_solve"))
                 both = ours["seconds_both_pols"] if ours else None
                 ratio = f"{pt / both:6.2f}" if (pt and both) else f"{'-':>6s}"
                 cmp = peer.get("vs_ours", {}).get(ours["factorization"]) if ours else None
@@ -436,9 +577,9 @@ def print_table(rows: list[dict]) -> None:
                       f"{fmt_e(ours and ours.get('err_vs_reference'))} {fmt_e(peer.get('err_vs_reference'))}  "
                       f"{(cmp or {}).get('formulations_match', '-')}")
     print("ours: our factorization rule (* = the default, factorization='auto').")
-    print("Times: ms, one thread. ours: CPU time, the median of all rounds' repeats; ours s / p / s+p: one")
-    print("rcwa.solve call with pol=s / p / unpolarized. peer s+p: the peer's time to get both polarizations")
-    print("(peer_runner, min over rounds of the median). ratio = peer s+p / ours s+p")
+    print("Times: ms, one thread. ours: CPU time, min over rounds of the median of repeats; ours s / p / s+p: one")
+    print("rcwa.solve call with pol=s / p / unpolarized. peer s+p: the peer's CPU time to get both polarizations")
+    print("(peer_runner; its fastest route; min over rounds of the median). ratio = peer s+p / ours s+p")
     print("(> 1: we are faster). max|dDE|: ours vs peer over all listed orders, R and T, s and p (R only")
     print("over an absorbing substrate). err: the same against meent at 3x the orders (1D) / 21x21 (2D).")
 
@@ -458,21 +599,31 @@ def run_case(cid: str, rcwa, peers: list[str], args) -> dict:
         t0 = time.perf_counter()
         structure = rcwa.Structure.from_dict(case["structure"], source=f"<bench case {case['name']}>")
         t_build = time.perf_counter() - t0
-    factorizations = OUR_FACTORIZATIONS[kind] if rcwa is not None else ()
+    extra = tuple(f.strip() for f in getattr(args, "factorizations", "").split(",") if f.strip())
+    factorizations = (OUR_FACTORIZATIONS[kind] + extra) if rcwa is not None else ()
     ours_rounds: dict[str, list[dict]] = {f: [] for f in factorizations}
     peer_rounds: dict[str, list[dict]] = {p: [] for p in peers}
     # Rounds interleave our solver and the peers, so a burst of background load hits both;
     # each side keeps the best (min) of its per-round medians.
     base_rounds: list[dict] = []
-    for _ in range(args.rounds):
-        for f in factorizations:
-            ours_rounds[f].append(time_ours(rcwa, structure, case, f, args.repeats))
-        if args.base and rcwa is not None:
-            base_rounds.append(run_base(cid, args))
-        for p in peers:
-            peer_rounds[p].append(run_peer(case, p, args.repeats))
-    if rcwa is not None:
-        row["floor"] = eigen_floor(rcwa, structure, case, args.repeats * args.rounds)
+    floor_rounds: list[dict[str, float]] = []
+    jobs, need, routines = floor_jobs(structure, case) if rcwa is not None else ({}, {}, {})
+    servers = {p: PeerServer(case, p) for p in peers}
+    try:
+        for _ in range(args.rounds):
+            for f in factorizations:
+                ours_rounds[f].append(time_ours(rcwa, structure, case, f, args.repeats))
+            if jobs:
+                floor_rounds.append(floor_round(jobs, args.repeats))
+            if args.base and rcwa is not None:
+                base_rounds.append(run_base(cid, args))
+            for p in peers:
+                peer_rounds[p].append(servers[p].round(args.repeats))
+    finally:
+        for server in servers.values():
+            server.close()
+    if floor_rounds:
+        row["floor"] = eigen_floor(need, floor_rounds, routines)
     if base_rounds:
         row["base"] = {key: statistics.median([t for r in base_rounds for t in r[key]]) for key, _ in POLS}
     ours: list[dict] = []
@@ -484,7 +635,7 @@ def run_case(cid: str, rcwa, peers: list[str], args) -> dict:
     row["ours"] = ours
     ref = None
     if peers and not args.no_reference:
-        ref = run_peer(reference_case(case), "meent", 1)
+        ref = run_peer(reference_case(case), "meent", 0)
         row["reference"] = {"peer": "meent", "orders": reference_case(case)["orders"],
                             "efficiencies": jsonable(ref["efficiencies"]), "totals": ref["totals"]}
         for o in ours:
@@ -496,7 +647,7 @@ def run_case(cid: str, rcwa, peers: list[str], args) -> dict:
             d, where = max_diff(o["efficiencies"], pr["efficiencies"], keys)
             cmp = {"max_abs_dDE": d, "max_abs_dDE_at": where,
                    "formulations_match": formulations_match(o["factorization"], pr.get("factorization", ""), kind),
-                   "ratio": pr["seconds_per_solve"] / o["seconds_both_pols"]}
+                   "ratio": pr["seconds_both_best"] / o["seconds_both_pols"]}
             if substrate_is_lossy(case) and o.get("power_into_substrate"):
                 cmp["max_abs_d_power_into_substrate"] = max(
                     abs(o["power_into_substrate"][k] - pr["totals"][k]) for k in ("T_s", "T_p"))
@@ -538,6 +689,43 @@ def _ratios(num: dict | None, den: dict | None) -> str:
     return " ".join(f"{num[k] / den[k]:5.2f}" if (num and den) else f"{'-':>5s}" for k in ("s", "p", "both"))
 
 
+PEER_TIME_KEY = {"s": "seconds_s", "p": "seconds_p", "both": "seconds_both_best"}
+
+
+def print_summary(rows: list[dict]) -> None:
+    """Issue 17's table: per case and polarization, ours (default factorization) against the
+    fastest peer and against the case's eigen-solve floor, all CPU time in the same run."""
+    head = (f"{'case':16s} {'pol':>3s} {'ours':>8s} {'fastest peer':>16s} {'ratio':>6s} | {'floor':>7s} {'/floor':>6s} | "
+            f"max|dDE| vs {', '.join(p['peer'] for p in (rows[0]['peers'] if rows else []))}")
+    print()
+    print(head)
+    print("-" * len(head))
+    for r in rows:
+        ours = (r.get("ours") or [None])[0]
+        if ours is None:
+            continue
+        mine = {"s": ours["seconds_s"], "p": ours["seconds_p"], "both": ours["seconds_both_pols"]}
+        floor = r.get("floor")
+        diffs = " ".join(fmt_e(p.get("vs_ours", {}).get(ours["factorization"], {}).get("max_abs_dDE")) for p in r["peers"])
+        for pol in ("s", "p", "both"):
+            best = min(r["peers"], key=lambda p: p[PEER_TIME_KEY[pol]], default=None)
+            pt = best[PEER_TIME_KEY[pol]] if best else None
+            peer = f"{best['peer']} {fmt_ms(pt, 7)}" if best else f"{'-':>16s}"
+            ratio = f"{pt / mine[pol]:6.2f}" if pt else f"{'-':>6s}"
+            fl = floor[pol] if floor else None
+            over = f"{mine[pol] / fl:6.2f}" if fl else f"{'-':>6s}"
+            print(f"{r['name'] if pol == 's' else '':16s} {'s+p' if pol == 'both' else pol:>3s} {fmt_ms(mine[pol])} "
+                  f"{peer:>16s} {ratio} | {fmt_ms(fl, 7)} {over} | "
+                  f"{diffs if pol == 's' else ''}")
+    print("CPU ms per solve (time.process_time on both sides, one BLAS/XLA thread), min over interleaved rounds")
+    print("of each round's median. ours: rcwa.solve with pol=s / p / unpolarized (default factorization).")
+    print("fastest peer: its CPU time for that polarization by its fastest route (s+p: one two-polarization")
+    print("solve or an s and a p solve). ratio = peer / ours (goal >= 2). floor: the eigen-decompositions the")
+    print("case needs timed alone with the best LAPACK routine (floor_jobs; routines in the JSON); /floor = ours /")
+    print("floor (goal <= 1.3). max|dDE|: largest efficiency difference from each peer (R and T, s and p; R")
+    print("only over an absorbing substrate).")
+
+
 def print_floor_table(rows: list[dict]) -> None:
     """Ours per polarization against the eigen-solve floor and, with --base, another build."""
     head = (f"{'case':22s} {'ours s':>8s} {'p':>7s} {'s+p':>7s} | {'floor s':>8s} {'p':>7s} {'s+p':>7s} | "
@@ -562,14 +750,143 @@ def print_floor_table(rows: list[dict]) -> None:
     print("(goal <= 1.3). base: the --base build in the same run; gain = base / ours.")
 
 
+# --------------------------------------------------------------------------------------------
+# Mirror-symmetry sectors (issue 17 item 4): gold2d with and without them
+# --------------------------------------------------------------------------------------------
+
+SECTOR_ORDERS = ((9, 9), (15, 15))
+SECTOR_WAVELENGTH_NM = 600.0
+# Directions that respect gold2d's mirrors: normal incidence (both), the xz plane (y -> -y).
+SECTOR_DIRECTIONS = (("normal", 0.0, 0.0), ("xz plane 20 deg", 20.0, 0.0))
+# Samples of the paper table's grid (theta, phi): directions in a mirror plane or normal
+# (solved in sectors), and directions off them (the general path).
+TABLE_SAMPLE_MIRROR = ((0.0, 0.0), (0.0, 44.0), (20.0, 0.0), (46.0, 90.0), (70.0, 0.0), (84.0, 90.0))
+TABLE_SAMPLE_GENERAL = ((20.0, 30.0), (46.0, 62.0), (70.0, 10.0), (10.0, 80.0), (84.0, 44.0), (34.0, 2.0))
+
+
+def time_sectors(rcwa, structure, orders: tuple[int, int], theta: float, phi: float, repeats: int) -> dict[str, float]:
+    """CPU seconds per solve (median of ``repeats`` after a warm-up, interleaved): with the
+    sectors for pol s, p and s+p, and the general path (fast_paths=False) for s+p (in 2D it
+    solves both polarizations whatever is asked)."""
+    calls: dict[str, dict[str, str | bool]] = {"s": {"pol": "s"}, "p": {"pol": "p"}, "both": {"pol": "unpolarized"},
+                                               "general": {"pol": "unpolarized", "fast_paths": False}}
+    times: dict[str, list[float]] = {key: [] for key in calls}
+    for key, kw in calls.items():  # warm-up, and the sectors really are used
+        res = rcwa.solve(structure, SECTOR_WAVELENGTH_NM, theta, phi, orders, **kw)
+        if key != "general" and "mirror_sectors" not in res.fast_paths:
+            raise BenchError(f"gold2d at theta {theta}, phi {phi}: the sectors were not used ({res.fast_paths})")
+    for _ in range(repeats):
+        for key, kw in calls.items():
+            t0 = cpu_time()
+            rcwa.solve(structure, SECTOR_WAVELENGTH_NM, theta, phi, orders, **kw)
+            times[key].append(cpu_time() - t0)
+    return {key: statistics.median(v) for key, v in times.items()}
+
+
+def _sweep_seconds(structure, settings, points, sectors: bool, repeats: int) -> float:
+    """CPU seconds of one single-thread sweep over ``points`` (median of ``repeats``)."""
+    import numpy as np
+
+    from rcwa.sweep import sweep_directions
+
+    theta = np.array([t for t, _ in points])
+    phi = np.array([p for _, p in points])
+    times = []
+    for _ in range(repeats):
+        t0 = cpu_time()
+        sw = sweep_directions(structure, SECTOR_WAVELENGTH_NM, theta, phi, settings.orders, keep=settings.keep,
+                              threads=1, sectors=sectors)
+        times.append(cpu_time() - t0)
+    expected = sum(1 for t, p in points if t == 0.0 or p % 90.0 == 0.0) if sectors else 0
+    if sw.sector_points != expected:
+        raise BenchError(f"the table sample solved {sw.sector_points} points in sectors, expected {expected}")
+    return statistics.median(times)
+
+
+def table_estimate(rcwa, repeats: int) -> dict:
+    """The gold2d paper-preset table's single-thread time with and without the sectors,
+    from sweeps over sampled directions: per-point seconds of mirror-plane (and normal)
+    directions with and without sectors and of the other directions, times their counts
+    in the table's grid, times the wavelengths (the per-wavelength Fourier matrices timed
+    apart and added once per wavelength)."""
+    import numpy as np
+
+    from rcwa.solver import prepare
+    from rcwa.table import GRAZING_THETA_DEG, settings_for
+
+    structure = rcwa.load_structure("gold2d")
+    settings = settings_for(structure, "paper")
+    theta = np.minimum(np.array(settings.theta_deg), GRAZING_THETA_DEG)
+    th, ph = np.meshgrid(theta, np.array(settings.phi_deg), indexing="ij")
+    in_mirror = (th == 0.0) | (np.mod(ph, 90.0) == 0.0)
+    n_mirror, n_other = int(in_mirror.sum()), int((~in_mirror).sum())
+    t0 = cpu_time()
+    for _ in range(repeats):
+        prepare(structure, SECTOR_WAVELENGTH_NM, settings.orders)
+    t_prepare = (cpu_time() - t0) / repeats
+    per_point = {}
+    for key, points, sectors in (("mirror_sectors", TABLE_SAMPLE_MIRROR, True),
+                                 ("mirror_general", TABLE_SAMPLE_MIRROR, False),
+                                 ("other", TABLE_SAMPLE_GENERAL, True)):
+        per_point[key] = max(0.0, _sweep_seconds(structure, settings, points, sectors, repeats) - t_prepare) / len(points)
+    n_wl = len(settings.wavelengths_nm)
+    without = n_wl * (t_prepare + n_mirror * per_point["mirror_general"] + n_other * per_point["other"])
+    with_sectors = n_wl * (t_prepare + n_mirror * per_point["mirror_sectors"] + n_other * per_point["other"])
+    return {"orders": list(settings.orders), "keep": list(settings.keep), "wavelengths": n_wl,
+            "directions": int(th.size), "directions_in_mirror_planes": n_mirror, "seconds_per_point": per_point,
+            "seconds_prepare": t_prepare, "table_seconds_without": without, "table_seconds_with": with_sectors}
+
+
+def run_sectors(rcwa, repeats: int) -> dict:
+    structure = rcwa.load_structure("gold2d")
+    rows = []
+    for orders in SECTOR_ORDERS:
+        for name, theta, phi in SECTOR_DIRECTIONS:
+            print(f"[sectors] gold2d {orders[0]}x{orders[1]} {name} ...", file=sys.stderr, flush=True)
+            rows.append({"orders": list(orders), "direction": name, "theta_deg": theta, "phi_deg": phi,
+                         "seconds": time_sectors(rcwa, structure, orders, theta, phi, repeats)})
+    print("[sectors] gold2d paper-preset table estimate ...", file=sys.stderr, flush=True)
+    return {"wavelength_nm": SECTOR_WAVELENGTH_NM, "solves": rows, "table": table_estimate(rcwa, repeats)}
+
+
+def print_sectors(result: dict) -> None:
+    head = (f"{'gold2d':8s} {'direction':16s} {'sectors s':>10s} {'p':>7s} {'s+p':>7s} | {'general':>8s} | "
+            f"{'gain s':>6s} {'s+p':>5s}")
+    print()
+    print(head)
+    print("-" * len(head))
+    for r in result["solves"]:
+        t = r["seconds"]
+        print(f"{r['orders'][0]:>2d} x {r['orders'][1]:<3d} {r['direction']:16s} {fmt_ms(t['s'], 10)} {fmt_ms(t['p'], 7)} "
+              f"{fmt_ms(t['both'], 7)} | {fmt_ms(t['general'])} | {t['general'] / t['s']:6.1f} "
+              f"{t['general'] / t['both']:5.1f}")
+    print(f"CPU ms per solve at {result['wavelength_nm']:g} nm (one thread, medians): in mirror-symmetry sectors")
+    print("(rcwa/cpp/sectors.hpp) for pol s / p / unpolarized, and the general path (fast_paths=False, both")
+    print("polarizations). gain = general / sectors.")
+    tab = result["table"]
+    per = tab["seconds_per_point"]
+    print(f"gold2d paper-preset table ({tab['wavelengths']} wavelengths x {tab['directions']} directions, "
+          f"{tab['orders'][0]}x{tab['orders'][1]} orders), one thread, estimated from sampled sweeps:")
+    print(f"  {tab['directions_in_mirror_planes']} directions per wavelength in a mirror plane or normal: "
+          f"{per['mirror_general'] * 1e3:.1f} ms each without sectors, {per['mirror_sectors'] * 1e3:.1f} ms with; "
+          f"the other {tab['directions'] - tab['directions_in_mirror_planes']}: {per['other'] * 1e3:.1f} ms each")
+    print(f"  table: {tab['table_seconds_without'] / 60:.1f} min without sectors, {tab['table_seconds_with'] / 60:.1f} min "
+          f"with (factor {tab['table_seconds_without'] / tab['table_seconds_with']:.3f}); divide by the cores a build uses")
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--out", type=Path, default=DEFAULT_OUT,
                     help=f"JSON results (default {DEFAULT_OUT.relative_to(ROOT)})")
-    ap.add_argument("--repeats", type=int, default=5, help="timed repeats per round after one warm-up (default 5)")
-    ap.add_argument("--rounds", type=int, default=5, help="interleaved rounds, best median kept (default 5)")
+    # Defaults sized so that the whole run (six cases, three peers, the sectors table) takes
+    # about five minutes of CPU on the 2-core development machine.
+    ap.add_argument("--repeats", type=int, default=3, help="timed repeats per round after one warm-up (default 3)")
+    ap.add_argument("--rounds", type=int, default=2, help="interleaved rounds, best median kept (default 2)")
     ap.add_argument("--peers", default=",".join(ALL_PEERS), help="comma-separated peers (default: all)")
-    ap.add_argument("--cases", default=",".join(CASES), help=f"comma-separated subset of {list(CASES)}")
+    ap.add_argument("--cases", default=",".join(DEFAULT_CASES),
+                    help=f"comma-separated subset of {list(CASES)} (default {','.join(DEFAULT_CASES)})")
+    ap.add_argument("--factorizations", default="",
+                    help="extra factorization rules to time ours with besides 'auto' (e.g. li,nv)")
     ap.add_argument("--no-reference", action="store_true", help="skip the high-truncation meent reference")
     side = ap.add_mutually_exclusive_group()
     side.add_argument("--peers-only", action="store_true", help="do not run our solver")
@@ -577,6 +894,9 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--base", type=Path, default=None,
                     help="a site directory with another build of rcwa (e.g. the base commit's wheel, pip install "
                          "--no-deps --target DIR) timed in the same rounds")
+    ap.add_argument("--no-sectors", action="store_true",
+                    help="skip gold2d with and without mirror-symmetry sectors and the paper-table estimate")
+    ap.add_argument("--sectors-only", action="store_true", help="only gold2d's sectors and the paper-table estimate")
     ap.add_argument("--emit-ours", action="store_true", help=argparse.SUPPRESS)
     args = ap.parse_args(argv)
     if args.emit_ours:
@@ -589,7 +909,7 @@ def main(argv: list[str] | None = None) -> int:
         bad = [c for c in cases if c not in CASES]
         if bad:
             raise BenchError(f"--cases: unknown {bad}; expected some of {list(CASES)}")
-        peers = [] if args.no_peers else [p.strip() for p in args.peers.split(",") if p.strip()]
+        peers = [] if (args.no_peers or args.sectors_only) else [p.strip() for p in args.peers.split(",") if p.strip()]
         bad = [p for p in peers if p not in ALL_PEERS]
         if bad:
             raise BenchError(f"--peers: unknown {bad}; expected some of {list(ALL_PEERS)}")
@@ -597,15 +917,20 @@ def main(argv: list[str] | None = None) -> int:
             check_peer_env()
         rcwa = None if args.peers_only else import_rcwa()
         rows = []
-        for cid in cases:
+        for cid in [] if args.sectors_only else cases:
             print(f"[{cid}] {CASES[cid]['name']} ...", file=sys.stderr, flush=True)
             rows.append(run_case(cid, rcwa, peers, args))
+        sectors = None if (rcwa is None or args.no_sectors) else run_sectors(rcwa, args.repeats)
     except BenchError as exc:
         print(f"bench_solve: {exc}", file=sys.stderr)
         return 2
 
-    print_table(rows)
-    print_floor_table(rows)
+    if rows:
+        print_table(rows)
+        print_floor_table(rows)
+        print_summary(rows)
+    if sectors is not None:
+        print_sectors(sectors)
     for r in rows:
         for o in r["ours"]:
             o["efficiencies"] = jsonable(o["efficiencies"])
@@ -619,6 +944,7 @@ def main(argv: list[str] | None = None) -> int:
         "repeats": args.repeats,
         "rounds": args.rounds,
         "cases": rows,
+        "sectors": sectors,
     }
     args.out.parent.mkdir(parents=True, exist_ok=True)
     args.out.write_text(json.dumps(report, indent=1) + "\n", encoding="utf-8")

@@ -5,19 +5,30 @@ nothing from this project, so the peers' pinned numpy/scipy never meet ours.
 
 Usage::
 
-    .venv-bench/bin/python benchmarks/peer_runner.py CASE.json [--peer meent|grcwa]
+    .venv-bench/bin/python benchmarks/peer_runner.py CASE.json [--peer meent|grcwa|fmmax]
                                                           [--repeats K]
+
+With ``--serve`` it warms up once and then times one round per line read from stdin (the
+line is the number of repeats), printing one JSON object per line: bench_solve.py uses it
+to interleave rounds with its own timings without paying the warm-up (fmmax's jit
+compilation: seconds) per round.
 
 CASE.json is one benchmark case (format in ``bench_solve.py``; its ``"structure"`` is the
 project's structure-file format as a dict). The output is one JSON object on stdout::
 
-    {"peer": "meent", "version": "0.13.2", "seconds_per_solve": ..., "repeats": K,
-     "formulation": "...", "orders": [{"m": .., "n": .., "R_s": .., "R_p": .., "T_s": ..,
-     "T_p": ..}, ...], "totals": {...}}
+    {"peer": "meent", "version": "0.13.2", "seconds_per_solve": ..., "seconds_s": ..,
+     "seconds_p": .., "repeats": K, "formulation": "...", "orders": [{"m": .., "n": ..,
+     "R_s": .., "R_p": .., "T_s": .., "T_p": ..}, ...], "totals": {...}}
 
-``seconds_per_solve`` is the median wall time, over K repeats after one warm-up, of
+``seconds_per_solve`` is the median CPU time of this process (``time.process_time``, the
+same measure bench_solve.py uses for ours), over K repeats after one warm-up, of
 everything needed to get the efficiencies of BOTH incident polarizations for the case
-(building the peer's model and Fourier matrices included). Everything runs on one thread.
+(building the peer's model and Fourier matrices included); ``seconds_s`` / ``seconds_p``
+the same for one incident polarization, by the peer's fastest route to it (meent: its
+TE-only / TM-only 1D solver in classical mount, else its one solve; grcwa and fmmax: one
+excitation). The three are interleaved within each repeat. Everything runs on one thread
+(OMP/OPENBLAS/MKL threads = 1, XLA's CPU client single-threaded). fmmax's solve is
+``jax.jit``-compiled once in the warm-up, as its users run it.
 
 Conventions (the project's, ``workbench/conventions.py``; every mapping below was checked
 against an independent reference by ``check_peer_conventions.py``):
@@ -45,6 +56,8 @@ import os
 for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "VECLIB_MAXIMUM_THREADS",
              "NUMEXPR_NUM_THREADS"):
     os.environ[_var] = "1"
+os.environ["XLA_FLAGS"] = "--xla_cpu_multi_thread_eigen=false intra_op_parallelism_threads=1"
+os.environ.setdefault("JAX_PLATFORMS", "cpu")
 
 import argparse  # noqa: E402
 import json  # noqa: E402
@@ -57,7 +70,9 @@ from fractions import Fraction  # noqa: E402
 
 import numpy as np  # noqa: E402
 
-PEERS = ("meent", "grcwa")
+PEERS = ("meent", "grcwa", "fmmax")
+# Incident polarizations a timed call answers: one of them, or both.
+POL_SETS = {"s": ("s",), "p": ("p",), "both": ("s", "p")}
 
 # Largest uniform raster (cells per period, per axis) used to represent the stripes/rectangles
 # exactly on the peer's grid. meent's continuous-Fourier-series path then merges equal
@@ -311,8 +326,8 @@ def _patch_meent() -> None:
     """Replace the kz branch choice of meent's substrate/superstrate set-up (see above).
 
     The replacements are the bodies of ``transfer_1d_conical_1`` and ``transfer_2d_1`` (the
-    two are identical in meent 0.13.2) with the branch chosen by :func:`_meent_outgoing_kz`;
-    the cost is unchanged.
+    two are identical in meent 0.13.2) and of ``transfer_1d_1`` (the classical-mount TE/TM
+    solver's) with the branch chosen by :func:`_meent_outgoing_kz`; the cost is unchanged.
     """
     global _MEENT_PATCHED
     if _MEENT_PATCHED:
@@ -332,13 +347,22 @@ def _patch_meent() -> None:
         big_T = np.eye(2 * ff_xy, dtype=type_complex)
         return kz_top, kz_bot, varphi, big_F, big_G, big_T
 
+    def set_up_half_spaces_te_tm(pol, kx, n_top, n_bot, type_complex=np.complex128):
+        # meent's classical-mount TE/TM solver (transfer_1d_1) with the same branch choice
+        eye = np.eye(len(kx), dtype=type_complex)
+        kz_top = _meent_outgoing_kz(n_top, kx, np.zeros(1))
+        kz_bot = _meent_outgoing_kz(n_bot, kx, np.zeros(1))
+        G = 1j * np.diag(kz_bot if pol == 0 else kz_bot / (n_bot ** 2))
+        return kz_top, kz_bot, eye, G, eye.copy()
+
     _base.transfer_1d_conical_1 = set_up_half_spaces
     _base.transfer_2d_1 = set_up_half_spaces
+    _base.transfer_1d_1 = set_up_half_spaces_te_tm
     _MEENT_PATCHED = True
 
 
-def solve_meent(case: Case, raster: np.ndarray) -> dict[str, np.ndarray]:
-    """Both polarizations with meent's numpy backend; arrays indexed [n + hy, m + hx] (ours).
+def solve_meent(case: Case, raster: np.ndarray, pols: tuple[str, ...] = ("s", "p")) -> dict[str, np.ndarray]:
+    """The polarizations ``pols`` with meent's numpy backend; arrays indexed [n + hy, m + hx] (ours).
 
     meent (0.13) conventions, each checked by ``check_peer_conventions.py``:
 
@@ -349,7 +373,12 @@ def solve_meent(case: Case, raster: np.ndarray) -> dict[str, np.ndarray]:
     * theta, phi: as ours (tangential k = n_top sin theta (cos phi, sin phi));
       the top medium is the incidence side and ``thickness[0]`` is the top layer;
     * ``res_te_inc`` / ``res_tm_inc`` are s / p incidence (w.r.t. the plane of incidence);
-    * meent's kz branch is wrong for a lossy substrate in p: patched, see :func:`_patch_meent`.
+    * meent's kz branch is wrong for a lossy substrate in p: patched, see :func:`_patch_meent`;
+      a lossless index is passed as n + 0j (meent's classical-mount TE/TM solver takes the
+      wrong substrate k_z branch for n - 0j: P2's T(-1) = 0.31 instead of 0.12, issue 17);
+    * one polarization in classical mount (1D, phi = 0): ``phi=None`` and ``pol`` 0 (TE) or
+      1 (TM) select meent's TE-only / TM-only solver (half the work of its conical one);
+      otherwise meent solves both in one call whatever is asked.
 
     Factorization (``fourier_type=1``: continuous Fourier series of the piecewise-constant
     raster, exact): 1D conical -- Li 1996 inverse rule for eps_x, Laurent for eps_y and for
@@ -365,27 +394,34 @@ def solve_meent(case: Case, raster: np.ndarray) -> dict[str, np.ndarray]:
     ucell = np.conj(raster[:, ::-1, :])  # n - ik, rows flipped (see docstring)
     if case.is_2d and ucell.shape[1] == 1:
         ucell = np.repeat(ucell, 2, axis=1)  # a 1-row raster would select meent's 1D solver
+    single = len(pols) == 1 and not case.is_2d and case.phi_rad == 0.0
     mee = call_mee(
         backend=0,
         ucell=ucell,
-        n_top=np.conj(case.n_sup),
-        n_bot=np.conj(case.n_sub),
+        n_top=_meent_index(case.n_sup),
+        n_bot=_meent_index(case.n_sub),
         theta=case.theta_rad,
-        phi=case.phi_rad,  # not None: selects the general (conical) 1D formulation
+        phi=None if single else case.phi_rad,  # not None: the general (conical) 1D formulation
         fto=[hx, hy],
         period=list(case.period) if case.is_2d else [case.period[0], 1.0],
         wavelength=case.wavelength_um,
         thickness=[lay.thickness for lay in case.layers],
         fourier_type=1,
-        pol=0,
+        pol=(0 if pols[0] == "s" else 1) if single else 0,
     )
     res = mee.conv_solve()
     out = {}
-    for pol, sub in (("s", res.res_te_inc), ("p", res.res_tm_inc)):
+    subs = ((pols[0], res.res),) if single else (("s", res.res_te_inc), ("p", res.res_tm_inc))
+    for pol, sub in subs:
         # meent index p runs -h..h along each axis and equals -(our index): reverse both axes.
         out["R_" + pol] = np.asarray(sub.de_ri, dtype=float).reshape(2 * hy + 1, 2 * hx + 1)[::-1, ::-1]
         out["T_" + pol] = np.asarray(sub.de_ti, dtype=float).reshape(2 * hy + 1, 2 * hx + 1)[::-1, ::-1]
     return out
+
+
+def _meent_index(index: complex) -> complex:
+    """An index in meent's exp(+j omega t) convention: n - ik, and n + 0j when lossless."""
+    return complex(index.real, 0.0) if index.imag == 0.0 else complex(np.conj(index))
 
 
 MEENT_FORMULATION = {
@@ -406,8 +442,8 @@ def grcwa_version() -> str:
     return str(grcwa.__version__)
 
 
-def solve_grcwa(case: Case, raster: np.ndarray) -> dict[str, np.ndarray]:
-    """Both polarizations with grcwa (numpy backend); arrays indexed [n + hy, m + hx] (ours).
+def solve_grcwa(case: Case, raster: np.ndarray, pols: tuple[str, ...] = ("s", "p")) -> dict[str, np.ndarray]:
+    """The polarizations ``pols`` (one excitation each) with grcwa (numpy backend); arrays indexed [n + hy, m + hx] (ours).
 
     grcwa (0.1.2) conventions, each checked by ``check_peer_conventions.py``:
 
@@ -453,7 +489,8 @@ def solve_grcwa(case: Case, raster: np.ndarray) -> dict[str, np.ndarray]:
     finally:
         grcwa_rcwa.Lattice_getG = original
     out = {}
-    for pol, (p_amp, s_amp) in (("s", (0.0, 1.0)), ("p", (1.0, 0.0))):
+    for pol in pols:
+        p_amp, s_amp = (0.0, 1.0) if pol == "s" else (1.0, 0.0)
         # ``order`` is the position of the incident (0, 0) order in G: the centre of our list
         obj.MakeExcitationPlanewave(p_amp, 0.0, s_amp, 0.0, order=len(G) // 2)
         R, T = obj.RT_Solve(normalize=1, byorder=1)
@@ -465,6 +502,107 @@ def solve_grcwa(case: Case, raster: np.ndarray) -> dict[str, np.ndarray]:
 GRCWA_FORMULATION = {
     1: "S4-style S-matrix, Laurent rule (no Li inverse rule), eps from the DFT of a fine grid",
     2: "S4-style S-matrix, Laurent rule (no Li rules), eps from the DFT of a fine grid",
+}
+
+
+# --------------------------------------------------------------------------------------------
+# fmmax
+# --------------------------------------------------------------------------------------------
+
+
+def fmmax_version() -> str:
+    import fmmax
+
+    return str(fmmax.__version__)
+
+
+_FMMAX_JIT: dict = {}
+
+
+def _fmmax_solver(case: Case, shapes: tuple, pols: tuple[str, ...]):
+    """The jit-compiled fmmax solve of ``case`` for ``pols`` (built once per shape set)."""
+    import jax
+    import jax.numpy as jnp
+    from fmmax import basis, fields, fmm, scattering
+
+    key = (id(case), shapes, pols)
+    if key in _FMMAX_JIT:
+        return _FMMAX_JIT[key]
+    hx, hy = case.half_orders
+    mm, nn = np.meshgrid(np.arange(-hx, hx + 1), np.arange(-hy, hy + 1))  # [n + hy, m + hx]
+    expansion = basis.Expansion(basis_coefficients=np.stack([-mm.ravel(), -nn.ravel()], axis=1))  # G = -(ours)
+    ly = case.period[1] if case.is_2d else 1.0
+    lattice = basis.LatticeVectors(u=jnp.array([case.period[0], 0.0]), v=jnp.array([0.0, ly]))
+    n_terms = mm.size
+    zero = n_terms // 2
+    thick = [0.0] + [lay.thickness for lay in case.layers] + [0.0]
+    c, s_ = math.cos(case.phi_rad), math.sin(case.phi_rad)
+    # fmmax's amplitudes are of the tangential H of its uniform-layer plane waves (x then y
+    # components): s incidence has H along k_t (cos phi, sin phi), p along s-hat.
+    inc = np.zeros((2 * n_terms, len(pols)), dtype=complex)
+    for j, pol in enumerate(pols):
+        hxy = (c, s_) if pol == "s" else (-s_, c)
+        inc[zero, j], inc[zero + n_terms, j] = hxy
+
+    def solve(perms):
+        wl = jnp.asarray(case.wavelength_um)
+        k_in = basis.plane_wave_in_plane_wavevector(wl, jnp.asarray(case.theta_rad), jnp.asarray(case.phi_rad),
+                                                    perms[0][0, 0])
+        layers = [fmm.eigensolve_isotropic_media(wl, k_in, lattice, p, expansion, formulation=fmm.Formulation.FFT)
+                  for p in perms]
+        sm = scattering.stack_s_matrix(layers, thick)
+        a = jnp.asarray(inc)
+        nil = jnp.zeros_like(a)
+        flux_in, _ = fields.amplitude_poynting_flux(a, nil, layers[0])
+        _, flux_r = fields.amplitude_poynting_flux(nil, sm.s21 @ a, layers[0])
+        flux_t, _ = fields.amplitude_poynting_flux(sm.s11 @ a, nil, layers[-1])
+        power = jnp.sum(flux_in, axis=0)
+        R = -(flux_r[:n_terms] + flux_r[n_terms:]) / power
+        T = (flux_t[:n_terms] + flux_t[n_terms:]) / power
+        return R, T
+
+    _FMMAX_JIT[key] = jax.jit(solve)
+    return _FMMAX_JIT[key]
+
+
+def solve_fmmax(case: Case, raster: np.ndarray, pols: tuple[str, ...] = ("s", "p")) -> dict[str, np.ndarray]:
+    """The polarizations ``pols`` with fmmax (JAX, CPU, float64); arrays indexed [n + hy, m + hx].
+
+    fmmax (1.7) conventions, checked against ours by bench_solve's max|dDE|:
+
+    * exp(-i omega t) (eps = (n + ik)^2); lengths in micrometres, wavelength too;
+    * its layers are stacked along its +z from the incidence side (a mirror of ours, as
+      grcwa's, which leaves efficiencies of isotropic media unchanged); the tangential
+      wave vector of the incident wave is k0 n_sup (sin t cos p, sin t sin p), as ours;
+    * its expansion coefficient G has k_x = k_x,inc + G_1 2 pi / Lambda_x: G = -(m, n);
+      the expansion is set to the full rectangle |m| <= hx, |n| <= hy;
+    * a 1D grating is a 2D cell one raster row high with only n = 0 in the expansion.
+
+    Formulation: ``Formulation.FFT`` (Laurent's rule on the FFT of the raster: the cheapest
+    of fmmax's; its vector formulations converge faster in p but cost an extra tangent-field
+    computation). Efficiencies from the modal Poynting fluxes (``amplitude_poynting_flux``)
+    of the scattering matrix's s11 and s21.
+    """
+    import jax
+
+    jax.config.update("jax_enable_x64", True)
+    perms = [np.full((1, 1), case.n_sup ** 2, dtype=complex)]
+    for li, lay in enumerate(case.layers):
+        perms.append((raster[li] ** 2).T.astype(complex) if lay.shapes else np.full((1, 1), lay.background ** 2 + 0j))
+    perms.append(np.full((1, 1), case.n_sub ** 2, dtype=complex))
+    solve = _fmmax_solver(case, tuple(p.shape for p in perms), pols)
+    R, T = (np.asarray(x) for x in solve(perms))
+    hx, hy = case.half_orders
+    out = {}
+    for j, pol in enumerate(pols):
+        out["R_" + pol] = R[:, j].reshape(2 * hy + 1, 2 * hx + 1)
+        out["T_" + pol] = T[:, j].reshape(2 * hy + 1, 2 * hx + 1)
+    return out
+
+
+FMMAX_FORMULATION = {
+    1: "S-matrix (Whittaker & Culshaw / Liu 2012), Laurent rule on the FFT of the raster (Formulation.FFT), jit",
+    2: "S-matrix (Whittaker & Culshaw / Liu 2012), Laurent rule on the FFT of the raster (Formulation.FFT), jit",
 }
 
 
@@ -494,45 +632,106 @@ def prepare(case: Case, peer: str) -> tuple[np.ndarray, str]:
     return rasterize(case, nx, ny), note
 
 
+SOLVERS = {"meent": (solve_meent, meent_version, MEENT_FORMULATION),
+           "grcwa": (solve_grcwa, grcwa_version, GRCWA_FORMULATION),
+           "fmmax": (solve_fmmax, fmmax_version, FMMAX_FORMULATION)}
+FACTORIZATION = {("meent", 1): "li1996", ("meent", 2): "li1997-reversed-nesting"}
+
+
+def cpu_time() -> float:
+    """CPU time of this process, the measure bench_solve.py uses for ours."""
+    return time.process_time()
+
+
+class PeerSession:
+    """One peer on one case, warmed up once (imports, caches, fmmax's jit compilation),
+    then timed round by round: :meth:`round` is what ``--serve`` answers per request."""
+
+    def __init__(self, case: Case, peer: str) -> None:
+        if peer not in PEERS:
+            raise CaseError(f"--peer: expected one of {PEERS}, got {peer!r}")
+        self.case, self.peer = case, peer
+        self.solver, self.version_of, self.formulations = SOLVERS[peer]
+        self.raster, self.note = prepare(case, peer)
+        # meent answers one polarization with its both-polarization solve except in 1D
+        # classical mount: there the s and p calls are that same call, timed once.
+        same = peer == "meent" and (case.is_2d or case.phi_rad != 0.0)
+        self.timed = {"both": POL_SETS["both"]} if same else POL_SETS
+        self.results = {key: self.solver(case, self.raster, pols) for key, pols in self.timed.items()}  # warm-up
+
+    def round(self, repeats: int) -> dict:
+        """``repeats`` interleaved timed calls for s, p and both, in CPU seconds, and the result."""
+        times: dict[str, list[float]] = {key: [] for key in self.timed}
+        for _ in range(repeats):
+            for key, pols in self.timed.items():
+                t0 = cpu_time()
+                self.results[key] = self.solver(self.case, self.raster, pols)
+                times[key].append(cpu_time() - t0)
+        for key in POL_SETS:
+            times.setdefault(key, times["both"])
+            self.results.setdefault(key, self.results["both"])
+        eff = self.results["both"]
+        # The single-polarization routes agree with the two-polarization one (a check of the route).
+        single_vs_both = max(float(np.max(np.abs(self.results[pol]["R_" + pol] - eff["R_" + pol]))) for pol in ("s", "p"))
+        orders, totals = build_output(self.case, eff)
+        kind = 2 if self.case.is_2d else 1
+        return {
+            "peer": self.peer,
+            "version": self.version_of(),
+            "case": self.case.name,
+            "seconds_per_solve": statistics.median(times["both"]),
+            "seconds_s": statistics.median(times["s"]),
+            "seconds_p": statistics.median(times["p"]),
+            "seconds_all": times["both"],
+            "seconds_all_s": times["s"],
+            "seconds_all_p": times["p"],
+            "timer": "process_time (CPU)",
+            "repeats": repeats,
+            "solve_covers": "both polarizations (s and p); seconds_s / seconds_p: one",
+            "single_vs_both_max_abs_dR": single_vs_both,
+            "formulation": self.formulations[kind],
+            "factorization": FACTORIZATION.get((self.peer, kind), "laurent"),
+            "raster": self.note,
+            "orders": orders,
+            "totals": totals,
+            "numpy": np.__version__,
+            "threads": 1,
+        }
+
+
 def run(case: Case, peer: str, repeats: int) -> dict:
-    if peer not in PEERS:
-        raise CaseError(f"--peer: expected one of {PEERS}, got {peer!r}")
-    solver = solve_meent if peer == "meent" else solve_grcwa
-    version = meent_version() if peer == "meent" else grcwa_version()
-    raster, note = prepare(case, peer)
-    eff = solver(case, raster)  # warm-up (imports, caches)
-    times = []
-    for _ in range(repeats):
-        t0 = time.perf_counter()
-        eff = solver(case, raster)
-        times.append(time.perf_counter() - t0)
-    orders, totals = build_output(case, eff)
-    kind = 2 if case.is_2d else 1
-    formulation = (MEENT_FORMULATION if peer == "meent" else GRCWA_FORMULATION)[kind]
-    factorization = "laurent" if peer == "grcwa" else ("li1996" if kind == 1 else "li1997-reversed-nesting")
-    return {
-        "peer": peer,
-        "version": version,
-        "case": case.name,
-        "seconds_per_solve": statistics.median(times),
-        "seconds_all": times,
-        "repeats": repeats,
-        "solve_covers": "both polarizations (s and p)",
-        "formulation": formulation,
-        "factorization": factorization,
-        "raster": note,
-        "orders": orders,
-        "totals": totals,
-        "numpy": np.__version__,
-        "threads": 1,
-    }
+    """``repeats`` timed rounds after a warm-up; 0: one two-polarization solve, untimed (a reference)."""
+    if repeats == 0:
+        solver, version_of, formulations = SOLVERS[peer]
+        raster, note = prepare(case, peer)
+        orders, totals = build_output(case, solver(case, raster, ("s", "p")))
+        return {"peer": peer, "version": version_of(), "case": case.name, "orders": orders, "totals": totals,
+                "raster": note, "formulation": formulations[2 if case.is_2d else 1]}
+    return PeerSession(case, peer).round(repeats)
+
+
+def serve(case: Case, peer: str) -> int:
+    """--serve: warm up once, print a line ``ready``, then answer each stdin line (the number
+    of repeats) with one JSON line of :meth:`PeerSession.round`, until stdin closes; so the
+    caller can interleave rounds with its own timings without paying the warm-up again."""
+    session = PeerSession(case, peer)
+    print("ready", flush=True)
+    for line in sys.stdin:
+        if not line.strip():
+            continue
+        json.dump(session.round(int(line)), sys.stdout)
+        sys.stdout.write("\n")
+        sys.stdout.flush()
+    return 0
 
 
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("case", help="path of a case JSON file")
     ap.add_argument("--peer", default=None, help=f"one of {PEERS} (default: the case's 'peer' or meent)")
-    ap.add_argument("--repeats", type=int, default=None, help="timed repeats after one warm-up (default 5)")
+    ap.add_argument("--repeats", type=int, default=None, help="timed repeats after one warm-up (default 5; 0: one untimed solve)")
+    ap.add_argument("--serve", action="store_true",
+                    help="warm up once, then time one round per stdin line (its repeats), one JSON line each")
     args = ap.parse_args(argv)
     try:
         with open(args.case, encoding="utf-8") as fh:
@@ -540,8 +739,10 @@ def main(argv: list[str] | None = None) -> int:
         case = parse_case(data)
         peer = args.peer or data.get("peer", "meent")
         repeats = args.repeats if args.repeats is not None else int(data.get("repeats", 5))
-        if repeats < 1:
-            raise CaseError(f"--repeats: expected >= 1, got {repeats}")
+        if repeats < 0:
+            raise CaseError(f"--repeats: expected >= 0 (0: one untimed solve), got {repeats}")
+        if args.serve:
+            return serve(case, peer)
         result = run(case, peer, repeats)
     except (OSError, json.JSONDecodeError, CaseError) as exc:
         print(f"peer_runner: {args.case}: {exc}", file=sys.stderr)

@@ -26,5 +26,5 @@ if [[ ! -x "$venv/bin/python" ]]; then
 fi
 echo "setup_peers: installing $(grep -cv '^\s*\(#\|$\)' "$req") pinned packages into $venv"
 "$venv/bin/python" -m pip install --quiet --disable-pip-version-check -r "$req"
-"$venv/bin/python" -c "import meent, grcwa; print('setup_peers: meent', meent.__version__, '/ grcwa', grcwa.__version__)"
+"$venv/bin/python" -c "import meent, grcwa, fmmax; print('setup_peers: meent', meent.__version__, '/ grcwa', grcwa.__version__, '/ fmmax', fmmax.__version__)"
 echo "$want" > "$stamp"

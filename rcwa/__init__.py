@@ -40,5 +40,7 @@ _LAZY = {
 
 def __getattr__(name: str):  # PEP 562: import submodules on first use
     if name in _LAZY:
-        return getattr(importlib.import_module(_LAZY[name]), name)
+        value = getattr(importlib.import_module(_LAZY[name]), name)
+        globals()[name] = value  # later look-ups skip this function (rcwa.solve is called per solve)
+        return value
     raise AttributeError(f"module 'rcwa' has no attribute {name!r}")

@@ -106,6 +106,24 @@ class StackSolution:
         Eigen-solves of lossless 1D layers done by Hermitian solvers (zheevd, zhegvd) instead of zgeev.
         """
 
+    @property
+    def real_solves(self) -> int:
+        """
+        Of hermitian_solves, those done in real arithmetic (dsyevd, dsygvd): the layer is symmetric about a point, and moving the origin there makes its matrices real (linalg.hpp, real_by_phase).
+        """
+
+    @property
+    def sectors_solved(self) -> int:
+        """
+        Mirror-symmetry sectors solved (sectors.hpp), of sectors_total; 0 of 0 where none were used. A polarization not asked for then has NaN amplitudes.
+        """
+
+    @property
+    def sectors_total(self) -> int:
+        """
+        The number of mirror-symmetry sectors the point splits into (2 or 4), 0 where none were used.
+        """
+
 class SweepSolution:
     """
     Amplitudes of the K kept harmonics at P incident directions, as StackSolution per point restricted to the kept rows (s rows, then p rows), and the work done.
@@ -126,6 +144,12 @@ class SweepSolution:
     @property
     def kz_substrate(self) -> Annotated[NDArray[numpy.complex128], dict(shape=(None, None), writable=False)]:
         """kz / k0 of the kept harmonics in the substrate, (P, K)."""
+
+    @property
+    def sector_points(self) -> int:
+        """
+        Points solved in mirror-symmetry sectors (sectors.hpp): those at kx0 = 0 or ky0 = 0 of a mirror.
+        """
 
     @property
     def eigen_solves(self) -> int:
@@ -150,14 +174,14 @@ class EigenDecomposition:
     def vectors(self) -> Annotated[NDArray[numpy.complex128], dict(shape=(None, None), writable=False)]:
         """Eigenvectors as columns, (N, N), each of unit norm."""
 
-def solve_stack(kx: Annotated[NDArray[numpy.float64], dict(shape=(None,), device='cpu', writable=False)], ky: Annotated[NDArray[numpy.float64], dict(shape=(None,), device='cpu', writable=False)], zero_order: int, eps_superstrate: complex, eps_substrate: complex, s_direction: tuple[float, float], layers: Sequence[LayerInput], method: StackMethod = StackMethod.ENHANCED_TRANSMITTANCE, incidence: Incidence = Incidence.BOTH, fast_paths: bool = True) -> StackSolution:
+def solve_stack(kx: Annotated[NDArray[numpy.float64], dict(shape=(None,), device='cpu', writable=False)], ky: Annotated[NDArray[numpy.float64], dict(shape=(None,), device='cpu', writable=False)], zero_order: int, eps_superstrate: complex, eps_substrate: complex, s_direction: tuple[float, float], layers: Sequence[LayerInput], method: StackMethod = StackMethod.ENHANCED_TRANSMITTANCE, incidence: Incidence = Incidence.BOTH, fast_paths: bool = True, mirrors: Sequence[tuple[int, Sequence[int], Sequence[complex]]] = []) -> StackSolution:
     """
-    One solve. kx, ky: (N,) tangential wave vectors / k0 of the harmonics; zero_order: the index of the incident wave's; s_direction: s-hat where kx = ky = 0; layers from the superstrate down. incidence: the polarizations needed; fast_paths=False forces the general 2N x 2N path (for checking the fast ones).
+    One solve. kx, ky: (N,) tangential wave vectors / k0 of the harmonics; zero_order: the index of the incident wave's; s_direction: s-hat where kx = ky = 0; layers from the superstrate down. incidence: the polarizations needed; fast_paths=False forces the general 2N x 2N path (for checking the fast ones). mirrors: the cell's mirrors as (axis, partner, phase) (sweep.hpp, Mirror), used where the point respects them (sectors.hpp).
     """
 
-def sweep(dkx: Annotated[NDArray[numpy.float64], dict(shape=(None,), device='cpu', writable=False)], dky: Annotated[NDArray[numpy.float64], dict(shape=(None,), device='cpu', writable=False)], zero_order: int, eps_superstrate: complex, eps_substrate: complex, layers: Sequence[LayerInput], kx0: Annotated[NDArray[numpy.float64], dict(shape=(None,), device='cpu', writable=False)], ky0: Annotated[NDArray[numpy.float64], dict(shape=(None,), device='cpu', writable=False)], s_x: Annotated[NDArray[numpy.float64], dict(shape=(None,), device='cpu', writable=False)], s_y: Annotated[NDArray[numpy.float64], dict(shape=(None,), device='cpu', writable=False)], keep: Sequence[int], method: StackMethod = StackMethod.ENHANCED_TRANSMITTANCE, threads: int = 1) -> SweepSolution:
+def sweep(dkx: Annotated[NDArray[numpy.float64], dict(shape=(None,), device='cpu', writable=False)], dky: Annotated[NDArray[numpy.float64], dict(shape=(None,), device='cpu', writable=False)], zero_order: int, eps_superstrate: complex, eps_substrate: complex, layers: Sequence[LayerInput], kx0: Annotated[NDArray[numpy.float64], dict(shape=(None,), device='cpu', writable=False)], ky0: Annotated[NDArray[numpy.float64], dict(shape=(None,), device='cpu', writable=False)], s_x: Annotated[NDArray[numpy.float64], dict(shape=(None,), device='cpu', writable=False)], s_y: Annotated[NDArray[numpy.float64], dict(shape=(None,), device='cpu', writable=False)], keep: Sequence[int], method: StackMethod = StackMethod.ENHANCED_TRANSMITTANCE, threads: int = 1, mirrors: Sequence[tuple[int, Sequence[int], Sequence[complex]]] = []) -> SweepSolution:
     """
-    Many incident directions (P points) at one wavelength: harmonic i of point p has kx0[p] + dkx[i], ky0[p] + dky[i]; the harmonics listed in keep are returned. Points sharing kx0 share 1D eigen-solves.
+    Many incident directions (P points) at one wavelength: harmonic i of point p has kx0[p] + dkx[i], ky0[p] + dky[i]; the harmonics listed in keep are returned. Points sharing kx0 share 1D eigen-solves; points respecting one of the mirrors (as in solve_stack) are solved in mirror-symmetry sectors.
     """
 
 def eig_from_guess(A: Annotated[NDArray[numpy.complex128], dict(shape=(None, None), device='cpu', writable=False)], guess: Annotated[NDArray[numpy.complex128], dict(shape=(None, None), device='cpu', writable=False)]) -> EigenDecomposition | None:

@@ -94,10 +94,17 @@ def _lamellar(layer: Layer, period: float, eps_of: Callable, m: np.ndarray, rule
     eps_s = [complex(eps_of(s.material)) for s in stripes]
     g = np.arange(-2 * int(np.max(np.abs(m))), 2 * int(np.max(np.abs(m))) + 1)
 
+    # The profile's segments, and each one's transform, shared by [[eps]] and [[1/eps]]
+    # (the same sums as fourier.profile_coefficients, in the same order).
+    segments = fourier.paint_intervals(period, eps_bg, [(s.x0, s.x1, e) for s, e in zip(stripes, eps_s, strict=True)])
+    q = 2.0 * np.pi * np.asarray(g, dtype=float) / period
+    transforms = [fourier.interval_transform(q, a, b) for a, b, _ in segments]
+
     def matrix(f: Callable[[complex], complex]) -> np.ndarray:
-        intervals = [(s.x0, s.x1, f(e)) for s, e in zip(stripes, eps_s, strict=True)]
-        segments = fourier.paint_intervals(period, f(eps_bg), intervals)
-        return _toeplitz_centred(fourier.profile_coefficients(segments, period, g), m)
+        total = np.zeros(q.shape, dtype=complex)
+        for (_, _, value), transform in zip(segments, transforms, strict=True):
+            total += f(value) * transform
+        return _toeplitz_centred(total / period, m)
 
     E = matrix(lambda e: e)
     if rule == "laurent":

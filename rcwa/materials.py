@@ -252,7 +252,10 @@ class Material:
             raise UserInputError(message, got=wavelength_nm) from None
         if wavelength.size == 0:
             return wavelength
-        shortest, longest = float(wavelength.min()), float(wavelength.max())
+        if wavelength.ndim == 0:  # one wavelength (every solve): no reductions
+            shortest = longest = float(wavelength)
+        else:
+            shortest, longest = float(wavelength.min()), float(wavelength.max())
         if not (np.isfinite(shortest) and np.isfinite(longest)) or shortest <= 0.0:
             bad = shortest if not np.isfinite(shortest) or shortest <= 0.0 else longest
             raise UserInputError(f"material '{self.name}': wavelength must be finite and > 0 nm, asked for {bad:g} nm")

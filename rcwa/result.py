@@ -34,6 +34,17 @@ class OrderResult:
     direction_T: tuple[float, float] | None
     amplitudes: dict[str, complex] = field(repr=False, default_factory=dict)
 
+    @classmethod
+    def from_fields(cls, fields: dict[str, Any]) -> OrderResult:
+        """The same object as ``OrderResult(**fields)`` (every field given), built without
+        the frozen dataclass's one ``object.__setattr__`` per field: the solver makes one per
+        retained order and solve, and this halves their cost (about 5 us each)."""
+        if fields.keys() != _ORDER_FIELDS:
+            raise TypeError(f"OrderResult.from_fields: expected the fields {sorted(_ORDER_FIELDS)}, got {sorted(fields)}")
+        order = object.__new__(cls)
+        order.__dict__.update(fields)
+        return order
+
     @property
     def R_unpolarized(self) -> float:
         return 0.5 * (self.R_s + self.R_p)
@@ -48,6 +59,8 @@ class OrderResult:
         return {"m": self.m, "n": self.n, "R": self.R, "T": self.T,
                 "direction_R": _direction(self.direction_R), "direction_T": _direction(self.direction_T)}
 
+
+_ORDER_FIELDS = frozenset(OrderResult.__dataclass_fields__)
 
 DIRECTION_CONVENTION = (
     "theta_deg, phi_deg of the order's direction of travel, in the medium it travels in: reflected orders in the "
@@ -77,7 +90,10 @@ class SolveResult:
     # The core's fast paths this solve took (rcwa.solver.solve, fast_paths): empty for the
     # general path; "te_tm_decoupled" (1D, k_y = 0: TE and TM on N x N blocks),
     # "single_polarization" (only the requested one solved; the other's values are NaN),
-    # "hermitian_eigensolver" (lossless 1D layers solved as Hermitian problems).
+    # "hermitian_eigensolver" (lossless 1D layers solved as Hermitian problems),
+    # "real_arithmetic" (of those, layers symmetric about a point, solved in real arithmetic),
+    # "mirror_sectors" (a 2D cell's mirror-symmetry sectors, only those the incidence excites:
+    # rcwa/cpp/sectors.hpp; with "single_polarization" for pol "s" or "p").
     fast_paths: tuple[str, ...] = ()
 
     def order(self, m: int, n: int = 0) -> OrderResult:

@@ -17,7 +17,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from rcwa import _core
+from rcwa import _core, symmetry
 from rcwa.factorization import HarmonicIndices, permittivity_matrices, resolve_rule
 from rcwa.layer_input import LayerInput, LayerKind
 from rcwa.materials import Material
@@ -144,9 +144,15 @@ def solve(
         ``pol="s"`` or ``"p"`` only that one: the other polarization's efficiencies and
         amplitudes are then NaN. Lossless 1D layers (real permittivity everywhere) are
         solved with Hermitian eigen-solvers (zheevd / zhegvd), their inverses taken from the
-        eigenvectors. ``SolveResult.fast_paths`` names what was used. False
-        forces the general path (to check the fast ones: tests/rcwa/test_fast_paths.py);
-        the two agree to 1e-12.
+        eigenvectors, and in real arithmetic (dsyevd / dsygvd, "real_arithmetic") where the
+        layer is symmetric about a point (moving the origin there makes its matrices real).
+        A 2D cell with a mirror (rcwa.symmetry) the incidence respects
+        (x -> -x at k_x = 0: normal incidence or phi = +-90; y -> -y at k_y = 0: phi = 0
+        or 180) is solved in mirror-symmetry sectors (rcwa/cpp/sectors.hpp), only those
+        the asked polarization excites (for ``"s"`` or ``"p"`` the other's values are
+        NaN). ``SolveResult.fast_paths`` names what was used. False
+        forces the general path (to check the fast ones: tests/rcwa/test_fast_paths.py,
+        tests/rcwa/test_sectors.py); the two agree to 1e-12.
     """
     pol = _polarization(pol)
     check_stack(stack)
@@ -154,8 +160,9 @@ def solve(
     prep = prepare(structure, wavelength_nm, orders, factorization)
     kx0, ky0 = incident_tangential_k(math.sqrt(prep.eps_sup.real), theta, phi)
     kx, ky = kx0 + prep.dkx, ky0 + prep.dky
+    mirrors = mirrors_of(prep) if fast_paths else []
     sol = _core.solve_stack(kx, ky, prep.zero, prep.eps_sup, prep.eps_sub, s_direction(phi), prep.core_layers,
-                            STACK_METHOD_OF[stack], INCIDENCE_OF[pol.value], fast_paths)
+                            STACK_METHOD_OF[stack], INCIDENCE_OF[pol.value], fast_paths, mirrors)
     paths = _fast_paths(sol, pol)
     return _result(prep, theta_deg, phi_deg, pol, kx, ky, sol.reflected, sol.transmitted, sol.kz_superstrate,
                    sol.kz_substrate, paths)
@@ -165,13 +172,27 @@ def solve(
 INCIDENCE_OF = {"s": _core.Incidence.S, "p": _core.Incidence.P, "unpolarized": _core.Incidence.BOTH}
 
 
+def mirrors_of(prep: PreparedStructure) -> list[symmetry.CoreMirror]:
+    """A 2D cell's mirrors for the core's sector solve (rcwa.symmetry.core_mirrors); none
+    for 1D cells (their classical mount decouples TE and TM instead) or without layers."""
+    if prep.structure.dimension != 2 or not any(layer.kind == LayerKind.GENERAL for layer in prep.layers):
+        return []
+    k0 = 2 * math.pi / (prep.wavelength_nm / 1000.0)
+    return symmetry.core_mirrors(prep.structure, prep.harmonics.m, prep.harmonics.n, prep.dkx, prep.dky, k0)
+
+
 def _fast_paths(sol: _core.StackSolution, pol: Polarization) -> tuple[str, ...]:
     """Names of the fast paths the core took (reported in SolveResult.fast_paths)."""
     paths: tuple[str, ...] = ()
+    single = ("single_polarization",) if pol != Polarization.UNPOLARIZED else ()
     if sol.decoupled:
-        paths += ("te_tm_decoupled",) + (("single_polarization",) if pol != Polarization.UNPOLARIZED else ())
+        paths += ("te_tm_decoupled",) + single
+    if sol.sectors_total:
+        paths += ("mirror_sectors",) + single
     if sol.hermitian_solves:
         paths += ("hermitian_eigensolver",)
+    if sol.real_solves:
+        paths += ("real_arithmetic",)
     return paths
 
 
@@ -367,13 +388,13 @@ def _result(prep: PreparedStructure, theta_deg, phi_deg, pol, kx, ky, r, t, kz_s
         on_R, on_T = flags_R[j], flags_T[j]
         R_j, T_j, R_s, R_p, T_s, T_p = eff[j]
         orders.append(
-            OrderResult(
+            OrderResult.from_fields(dict(
                 m=ms[j], n=ns[j], R=R_j if on_R else 0.0, T=T_j if on_T else 0.0,
                 R_s=R_s, R_p=R_p, T_s=T_s, T_p=T_p, propagating_R=on_R, propagating_T=on_T,
                 direction_R=(math.degrees(math.asin(min(1.0, kts[j] / root_sup))), azs[j]) if on_R else None,
                 direction_T=(math.degrees(math.asin(min(1.0, kts[j] / root_sub))), azs[j]) if on_T else None,
                 amplitudes=dict(zip(amp_names, amps[j], strict=True)),
-            )
+            ))
         )
     R_total = float(np.sum(R_pol))
     T_total = float(np.sum(T_pol))

@@ -4,8 +4,12 @@ The Fourier matrices of every layer depend on the wavelength only, so they are b
 once per wavelength (rcwa.solver.prepare); the C++ core then solves all directions on
 ``threads`` threads, sharing each 1D layer's eigen-solve among the directions with the
 same k_x (its eigenvectors do not depend on k_y; rcwa/cpp/lamellar.cpp), and refining
-each k_x's eigen-solve from its neighbour's (rcwa/cpp/sweep.hpp). A sweep otherwise runs
-the same code as a single solve; they agree to 1e-13 (tests/rcwa/test_sweep.py).
+each k_x's eigen-solve from its neighbour's (rcwa/cpp/sweep.hpp). Directions that respect
+a mirror of a 2D cell (k_x = 0 for x -> -x, k_y = 0 for y -> -y: phi = 0, 90, 180, 270,
+and normal incidence) are solved in mirror-symmetry sectors (rcwa/cpp/sectors.hpp). A
+sweep otherwise runs the same code as a single solve; they agree to 1e-13
+(tests/rcwa/test_sweep.py), and the sectors the general path to 1e-12
+(tests/rcwa/test_sectors.py).
 """
 
 from __future__ import annotations
@@ -18,7 +22,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from rcwa import _core
-from rcwa.solver import STACK_METHOD_OF, check_stack, efficiencies, prepare
+from rcwa.solver import STACK_METHOD_OF, check_stack, efficiencies, mirrors_of, prepare
 from rcwa.structure import Structure
 from workbench.core.errors import UserInputError
 
@@ -31,7 +35,8 @@ class DirectionSweep:
     mean. ``m``, ``n``: the kept orders (K). ``kx0``, ``ky0``: incident tangential wave
     vectors divided by k0 (P). T is zero over an absorbing substrate. ``eigen_solves``:
     the 1D layers' eigen-solves, ``eigen_refined`` of them refined from a neighbouring
-    k_x's eigenvectors instead of solved afresh (rcwa/cpp/sweep.hpp).
+    k_x's eigenvectors instead of solved afresh (rcwa/cpp/sweep.hpp). ``sector_points``:
+    the directions solved in mirror-symmetry sectors (rcwa/cpp/sectors.hpp).
     """
 
     wavelength_nm: float
@@ -43,6 +48,7 @@ class DirectionSweep:
     T: np.ndarray
     eigen_solves: int = 0
     eigen_refined: int = 0
+    sector_points: int = 0
 
 
 def default_threads() -> int:
@@ -68,11 +74,14 @@ def sweep_directions(
     factorization: str = "auto",
     stack: str = "etm",
     threads: int | None = None,
+    sectors: bool = True,
 ) -> DirectionSweep:
     """Solve ``structure`` at one wavelength for every (theta, phi) pair given.
 
     ``keep``: the kept orders per direction (odd, at most ``orders``), symmetric about 0;
-    default: all retained harmonics.
+    default: all retained harmonics. ``sectors``: solve the directions that respect a
+    mirror of a 2D cell in mirror-symmetry sectors (False: the general path everywhere,
+    to check them or time them).
     """
     check_stack(stack)
     theta = np.radians(np.asarray(theta_deg, dtype=float).ravel())
@@ -90,6 +99,7 @@ def sweep_directions(
     sol = _core.sweep(
         prep.dkx, prep.dky, prep.zero, prep.eps_sup, prep.eps_sub, prep.core_layers,
         kx0, ky0, -np.sin(phi), np.cos(phi), [int(i) for i in idx], STACK_METHOD_OF[stack], threads or default_threads(),
+        mirrors_of(prep) if sectors else [],
     )
     # The incident wave's kz is the specular order's, from the core (its outgoing branch,
     # workbench.core.conventions.kz_branch), as in a single solve.
@@ -97,7 +107,7 @@ def sweep_directions(
     R, T, _ = efficiencies(sol.reflected, sol.transmitted, sol.kz_superstrate, sol.kz_substrate, kz0,
                            prep.eps_sup, prep.eps_sub)
     return DirectionSweep(float(wavelength_nm), prep.harmonics.m[idx], prep.harmonics.n[idx], kx0, ky0, R, T,
-                          sol.eigen_solves, sol.eigen_refined)
+                          sol.eigen_solves, sol.eigen_refined, sol.sector_points)
 
 
 def _keep_counts(keep: int | Sequence[int], counts: tuple[int, ...]) -> tuple[int, ...]:

@@ -1,10 +1,12 @@
-"""Mirror symmetries of a structure's cell, used to shrink the azimuth range of a table.
+"""Mirror symmetries of a structure's cell, used to shrink the azimuth range of a table
+and, for 2D cells, to split a solve into mirror-symmetry sectors (rcwa/cpp/sectors.hpp).
 
 A mirror x -> 2c - x of every layer (the same c for all layers) maps incidence at azimuth
 phi to 180 - phi and order m to -m with the same efficiencies; y -> 2c - y maps phi to -phi
 and n to -n. A 1D cell is always mirror-symmetric in y. Detection is exact (shapes are
-matched geometrically, not sampled); cells with overlapping 2D shapes are reported as
-not symmetric (conservative: the table then covers the wider azimuth range).
+matched geometrically, not sampled, to TOLERANCE_GEOMETRY); cells with overlapping 2D
+shapes are reported as not symmetric (conservative: the table then covers the wider
+azimuth range, and a solve takes the general path).
 """
 
 from __future__ import annotations
@@ -43,7 +45,41 @@ class MirrorSymmetry:
 def detect(structure: Structure) -> MirrorSymmetry:
     if structure.dimension == 1:
         return MirrorSymmetry(x=_lamellar_mirror(structure), y=True)
-    return MirrorSymmetry(x=_crossed_mirror(structure, axis=0), y=_crossed_mirror(structure, axis=1))
+    return MirrorSymmetry(x=_crossed_mirror(structure, axis=0) is not None,
+                          y=_crossed_mirror(structure, axis=1) is not None)
+
+
+def mirror_centres(structure: Structure) -> tuple[float | None, float | None]:
+    """The lines x = c (first) and y = c (second) a 2D cell is mirror-symmetric about,
+    in micrometres of the cell's coordinates (None: no such mirror)."""
+    if structure.dimension != 2:
+        raise ValueError("mirror_centres: expected a 2D structure")
+    return _crossed_mirror(structure, axis=0), _crossed_mirror(structure, axis=1)
+
+
+CoreMirror = tuple[int, list[int], list[complex]]
+
+
+def core_mirrors(structure: Structure, m: np.ndarray, n: np.ndarray, dkx: np.ndarray, dky: np.ndarray,
+                 k0: float) -> list[CoreMirror]:
+    """A 2D cell's mirrors as the core takes them (rcwa/cpp/sweep.hpp, Mirror): (axis,
+    partner, phase) with harmonic (m, n)'s image (-m, n) (axis 0) or (m, -n) (axis 1), and
+    phase exp(2 i k0 kx c) (resp. ky), the factor a scalar field's harmonic picks up under
+    x -> 2c - x at kx0 = 0 (rcwa/cpp/sectors.hpp). ``dkx``, ``dky``: the harmonics' offsets
+    / k0; ``k0`` in 1/um. Mirrors whose image of a retained harmonic is not retained
+    (never, for the solver's symmetric truncation) are left out."""
+    index = {(int(a), int(b)): i for i, (a, b) in enumerate(zip(m.tolist(), n.tolist(), strict=True))}
+    out: list[CoreMirror] = []
+    for axis, (centre, offsets) in enumerate(zip(mirror_centres(structure), (dkx, dky), strict=True)):
+        if centre is None:
+            continue
+        images = [((-a, b) if axis == 0 else (a, -b)) for a, b in index]
+        if any(key not in index for key in images):
+            continue
+        partner = [index[key] for key in images]
+        phase = np.exp(2j * k0 * np.asarray(offsets, dtype=float) * centre)
+        out.append((axis, partner, phase.tolist()))
+    return out
 
 
 def _lamellar_mirror(structure: Structure) -> bool:
@@ -81,21 +117,25 @@ def _profile_mirrors(segments, period: float, c: float) -> bool:
     )
 
 
-def _crossed_mirror(structure: Structure, axis: int) -> bool:
+def _crossed_mirror(structure: Structure, axis: int) -> float | None:
+    """A centre c the cell is mirror-symmetric about along ``axis`` (x -> 2c - x), or None."""
     lx, ly = structure.period
     length = (lx, ly)[axis]
     layers = [layer for layer in structure.layers if layer.shapes]
     if not layers:
-        return True
+        return 0.0
     if any(overlapping_pairs(list(layer.shapes_2d), (lx, ly)) for layer in layers):
-        return False
+        return None
     first = layers[0].shapes_2d[0]
-    candidates = {round(((_center(first)[axis] + _center(s)[axis]) / 2) % (length / 2), 12) for s in layers[0].shapes_2d}
+    # Candidates, deduplicated by their rounded value but kept exact: the sectors' phases
+    # (core_mirrors) use the centre itself.
+    centres = (((_center(first)[axis] + _center(s)[axis]) / 2) % (length / 2) for s in layers[0].shapes_2d)
+    candidates = {round(c, 12): c for c in centres}.values()
     for c in candidates:
         for shift in (0.0, length / 2):
             if all(_layer_mirrors(layer.shapes_2d, c + shift, axis, structure.period) for layer in layers):
-                return True
-    return False
+                return float(c + shift)
+    return None
 
 
 def _center(shape) -> tuple[float, float]:

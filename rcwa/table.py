@@ -233,13 +233,15 @@ class BuildReport:
     notes: list[str] = field(default_factory=list)
     eigen_solves: int = 0    # 1D layers' eigen-solves in the chunks computed now
     eigen_refined: int = 0   # of which refined from a neighbouring k_x (rcwa/cpp/sweep.hpp)
+    sector_points: int = 0   # directions solved in mirror-symmetry sectors (2D cells: rcwa/cpp/sectors.hpp)
     chunks_repaired: list[int] = field(default_factory=list)  # damaged chunks found and computed again
 
 
 def compute_chunk(structure: Structure, settings: TableSettings, wavelength_nm: float,
-                  threads: int, mask: np.ndarray | None = None) -> tuple[dict[str, np.ndarray], tuple[int, int]]:
+                  threads: int, mask: np.ndarray | None = None) -> tuple[dict[str, np.ndarray], tuple[int, int, int]]:
     """All arrays of one wavelength: R (and T; and from below), (theta, phi, order, pol);
-    and the sweeps' (eigen-solves, refined eigen-solves).
+    and the sweeps' (eigen-solves, refined eigen-solves, directions solved in mirror
+    sectors: a 2D cell's in its mirror planes, rcwa.sweep).
 
     ``mask`` (theta, phi) of a planned table: the nodes solved with the table's orders;
     the rest with ``settings.fill_orders``.
@@ -248,7 +250,7 @@ def compute_chunk(structure: Structure, settings: TableSettings, wavelength_nm: 
     th, ph = np.meshgrid(theta, np.array(settings.phi_deg), indexing="ij")
     exact = np.ones(th.size, bool) if mask is None else np.asarray(mask, bool).ravel()
     groups = [(exact, settings.orders), (~exact, settings.fill_orders or settings.orders)]
-    out, solves, refined = {}, 0, 0
+    out, solves, refined, sectors = {}, 0, 0, 0
     sides = [("", structure)] + ([("_below", flipped(structure))] if settings.both_sides else [])
     for suffix, s in sides:
         values: dict[str, np.ndarray] = {}
@@ -257,14 +259,14 @@ def compute_chunk(structure: Structure, settings: TableSettings, wavelength_nm: 
                 continue
             sw = sweep_directions(s, wavelength_nm, th.ravel()[nodes], ph.ravel()[nodes], orders, keep=settings.keep,
                                   factorization=settings.factorization, threads=threads)
-            solves, refined = solves + sw.eigen_solves, refined + sw.eigen_refined
+            solves, refined, sectors = solves + sw.eigen_solves, refined + sw.eigen_refined, sectors + sw.sector_points
             for name, part in (("R", sw.R), ("T", sw.T)):
                 values.setdefault(name, np.empty((th.size,) + part.shape[1:]))[nodes] = part
         for name, whole in values.items():
             if name == "T" and (settings.reflection_only or not _transmits(s, settings)):
                 continue
             out[name + suffix] = _select_pol(whole, settings.pol).reshape(th.shape + (whole.shape[1], -1)).astype(np.float32)
-    return out, (solves, refined)
+    return out, (solves, refined, sectors)
 
 
 def _select_pol(values: np.ndarray, pol: str) -> np.ndarray:
@@ -376,11 +378,12 @@ def _compute_chunks(structure: Structure, settings: TableSettings, out: Path, st
                    for i in todo}
         results = ((i, futures[i].result()) for i in todo)
     with bar:
-        for i, ((arrays, (solves, refined)), seconds) in results:
+        for i, ((arrays, (solves, refined, sectors)), seconds) in results:
             _write_chunk(out, store, i, arrays, seconds, done)
             report.chunks_computed += 1
             report.eigen_solves += solves
             report.eigen_refined += refined
+            report.sector_points += sectors
             bar.update(1)
 
 

@@ -78,6 +78,24 @@ CView1 view(const rcwa::CVec& v) { return CView1(v.data(), {v.size()}, nb::handl
 
 // The direction-independent part of a problem: harmonic offsets, media, layers. Checked
 // by the core (check_problem) before it computes.
+// A mirror as Python gives it: (axis, partner, phase), see rcwa::Mirror (sweep.hpp).
+using MirrorTuple = std::tuple<int, std::vector<int>, std::vector<cplx>>;
+
+std::vector<rcwa::Mirror> to_mirrors(const std::vector<MirrorTuple>& mirrors, std::size_t n) {
+    std::vector<rcwa::Mirror> out;
+    for (const auto& [axis, partner, phase] : mirrors) {
+        if (axis != 0 && axis != 1) throw std::invalid_argument("mirrors: axis must be 0 (x) or 1 (y), got " + std::to_string(axis));
+        if (partner.size() != n || phase.size() != n)
+            throw std::invalid_argument("mirrors: partner and phase need one entry per harmonic (" + std::to_string(n) + ")");
+        for (int j : partner)
+            if (j < 0 || static_cast<std::size_t>(j) >= n)
+                throw std::invalid_argument("mirrors: partner index " + std::to_string(j) + " outside [0, " +
+                                            std::to_string(n) + ")");
+        out.push_back(rcwa::Mirror{axis, partner, phase});
+    }
+    return out;
+}
+
 rcwa::SweepProblem base_problem(const RArray1& dkx, const RArray1& dky, int zero_order, cplx eps_sup,
                                 cplx eps_sub, std::vector<rcwa::LayerInput> layers, rcwa::StackMethod method) {
     rcwa::SweepProblem pr;
@@ -95,8 +113,10 @@ rcwa::SweepProblem base_problem(const RArray1& dkx, const RArray1& dky, int zero
 rcwa::StackSolution solve_stack_py(const RArray1& kx, const RArray1& ky, int zero_order, cplx eps_sup,
                                    cplx eps_sub, std::tuple<double, double> s_direction,
                                    std::vector<rcwa::LayerInput> layers, rcwa::StackMethod method,
-                                   rcwa::Incidence incidence, bool fast_paths) {
+                                   rcwa::Incidence incidence, bool fast_paths,
+                                   const std::vector<MirrorTuple>& mirrors) {
     rcwa::SweepProblem pr = base_problem(kx, ky, zero_order, eps_sup, eps_sub, std::move(layers), method);
+    pr.mirrors = to_mirrors(mirrors, pr.dkx.size());
     pr.kx0 = {0.0};
     pr.ky0 = {0.0};
     pr.s_x = {std::get<0>(s_direction)};
@@ -108,8 +128,9 @@ rcwa::StackSolution solve_stack_py(const RArray1& kx, const RArray1& ky, int zer
 rcwa::SweepResult sweep_py(const RArray1& dkx, const RArray1& dky, int zero_order, cplx eps_sup, cplx eps_sub,
                            std::vector<rcwa::LayerInput> layers, const RArray1& kx0, const RArray1& ky0,
                            const RArray1& s_x, const RArray1& s_y, const std::vector<int>& keep,
-                           rcwa::StackMethod method, int threads) {
+                           rcwa::StackMethod method, int threads, const std::vector<MirrorTuple>& mirrors) {
     rcwa::SweepProblem pr = base_problem(dkx, dky, zero_order, eps_sup, eps_sub, std::move(layers), method);
+    pr.mirrors = to_mirrors(mirrors, pr.dkx.size());
     pr.kx0 = to_vec(kx0);
     pr.ky0 = to_vec(ky0);
     pr.s_x = to_vec(s_x);
@@ -200,7 +221,15 @@ void bind_results(nb::module_& m) {
                 "Whether TE and TM were solved apart on N x N blocks (1D, every ky = 0: polarized.hpp); a "
                 "polarization not asked for then has NaN amplitudes.")
         .def_ro("hermitian_solves", &rcwa::StackSolution::hermitian_solves,
-                "Eigen-solves of lossless 1D layers done by Hermitian solvers (zheevd, zhegvd) instead of zgeev.");
+                "Eigen-solves of lossless 1D layers done by Hermitian solvers (zheevd, zhegvd) instead of zgeev.")
+        .def_ro("real_solves", &rcwa::StackSolution::real_solves,
+                "Of hermitian_solves, those done in real arithmetic (dsyevd, dsygvd): the layer is symmetric about a "
+                "point, and moving the origin there makes its matrices real (linalg.hpp, real_by_phase).")
+        .def_ro("sectors_solved", &rcwa::StackSolution::sectors_solved,
+                "Mirror-symmetry sectors solved (sectors.hpp), of sectors_total; 0 of 0 where none were used. A "
+                "polarization not asked for then has NaN amplitudes.")
+        .def_ro("sectors_total", &rcwa::StackSolution::sectors_total,
+                "The number of mirror-symmetry sectors the point splits into (2 or 4), 0 where none were used.");
 
     nb::class_<rcwa::SweepResult>(m, "SweepSolution",
                                   "Amplitudes of the K kept harmonics at P incident directions, as StackSolution "
@@ -217,6 +246,8 @@ void bind_results(nb::module_& m) {
         .def_prop_ro("kz_substrate", [](const rcwa::SweepResult& s) {
             return CView2(s.kz_substrate.data(), {s.points, s.kept}, nb::handle());
         }, "kz / k0 of the kept harmonics in the substrate, (P, K).")
+        .def_ro("sector_points", &rcwa::SweepResult::sector_points,
+                "Points solved in mirror-symmetry sectors (sectors.hpp): those at kx0 = 0 or ky0 = 0 of a mirror.")
         .def_ro("eigen_solves", &rcwa::SweepResult::eigen_solves,
                 "Lamellar eigen-solves (two per 1D layer and group of points sharing kx0).")
         .def_ro("eigen_refined", &rcwa::SweepResult::eigen_refined,
@@ -236,15 +267,18 @@ NB_MODULE(_core, m) {
     bind_results(m);
     m.def("solve_stack", &solve_stack_py, "kx"_a, "ky"_a, "zero_order"_a, "eps_superstrate"_a, "eps_substrate"_a,
           "s_direction"_a, "layers"_a, "method"_a = rcwa::StackMethod::EnhancedTransmittance,
-          "incidence"_a = rcwa::Incidence::Both, "fast_paths"_a = true,
+          "incidence"_a = rcwa::Incidence::Both, "fast_paths"_a = true, "mirrors"_a = std::vector<MirrorTuple>(),
           "One solve. kx, ky: (N,) tangential wave vectors / k0 of the harmonics; zero_order: the index of the "
           "incident wave's; s_direction: s-hat where kx = ky = 0; layers from the superstrate down. incidence: the "
-          "polarizations needed; fast_paths=False forces the general 2N x 2N path (for checking the fast ones).");
+          "polarizations needed; fast_paths=False forces the general 2N x 2N path (for checking the fast ones). "
+          "mirrors: the cell's mirrors as (axis, partner, phase) (sweep.hpp, Mirror), used where the point "
+          "respects them (sectors.hpp).");
     m.def("sweep", &sweep_py, "dkx"_a, "dky"_a, "zero_order"_a, "eps_superstrate"_a, "eps_substrate"_a, "layers"_a,
           "kx0"_a, "ky0"_a, "s_x"_a, "s_y"_a, "keep"_a, "method"_a = rcwa::StackMethod::EnhancedTransmittance,
-          "threads"_a = 1,
+          "threads"_a = 1, "mirrors"_a = std::vector<MirrorTuple>(),
           "Many incident directions (P points) at one wavelength: harmonic i of point p has kx0[p] + dkx[i], "
-          "ky0[p] + dky[i]; the harmonics listed in keep are returned. Points sharing kx0 share 1D eigen-solves.");
+          "ky0[p] + dky[i]; the harmonics listed in keep are returned. Points sharing kx0 share 1D eigen-solves; "
+          "points respecting one of the mirrors (as in solve_stack) are solved in mirror-symmetry sectors.");
     m.def("eig_from_guess", &eig_from_guess_py, "A"_a, "guess"_a,
           "Eigen-decomposition of A refined from approximate eigenvectors, or None where it declines.");
     m.def("set_blas_threads", &rcwa::set_blas_threads, "n"_a,

@@ -68,6 +68,40 @@ std::optional<Eigen> eig_hermitian_definite(Mat A, Mat B);
 // The conjugate transpose.
 Mat adjoint(const Mat& A);
 
+// A dense column-major real matrix (the real-arithmetic eigen-solves below).
+struct RMat {
+    int rows = 0;
+    int cols = 0;
+    std::vector<double> data;
+
+    RMat() = default;
+    RMat(int r, int c) : rows(r), cols(c), data(static_cast<std::size_t>(r) * c, 0.0) {}
+    double& operator()(int i, int j) { return data[static_cast<std::size_t>(j) * rows + i]; }
+    double operator()(int i, int j) const { return data[static_cast<std::size_t>(j) * rows + i]; }
+};
+RMat matmul(const RMat& A, const RMat& B);
+// A diagonal unitary D = diag(d) that makes the Hermitian Toeplitz-like matrices `As` real
+// together, D A D^H real to `tolerance` relative to each one's largest entry, and those
+// real matrices; nothing when there is none. With harmonics ordered m = -M..M (row i has
+// m_i = i - M) a layer whose profile is even about some x0 has Fourier matrices
+// A_ij = r(m_j - m_i) exp(-i (m_j - m_i) g x0) with r real and even, so d_i = u^(m_i),
+// u = A_01 / |A_01| (up to a sign, which keeps D A D^H real): moving the origin to x0.
+struct RealForm {
+    CVec d;
+    std::vector<RMat> real;
+};
+std::optional<RealForm> real_by_phase(const std::vector<const Mat*>& As, double tolerance);
+// Eigen-decomposition of a real symmetric matrix (LAPACK dsyevd, lower triangle):
+// A = V diag(w) V^T, V orthogonal.
+struct RealEigen {
+    std::vector<double> values;
+    RMat vectors;
+};
+RealEigen eig_symmetric(RMat A);
+// The symmetric-definite pencil A v = w B v (LAPACK dsygvd, itype 1): V^T B V = I.
+// Nothing when B is not positive definite.
+std::optional<RealEigen> eig_symmetric_definite(RMat A, RMat B);
+
 // The eigen-decomposition of A refined from approximate eigenvectors `guess` (columns),
 // such as those of a neighbouring matrix in a sweep, by Newton's iteration on the
 // decomposition: with M = W^-1 A W (nearly diagonal), each step replaces W by W (I + P),

@@ -105,13 +105,11 @@ DenseModes::DenseModes(Mat W, Mat V, CVec kz) : W_(W), V_(V), luW_(std::move(W))
     kz_ = std::move(kz);
 }
 
-std::unique_ptr<LayerModes> general_modes(const Harmonics& h, const Mat& E, const Mat& Exx,
-                                          const Mat& Exy, const Mat& Eyx, const Mat& Eyy) {
+void pq_matrices(const Harmonics& h, const Mat& Z, const Mat& Exx, const Mat& Exy, const Mat& Eyx, const Mat& Eyy,
+                 Mat& P, Mat& Q) {
     const int n = h.size();
-    const LU luE(E);
-    const Mat Z = luE.inverse();
-    // P and Q as in the header comment.
-    Mat P(2 * n, 2 * n), Q(2 * n, 2 * n);
+    P = Mat(2 * n, 2 * n);
+    Q = Mat(2 * n, 2 * n);
     for (int j = 0; j < n; ++j) {
         for (int i = 0; i < n; ++i) {
             const cplx z = Z(i, j);
@@ -131,7 +129,32 @@ std::unique_ptr<LayerModes> general_modes(const Harmonics& h, const Mat& E, cons
         Q(n + j, j) -= h.ky[j] * h.ky[j];
         Q(n + j, n + j) += h.ky[j] * h.kx[j];
     }
-    Eigen e = eig(matmul(P, Q));
+}
+
+Mat pq_product(const Harmonics& h, const Mat& Z, const Mat& Q) {
+    // P = [Kx; Ky] Z [Ky, -Kx] + [[0, I], [-I, 0]] (pq_matrices), so
+    // P Q = [Kx; Ky] (Z S) + [Q_bottom; -Q_top] with S = Ky Q_top - Kx Q_bottom (N x 2N):
+    // one N x N by N x 2N product instead of a 2N x 2N one (a quarter of the work).
+    const int n = h.size();
+    Mat S(n, 2 * n);
+    for (int j = 0; j < 2 * n; ++j)
+        for (int i = 0; i < n; ++i) S(i, j) = h.ky[i] * Q(i, j) - h.kx[i] * Q(n + i, j);
+    const Mat T = matmul(Z, S);
+    Mat PQ(2 * n, 2 * n);
+    for (int j = 0; j < 2 * n; ++j)
+        for (int i = 0; i < n; ++i) {
+            PQ(i, j) = h.kx[i] * T(i, j) + Q(n + i, j);
+            PQ(n + i, j) = h.ky[i] * T(i, j) - Q(i, j);
+        }
+    return PQ;
+}
+
+std::unique_ptr<LayerModes> general_modes(const Harmonics& h, const Mat& Z, const Mat& Exx,
+                                          const Mat& Exy, const Mat& Eyx, const Mat& Eyy) {
+    const int n = h.size();
+    Mat P, Q;
+    pq_matrices(h, Z, Exx, Exy, Eyx, Eyy, P, Q);
+    Eigen e = eig(pq_product(h, Z, Q));
     CVec kz(2 * static_cast<std::size_t>(n));
     for (int i = 0; i < 2 * n; ++i) kz[i] = layer_kz(e.values[i]);
     Mat V = matmul(Q, e.vectors);

@@ -81,6 +81,7 @@ struct LamellarEigen {
     Mat M3;        // VB^-1 Kx WA muA^-1 WA^-1
     int refined = 0;    // how many of the two eigen-solves were refined from `near` (0-2)
     int hermitian = 0;  // how many were solved as Hermitian problems (0-2; see LamellarParts)
+    int real = 0;       // of those, how many in real arithmetic (real_by_phase)
 };
 // Which parts of a LamellarEigen to compute. At ky = 0 the families never couple: the TE
 // family (A) alone serves s incidence, the TM family (B) alone p incidence, and the
@@ -99,6 +100,9 @@ struct LamellarParts {
     bool hermitian = false;
 };
 constexpr double kHermitianTolerance = 1e-14;
+// |Im| of D A D^H (real_by_phase) below which a lossless layer is solved in real arithmetic,
+// relative to A's largest entry: round-off of the Fourier coefficients and of Z = E^-1.
+constexpr double kRealTolerance = 1e-13;
 // Z = E^-1 is passed in (it depends on the wavelength only; unused when only the TE
 // family is asked for). `near`: the solution at a nearby kx, whose eigenvectors seed
 // eig_from_guess (linalg.hpp) instead of a full eigen-solve; nullptr, or a guess that does
@@ -108,8 +112,16 @@ LamellarEigen lamellar_eigen(const std::vector<double>& kx, const Mat& E, const 
 std::unique_ptr<LayerModes> lamellar_modes(const std::vector<double>& kx, const LamellarEigen& eig,
                                            double ky);
 
-// A general (2D, or anisotropic) layer: one 2N x 2N eigen-solve of P Q.
-std::unique_ptr<LayerModes> general_modes(const Harmonics& h, const Mat& E, const Mat& Exx,
+// P and Q of the header comment (2N x 2N) for a general layer; Z = [[eps]]^-1 is given
+// (it depends on the wavelength only, so a sweep takes it once: sweep.cpp).
+void pq_matrices(const Harmonics& h, const Mat& Z, const Mat& Exx, const Mat& Exy, const Mat& Eyx, const Mat& Eyy,
+                 Mat& P, Mat& Q);
+// P Q from Z and Q, using P's structure (a rank-N product plus a block permutation): a
+// quarter of the products of the 2N x 2N matmul(P, Q); equal to it to round-off.
+Mat pq_product(const Harmonics& h, const Mat& Z, const Mat& Q);
+
+// A general (2D, or anisotropic) layer: one 2N x 2N eigen-solve of P Q (Z as above).
+std::unique_ptr<LayerModes> general_modes(const Harmonics& h, const Mat& Z, const Mat& Exx,
                                           const Mat& Exy, const Mat& Eyx, const Mat& Eyy);
 
 // Dense modes (W, V given), with LU factorizations for the inverses.
@@ -120,6 +132,8 @@ class DenseModes : public LayerModes {
     Mat apply_V(const Mat& B) const override { return matmul(V_, B); }
     Mat apply_W_inverse(const Mat& B) const override { return luW_.solve(B); }
     Mat apply_V_inverse(const Mat& B) const override { return luV_.solve(B); }
+    Mat W_inverse() const override { return luW_.inverse(); }
+    Mat V_inverse() const override { return luV_.inverse(); }
     Mat W() const override { return W_; }
     Mat V() const override { return V_; }
 

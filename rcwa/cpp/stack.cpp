@@ -22,12 +22,6 @@
 
 namespace rcwa {
 
-namespace {
-
-struct Basis {
-    std::vector<double> sx, sy, px, py;  // s-hat and p-hat (tangential) per harmonic
-};
-
 Basis polarization_basis(const StackProblem& pr) {
     const int n = pr.harmonics.size();
     Basis b;
@@ -51,7 +45,6 @@ Basis polarization_basis(const StackProblem& pr) {
     return b;
 }
 
-// Columns: s wave of harmonic i at i, p wave at N + i. direction = +1 up-going, -1 down-going.
 void outgoing_columns(const Basis& b, const CVec& kz, cplx eps, double direction, Mat& F, Mat& G) {
     const int n = static_cast<int>(kz.size());
     F = Mat(2 * n, 2 * n);
@@ -70,6 +63,8 @@ void outgoing_columns(const Basis& b, const CVec& kz, cplx eps, double direction
         G(n + i, n + i) = b.sy[i];
     }
 }
+
+namespace {
 
 struct LayerStep {
     LU a;
@@ -149,9 +144,8 @@ SMatrix star(const SMatrix& a, const SMatrix& b) {
     return s;
 }
 
-// The rows that annihilate the superstrate's up-going waves (kz E_s + h_p and
-// E_p - kz/eps h_s per order), applied to a field [F; G] at the top of the stack; an
-// empty F or G counts as zero.
+}  // namespace
+
 Mat project_up(const StackProblem& pr, const Basis& basis, const CVec& kz, const Mat& F, const Mat& G) {
     const int n = pr.harmonics.size();
     const int cols = F.cols > 0 ? F.cols : G.cols;
@@ -175,18 +169,13 @@ Mat project_up(const StackProblem& pr, const Basis& basis, const CVec& kz, const
     return P;
 }
 
-// The top of the stack seen from the superstrate: any field there is [f; g] T for some
-// T (2N), given as `projected` = project_up(f, g) and `fields`, which returns [f T, g T].
-// Closes it with the superstrate (incident + outgoing waves) and returns T for unit s
-// and p incidence (columns 0 and 1); fills out.r.
-template <class Fields>
-Mat close_top(const StackProblem& pr, const Basis& basis, Mat projected, const Fields& fields, StackSolution& out) {
+void incident_fields(const StackProblem& pr, const Basis& basis, const CVec& kz_superstrate, Mat& Finc, Mat& Ginc) {
     const int n = pr.harmonics.size(), n2 = 2 * n;
     const int i0 = pr.zero_order;
     const cplx eps1 = pr.eps_superstrate;
-    const cplx kz0 = out.kz_superstrate[i0];
-    // Incident waves (down-going in the superstrate), s in column 0 and p in column 1.
-    Mat Finc(n2, 2), Ginc(n2, 2);
+    const cplx kz0 = kz_superstrate[i0];
+    Finc = Mat(n2, 2);
+    Ginc = Mat(n2, 2);
     Finc(i0, 0) = basis.sx[i0];
     Finc(n + i0, 0) = basis.sy[i0];
     Ginc(i0, 0) = kz0 * basis.px[i0];
@@ -195,17 +184,34 @@ Mat close_top(const StackProblem& pr, const Basis& basis, Mat projected, const F
     Finc(n + i0, 1) = -kz0 / eps1 * basis.py[i0];
     Ginc(i0, 1) = basis.sx[i0];
     Ginc(n + i0, 1) = basis.sy[i0];
+}
 
+void reflected_amplitudes(const Basis& basis, const Mat& psi, const Mat& phi, const Mat& Finc, const Mat& Ginc,
+                          Mat& r) {
+    const int n = psi.rows / 2;
+    r = Mat(2 * n, psi.cols);
+    for (int j = 0; j < psi.cols; ++j) {
+        for (int i = 0; i < n; ++i) {
+            r(i, j) = basis.sx[i] * (psi(i, j) - Finc(i, j)) + basis.sy[i] * (psi(n + i, j) - Finc(n + i, j));
+            r(n + i, j) = basis.sx[i] * (phi(i, j) - Ginc(i, j)) + basis.sy[i] * (phi(n + i, j) - Ginc(n + i, j));
+        }
+    }
+}
+
+namespace {
+
+// The top of the stack seen from the superstrate: any field there is [f; g] T for some
+// T (2N), given as `projected` = project_up(f, g) and `fields`, which returns [f T, g T].
+// Closes it with the superstrate (incident + outgoing waves) and returns T for unit s
+// and p incidence (columns 0 and 1); fills out.r.
+template <class Fields>
+Mat close_top(const StackProblem& pr, const Basis& basis, Mat projected, const Fields& fields, StackSolution& out) {
+    Mat Finc, Ginc;  // the incident waves (down-going in the superstrate), s in column 0 and p in column 1
+    incident_fields(pr, basis, out.kz_superstrate, Finc, Ginc);
     const LU top(std::move(projected));
     Mat T = top.solve(project_up(pr, basis, out.kz_superstrate, Finc, Ginc));
     const auto [psi, phi] = fields(T);
-    out.r = Mat(n2, 2);
-    for (int j = 0; j < 2; ++j) {
-        for (int i = 0; i < n; ++i) {
-            out.r(i, j) = basis.sx[i] * (psi(i, j) - Finc(i, j)) + basis.sy[i] * (psi(n + i, j) - Finc(n + i, j));
-            out.r(n + i, j) = basis.sx[i] * (phi(i, j) - Ginc(i, j)) + basis.sy[i] * (phi(n + i, j) - Ginc(n + i, j));
-        }
-    }
+    reflected_amplitudes(basis, psi, phi, Finc, Ginc, out.r);
     return T;
 }
 

@@ -24,7 +24,10 @@ struct StackSolution {
     CVec kz_superstrate;  // N, outgoing branch
     CVec kz_substrate;    // N
     bool decoupled = false;  // solved per polarization on N x N blocks (polarized.hpp)
+    int sectors_solved = 0;  // mirror-symmetry sectors solved, of sectors_total (sectors.hpp); 0 of 0: not used
+    int sectors_total = 0;
     int hermitian_solves = 0;  // eigen-solves done by Hermitian solvers (lossless layers: LamellarParts)
+    int real_solves = 0;       // of those, done in real arithmetic (dsyevd / dsygvd: real_by_phase)
 };
 
 // kz of every harmonic in a half-space of permittivity eps, outgoing branch (outgoing_sqrt).
@@ -40,5 +43,23 @@ enum class StackMethod {
 };
 
 StackSolution solve_stack(const StackProblem& problem, StackMethod method = StackMethod::EnhancedTransmittance);
+
+// The half-spaces' parts of the stack, shared with the mirror-sector solve (sectors.hpp).
+struct Basis {
+    std::vector<double> sx, sy, px, py;  // s-hat and p-hat (tangential) per harmonic
+};
+Basis polarization_basis(const StackProblem& problem);
+// The outgoing waves of a half-space, 2N x 2N for psi (F) and phi (G): the s wave of
+// harmonic i in column i, the p wave in column N + i. direction = +1 up-going, -1 down-going.
+void outgoing_columns(const Basis& basis, const CVec& kz, cplx eps, double direction, Mat& F, Mat& G);
+// The rows that annihilate the superstrate's up-going waves (kz E_s + h_p and
+// E_p - kz/eps h_s per order), applied to a field [F; G] at the top of the stack; an
+// empty F or G counts as zero.
+Mat project_up(const StackProblem& problem, const Basis& basis, const CVec& kz, const Mat& F, const Mat& G);
+// The incident waves' psi and phi (2N x 2): unit s in column 0, unit p in column 1.
+void incident_fields(const StackProblem& problem, const Basis& basis, const CVec& kz_superstrate, Mat& Finc, Mat& Ginc);
+// r (2N x cols) from the total field [psi; phi] at the top of the stack: the s
+// amplitudes of psi - Finc (E along s-hat) and of phi - Ginc (h along s-hat).
+void reflected_amplitudes(const Basis& basis, const Mat& psi, const Mat& phi, const Mat& Finc, const Mat& Ginc, Mat& r);
 
 }  // namespace rcwa

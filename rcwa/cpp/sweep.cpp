@@ -1,6 +1,7 @@
 #include "sweep.hpp"
 
 #include "polarized.hpp"
+#include "sectors.hpp"
 
 #include <algorithm>
 #include <atomic>
@@ -47,11 +48,14 @@ void keep_freed_memory() {
 
 using SharedEigen = std::vector<std::unique_ptr<LamellarEigen>>;
 
-// Z = E^-1 of every lamellar layer: it depends on the wavelength only.
-std::vector<Mat> inverse_laurent(const SweepProblem& pr) {
+// Z = E^-1 of every patterned layer: it depends on the wavelength only. Block by block
+// in the sectors of the layers' mirrors where there are some (sectors.hpp).
+std::vector<Mat> inverse_laurent(const SweepProblem& pr, const std::vector<Mirror>& mirrors = {}) {
     std::vector<Mat> out(pr.layers.size());
-    for (std::size_t k = 0; k < pr.layers.size(); ++k)
+    for (std::size_t k = 0; k < pr.layers.size(); ++k) {
         if (pr.layers[k].kind == LayerKind::Lamellar) out[k] = LU(pr.layers[k].matrices[0]).inverse();
+        if (pr.layers[k].kind == LayerKind::General) out[k] = laurent_inverse(pr.layers[k].matrices[0], mirrors);
+    }
     return out;
 }
 
@@ -96,7 +100,7 @@ StackSolution solve_decoupled(const SweepProblem& pr, const StackProblem& sp, In
     const bool te = incidence != Incidence::P, tm = incidence != Incidence::S;
     const int n = sp.harmonics.size();
     std::vector<PolarizedModes> te_layers, tm_layers;
-    int hermitian_solves = 0;
+    int hermitian_solves = 0, real_solves = 0;
     for (const LayerInput& in : pr.layers) {
         if (in.kind == LayerKind::Uniform) {
             if (te) te_layers.push_back(uniform_polarized(sp.harmonics.kx, in.eps, Polarization::TE));
@@ -107,6 +111,7 @@ StackSolution solve_decoupled(const SweepProblem& pr, const StackProblem& sp, In
         const LamellarEigen e =
             lamellar_eigen(sp.harmonics.kx, in.matrices[0], in.matrices[1], Z, nullptr, LamellarParts{te, tm, false, true});
         hermitian_solves += e.hermitian;
+        real_solves += e.real;
         if (te) te_layers.push_back(lamellar_polarized(e, Polarization::TE));
         if (tm) tm_layers.push_back(lamellar_polarized(e, Polarization::TM));
     }
@@ -117,6 +122,7 @@ StackSolution solve_decoupled(const SweepProblem& pr, const StackProblem& sp, In
     out.t = Mat(2 * n, 2);
     out.decoupled = true;
     out.hermitian_solves = hermitian_solves;
+    out.real_solves = real_solves;
     const cplx not_solved(std::nan(""), std::nan(""));
     for (int i = 0; i < 2 * n; ++i) {
         if (!te) out.r(i, 0) = out.t(i, 0) = not_solved;
@@ -127,8 +133,13 @@ StackSolution solve_decoupled(const SweepProblem& pr, const StackProblem& sp, In
     return out;
 }
 
-StackSolution solve_with(const SweepProblem& pr, std::size_t p, const SharedEigen& eig) {
+// `mirrors`: those every layer respects (respected_mirrors), tried first (sectors.hpp).
+// Z: inverse_laurent.
+StackSolution solve_with(const SweepProblem& pr, std::size_t p, const SharedEigen& eig, const std::vector<Mat>& Z,
+                         const std::vector<Mirror>& mirrors = {}) {
     StackProblem sp = stack_problem(pr, p);
+    if (!mirrors.empty())
+        if (auto sectors = solve_sectors(pr, sp, mirrors, Incidence::Both, Z)) return std::move(*sectors);
     std::vector<std::unique_ptr<LayerModes>> modes;
     for (std::size_t k = 0; k < pr.layers.size(); ++k) {
         const LayerInput& in = pr.layers[k];
@@ -138,7 +149,7 @@ StackSolution solve_with(const SweepProblem& pr, std::size_t p, const SharedEige
             modes.push_back(lamellar_modes(sp.harmonics.kx, *eig[k], sp.harmonics.ky[0]));
         } else {
             const auto& M = in.matrices;
-            modes.push_back(general_modes(sp.harmonics, M[0], M[1], M[2], M[3], M[4]));
+            modes.push_back(general_modes(sp.harmonics, Z[k], M[1], M[2], M[3], M[4]));
         }
         sp.layers.push_back(modes.back().get());
     }
@@ -182,17 +193,26 @@ std::vector<std::vector<std::size_t>> groups_by_kx(const std::vector<double>& kx
 }
 
 // Groups [first, last) of neighbouring kx0, each group's eigen-solves seeded by the
-// previous group's. Returns (lamellar eigen-solves, of which refined).
-std::pair<std::size_t, std::size_t> solve_block(const SweepProblem& pr, const std::vector<Mat>& Z,
-                                                const std::vector<std::vector<std::size_t>>& groups,
-                                                std::size_t first, std::size_t last, SweepResult& out) {
-    std::size_t solves = 0, refined = 0;
+// previous group's. Returns the lamellar eigen-solves, of which refined, and the points
+// solved in mirror sectors.
+struct BlockWork {
+    std::size_t solves = 0, refined = 0, sectors = 0;
+};
+
+BlockWork solve_block(const SweepProblem& pr, const std::vector<Mat>& Z, const std::vector<Mirror>& mirrors,
+                      const std::vector<std::vector<std::size_t>>& groups, std::size_t first, std::size_t last,
+                      SweepResult& out) {
+    std::size_t solves = 0, refined = 0, sectors = 0;
     SharedEigen previous;
     for (std::size_t g = first; g < last; ++g) {
         const auto& points = groups[g];
         SharedEigen eig = shared_eigen(pr, Z, harmonics_at(pr, pr.kx0[points[0]], pr.ky0[points[0]]),
                                        g > first ? &previous : nullptr);
-        for (std::size_t p : points) keep_rows(pr, solve_with(pr, p, eig), out, p);
+        for (std::size_t p : points) {
+            const StackSolution s = solve_with(pr, p, eig, Z, mirrors);
+            if (s.sectors_total > 0) ++sectors;
+            keep_rows(pr, s, out, p);
+        }
         for (const auto& layer : eig)
             if (layer) {
                 solves += 2;
@@ -200,7 +220,7 @@ std::pair<std::size_t, std::size_t> solve_block(const SweepProblem& pr, const st
             }
         previous = std::move(eig);
     }
-    return {solves, refined};
+    return {solves, refined, sectors};
 }
 
 }  // namespace
@@ -271,15 +291,22 @@ StackSolution solve_point(const SweepProblem& pr, std::size_t p, Incidence incid
     check_problem(pr);
     if (p >= pr.kx0.size()) throw std::invalid_argument("point " + std::to_string(p) + " outside the problem's points");
     keep_freed_memory();
+    std::vector<Mirror> mirrors;
     if (fast_paths) {
         const StackProblem sp = stack_problem(pr, p);
         if (decoupled_point(pr, sp)) return solve_decoupled(pr, sp, incidence);
+        mirrors = respected_mirrors(pr);
     }
-    const SharedEigen eig =
-        shared_eigen(pr, inverse_laurent(pr), harmonics_at(pr, pr.kx0[p], pr.ky0[p]), nullptr, fast_paths);
-    StackSolution out = solve_with(pr, p, eig);
+    const std::vector<Mat> Z = inverse_laurent(pr, mirrors);
+    if (!mirrors.empty())
+        if (auto sectors = solve_sectors(pr, stack_problem(pr, p), mirrors, incidence, Z)) return std::move(*sectors);
+    const SharedEigen eig = shared_eigen(pr, Z, harmonics_at(pr, pr.kx0[p], pr.ky0[p]), nullptr, fast_paths);
+    StackSolution out = solve_with(pr, p, eig, Z);  // no sectors: fast_paths is false, or none applies
     for (const auto& layer : eig)
-        if (layer) out.hermitian_solves += layer->hermitian;
+        if (layer) {
+            out.hermitian_solves += layer->hermitian;
+            out.real_solves += layer->real;
+        }
     return out;
 }
 
@@ -295,7 +322,8 @@ SweepResult sweep(const SweepProblem& pr) {
     out.kz_superstrate.resize(np * out.kept);
     out.kz_substrate.resize(np * out.kept);
     const std::vector<std::vector<std::size_t>> groups = groups_by_kx(pr.kx0);
-    const std::vector<Mat> Z = inverse_laurent(pr);
+    const std::vector<Mirror> mirrors = respected_mirrors(pr);
+    const std::vector<Mat> Z = inverse_laurent(pr, mirrors);
 
     // Blocks of kBlock consecutive kx0: within a block each group's eigen-solve is seeded
     // by the one before, the next block starts afresh. The blocks do not depend on the
@@ -303,16 +331,16 @@ SweepResult sweep(const SweepProblem& pr) {
     constexpr std::size_t kBlock = 32;
     const std::size_t threads = static_cast<std::size_t>(std::max(1, pr.threads));
     const std::size_t blocks = (groups.size() + kBlock - 1) / kBlock;
-    std::atomic<std::size_t> next{0}, solves{0}, refined{0};
+    std::atomic<std::size_t> next{0}, solves{0}, refined{0}, sectors{0};
     std::exception_ptr failure;
     std::mutex failure_lock;
     auto worker = [&]() {
         try {
             for (std::size_t b = next++; b < blocks; b = next++) {
-                const auto [n_solves, n_refined] = solve_block(
-                    pr, Z, groups, b * kBlock, std::min((b + 1) * kBlock, groups.size()), out);
-                solves += n_solves;
-                refined += n_refined;
+                const BlockWork work = solve_block(pr, Z, mirrors, groups, b * kBlock, std::min((b + 1) * kBlock, groups.size()), out);
+                solves += work.solves;
+                refined += work.refined;
+                sectors += work.sectors;
             }
         } catch (...) {
             std::lock_guard<std::mutex> lock(failure_lock);
@@ -328,6 +356,7 @@ SweepResult sweep(const SweepProblem& pr) {
     if (failure) std::rethrow_exception(failure);
     out.eigen_solves = solves;
     out.eigen_refined = refined;
+    out.sector_points = sectors;
     return out;
 }
 

@@ -34,6 +34,16 @@ struct LayerInput {
 // matrices for the kind, or matrices that are not square and of one size.
 LayerInput make_layer(LayerKind kind, double thickness, cplx eps, std::vector<Mat> matrices);
 
+// A mirror of the cell: x -> 2c - x (axis 0) or y -> 2c - y (axis 1). For a scalar field
+// f with harmonics f_i (at kx0 = 0, resp. ky0 = 0), the mirrored field has
+// (S f)_{partner[i]} = phase[i] f_i, phase[i] = exp(2 i k0 kx_i c) (resp. ky_i).
+// Used by the mirror-sector solve (sectors.hpp) at the points that respect it.
+struct Mirror {
+    int axis = 0;
+    std::vector<int> partner;
+    CVec phase;
+};
+
 struct SweepProblem {
     std::vector<double> dkx, dky;   // harmonic offsets: kx_i = kx0 + dkx_i, ky_i = ky0 + dky_i
     int zero_order = 0;
@@ -44,6 +54,7 @@ struct SweepProblem {
     std::vector<int> keep;          // harmonics whose amplitudes are returned
     StackMethod method = StackMethod::EnhancedTransmittance;
     int threads = 1;
+    std::vector<Mirror> mirrors;    // the cell's mirrors; empty: no sector solves
 };
 
 // Throws std::invalid_argument unless the arrays of `problem` agree: dkx and dky of one
@@ -58,6 +69,7 @@ struct SweepResult {
     std::size_t points = 0, kept = 0;
     CVec r, t;
     CVec kz_superstrate, kz_substrate;
+    std::size_t sector_points = 0;   // points solved in mirror-symmetry sectors (sectors.hpp)
     std::size_t eigen_solves = 0;    // lamellar eigen-solves (two per layer and kx0 group)
     std::size_t eigen_refined = 0;   // of which refined from a neighbour's eigenvectors
 };
@@ -74,6 +86,10 @@ SweepResult sweep(const SweepProblem& problem);
 enum class Incidence { S, P, Both };
 
 // One point, the sweep's code path with full eigen-solves (used by single solves).
+// Where `fast_paths` and the point respects a mirror of `problem.mirrors` (a 2D stack
+// at kx0 = 0 or ky0 = 0: sectors.hpp), it is solved in the mirror-symmetry sectors the
+// asked `incidence` excites (the other column NaN); the sweep does the same for both
+// polarizations.
 // Both check the problem first (check_problem). Where the point decouples (a 1D stack of
 // uniform and lamellar layers with every ky = 0, ETM: polarized.hpp) and `fast_paths`, TE
 // and TM are solved apart on N x N blocks, and only those `incidence` asks for: the other

@@ -3,7 +3,8 @@
 In a 1D stack at k_y = 0 (classical mount) TE and TM decouple in every layer and at both
 half-spaces; the core then solves each polarization on N x N blocks, and only the one
 asked for (rcwa/cpp/polarized.hpp). Lossless 1D layers are solved with Hermitian
-eigen-solvers, in classical and conical mounts (rcwa/cpp/modes.hpp, LamellarParts). In
+eigen-solvers, in classical and conical mounts (rcwa/cpp/modes.hpp, LamellarParts), in real
+arithmetic where the layer is symmetric about a point (rcwa/cpp/linalg.hpp, real_by_phase). In
 exact arithmetic both are the general path's computation (with its zero blocks left out,
 or with other eigenvector normalizations), so they must agree to round-off: 1e-12 (the
 issue's bound; measured <= 8e-15 on these cases), on efficiencies and on every complex
@@ -34,6 +35,13 @@ MIXED = structure([1.0], nk(1.0), nk(1.5), [
     {"thickness": 0.1, "material": nk(2.0)},  # uniform
     {"thickness": 0.05, "material": nk(1.0), "shapes": [{"material": nk(0.2, 3.4), "x": [0.2, 0.7]}]}])  # metal
 
+# A lossless layer symmetric about no point (two different stripes): its matrices cannot be
+# made real by moving the origin, so its Hermitian solves stay complex (zheevd / zhegvd),
+# while P2's and MIXED's first layer (one stripe) are solved in real arithmetic.
+ASYMMETRIC = structure([1.0], nk(1.0), nk(1.5), [
+    {"thickness": 0.3, "material": nk(1.0), "shapes": [{"material": nk(2.0), "x": [0.1, 0.3]},
+                                                       {"material": nk(1.5), "x": [0.45, 0.9]}]}])
+
 # Order -2 of a 1 um grating at 600 nm grazes the air superstrate where sin(theta) = 0.2.
 RAYLEIGH_THETA = math.degrees(math.asin(0.2))
 
@@ -44,12 +52,16 @@ CASES = {
     "cd at its Rayleigh point (normal)": (rcwa.load_structure("cd"), 400.0, 0.0, 31),
     "cd oblique, metal": (rcwa.load_structure("cd"), 633.0, 25.0, 31),
     "lossless next to lossy, metal below": (MIXED, 600.0, 20.0, 25),
+    "lossless, symmetric about no point": (ASYMMETRIC, 600.0, 20.0, 25),
 }
 # Eigen-solves done by Hermitian solvers for unpolarized light: two per lossless layer
 # (TE and TM), one where the TM pencil is not definite.
 HERMITIAN_SOLVES = {"P2 oblique": 2, "P2 normal incidence": 2, "dielectric at a Rayleigh point": 2,
                     "cd at its Rayleigh point (normal)": 0, "cd oblique, metal": 0,
-                    "lossless next to lossy, metal below": 2}
+                    "lossless next to lossy, metal below": 2, "lossless, symmetric about no point": 2}
+# Of those, the ones in real arithmetic (layers symmetric about a point: rcwa/cpp/linalg.hpp,
+# real_by_phase).
+REAL_SOLVES = {**HERMITIAN_SOLVES, "lossless, symmetric about no point": 0}
 
 
 def _core_solutions(s, wl, theta, orders, incidence, phi=0.0):
@@ -83,7 +95,8 @@ def test_decoupled_efficiencies_equal_the_general_path(name, pol):
     general = rcwa.solve(s, wl, theta, 0.0, orders, pol, fast_paths=False)
     single = ("single_polarization",) if pol != "unpolarized" else ()
     hermitian = ("hermitian_eigensolver",) if HERMITIAN_SOLVES[name] else ()
-    assert fast.fast_paths == ("te_tm_decoupled",) + single + hermitian and general.fast_paths == ()
+    real = ("real_arithmetic",) if REAL_SOLVES[name] else ()
+    assert fast.fast_paths == ("te_tm_decoupled",) + single + hermitian + real and general.fast_paths == ()
     for key in ("R", "T", "T_into_substrate"):
         columns = {"s": [0], "p": [1], "unpolarized": [0, 1]}[pol]
         assert np.max(np.abs(fast.all_orders[key][:, columns] - general.all_orders[key][:, columns])) <= TOLERANCE_FAST
@@ -110,13 +123,17 @@ def test_single_polarization_leaves_the_other_unsolved():
 ])
 def test_coupled_or_other_stacks_take_the_general_path(theta, phi, stack):
     result = rcwa.solve(P2, 1000.0, theta, phi, 21, "s", stack=stack)
-    assert result.fast_paths == ("hermitian_eigensolver",)  # P2 is lossless; its stack is not decoupled
+    # P2 is lossless and symmetric about its stripe's centre; its stack is not decoupled
+    assert result.fast_paths == ("hermitian_eigensolver", "real_arithmetic")
     assert all(math.isfinite(o.R_p) for o in result.orders)
 
 
-def test_two_dimensional_cells_take_the_general_path():
-    result = rcwa.solve(rcwa.load_structure("gold2d"), 550.0, 0.0, 0.0, (5, 5), "s")
-    assert result.fast_paths == ()
+def test_two_dimensional_cells_take_no_one_dimensional_fast_path():
+    # Only the mirror sectors apply to 2D cells (tests/rcwa/test_sectors.py), and only in
+    # mirror planes; elsewhere the general path.
+    gold2d = rcwa.load_structure("gold2d")
+    assert rcwa.solve(gold2d, 550.0, 0.0, 0.0, (5, 5), "s").fast_paths == ("mirror_sectors", "single_polarization")
+    assert rcwa.solve(gold2d, 550.0, 10.0, 30.0, (5, 5), "s").fast_paths == ()
 
 
 @pytest.mark.parametrize("name", CASES)
@@ -124,9 +141,11 @@ def test_lossless_layers_are_found_and_only_they(name):
     s, wl, theta, orders = CASES[name]
     fast, general = _core_solutions(s, wl, theta, orders, INCIDENCE_OF["unpolarized"])
     assert fast.hermitian_solves == HERMITIAN_SOLVES[name] and general.hermitian_solves == 0
+    assert fast.real_solves == REAL_SOLVES[name] and general.real_solves == 0
 
 
-@pytest.mark.parametrize("name", ["P2 oblique", "lossless next to lossy, metal below", "cd oblique, metal"])
+@pytest.mark.parametrize("name", ["P2 oblique", "lossless next to lossy, metal below", "cd oblique, metal",
+                                  "lossless, symmetric about no point"])
 @pytest.mark.parametrize("phi", [30.0, 90.0])
 def test_hermitian_solves_in_conical_mount_equal_the_general_path(name, phi):
     """Off the classical mount the layers couple TE and TM (general 2N path), but their
@@ -134,6 +153,7 @@ def test_hermitian_solves_in_conical_mount_equal_the_general_path(name, phi):
     s, wl, theta, orders = CASES[name]
     fast, general = _core_solutions(s, wl, theta, orders, INCIDENCE_OF["unpolarized"], phi)
     assert not fast.decoupled and fast.hermitian_solves == HERMITIAN_SOLVES[name]
+    assert fast.real_solves == REAL_SOLVES[name]
     for got, want in ((fast.reflected, general.reflected), (fast.transmitted, general.transmitted)):
         assert np.max(np.abs(got - want)) <= TOLERANCE_FAST * max(1.0, float(np.max(np.abs(want))))
 
