@@ -81,6 +81,7 @@ bench: install
 	$(BIN)/python -m benchmarks.bench_corners
 	$(BIN)/python -m benchmarks.bench_calibration
 	$(BIN)/python -m benchmarks.bench_report
+	$(BIN)/python -m benchmarks.bench_plan
 
 clean:
 	rm -rf build $(VENV)
