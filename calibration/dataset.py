@@ -24,7 +24,9 @@ DIR gets, each written atomically once everything has succeeded:
   ``light_power_scale`` is held at 1), ``exposure_scale_per_second`` (divided by each
   photo's EXIF exposure time: what is left is the light and the sensor's gain, the same
   for every photo of one scene), ``response`` (``points``: pairs of normalised irradiance
-  and value), residuals, settings, versions and timings;
+  and value), residuals, ``cd_fringes`` by photo (calibration.photometric: the CD-fringe
+  photometric residual before and after, the rotation the fringes suggest, whether it
+  was taken and why), settings, versions and timings;
 * ``intrinsics.json`` (when board views were used) and ``response.json`` (when a
   bracket was), as their own commands write them;
 * ``fitted_scene.toml``: the scene with the first photo's fitted camera and exposure, and
@@ -216,6 +218,7 @@ def _record(dataset, scene, spec, files, intrinsics, response, results, settings
                        "views": intrinsics.get("views"), "flags": intrinsics.get("flags")} if intrinsics
         else {"source": f"fitted on {next(iter(results))} (no board views in calibration/)"},
         "residuals": {name: {k: v for k, v in r.residuals.items()} for name, r in results.items()},
+        "cd_fringes": {name: r.log.get("cd_fringes") for name, r in results.items()},
         "photos": {name: result_json(r) for name, r in results.items()},
         "files": {k: [str(p) for p in v] for k, v in files.items()},
         "settings": {"board": None if board is None else board.to_json(), "pose": settings.to_json(), "scene": spec.source},

@@ -26,6 +26,11 @@ stages:
    what it finds there is the finder's own bias (shading across a crease, blur, clipping
    at the light), which is subtracted from the photo's offsets before a last fine fit
    (analysis by synthesis).
+4. **CD fringes** (calibration.photometric, ``PoseSettings.cd_fringes``): with the walls'
+   scale known, the photo's CD against re-renders cropped to the disc, over the camera's
+   rotation (nlopt BOBYQA, fixed seed). A check by default: its suggested rotation and
+   residuals go to the outputs; ``cd_fringes_apply`` takes the step only within a guard
+   (see that module for why it is not applied: measured, it does not beat the edges).
 
 Uncertainties: the covariance of the fine fit, s^2 (J^T W J)^-1, with W the Huber weights
 and s^2 their weighted residual variance (Gauss-Newton approximation of the cost's
@@ -55,6 +60,7 @@ import numpy as np
 
 from calibration.edges import ChamferMap, edge_offsets, smoothed
 from calibration.photo import Photo, mosaic_like, read_photo
+from calibration.photometric import FringeSettings, refine_rotation
 from calibration.scene_model import FeatureSamples, SceneModel, sample_features, scene_model
 from renderer.camera import CameraModel
 from workbench.core.errors import UserInputError
@@ -85,6 +91,9 @@ class PoseSettings:
     render_check: bool = True
     render_spp: int = 16
     render_seed: int = 0
+    cd_fringes: bool = True          # the CD-fringe stage (calibration.photometric), after the render check
+    cd_fringes_apply: bool = False   # take its rotation step (guarded) instead of only reporting it
+    fringes: FringeSettings = dataclasses.field(default_factory=FringeSettings)
 
     def to_json(self) -> dict:
         return {k: (list(v) if isinstance(v, tuple) else v) for k, v in dataclasses.asdict(self).items()}
@@ -583,8 +592,20 @@ def fit_photo(photo: Photo, model: SceneModel, start: CameraModel, unknowns: Unk
     cov, stats = covariance(match, unknowns, camera, intrinsics_std)
     residuals = stats | {"per_feature": per_feature_residuals(match, unknowns, camera)}
     std = derived_std(camera, unknowns, cov, intrinsics_std, repeats)
+    fringes = None
+    if renderer is not None and scale is not None and settings.cd_fringes:
+        tick = time.perf_counter()
+        fringes = refine_rotation(renderer, photo, model, camera, scale, np.asarray(std["rotation_deg"]), settings.fringes,
+                                  settings.cd_fringes_apply)
+        if fringes is not None and fringes.accepted:
+            camera = fringes.camera
+            residuals = covariance(match, unknowns, camera, intrinsics_std)[1] | {
+                "per_feature": per_feature_residuals(match, unknowns, camera)}
+        timings["cd_fringes_s"] = time.perf_counter() - tick
+    fringe_log = (fringes.to_json() | {"spp": settings.render_spp} if fringes is not None else
+                  {"accepted": False, "reason": "off" if not settings.cd_fringes or renderer is None else "too few CD pixels"})
     return PoseResult(photo.path, camera, unknowns, std, residuals, scale, scale_std, photo.exposure_time_s,
-                      {"coarse": coarse_log, "fine": fine_log, "render_check": check_log}, timings)
+                      {"coarse": coarse_log, "fine": fine_log, "render_check": check_log, "cd_fringes": fringe_log}, timings)
 
 
 def restarts(image: np.ndarray, model: SceneModel, camera: CameraModel, unknowns: Unknowns,
