@@ -28,10 +28,10 @@ the cost is the mean Charbonnier penalty sqrt(r^2 + eps^2) - eps of those relati
 residuals (smooth, and linear for outliers such as a glass object's caustic).
 
 How it is used (``PoseSettings.cd_fringes_apply``, off by default). Measured on the draft
-synthetic datasets of seeds 0, 1 and 2 (two photos each; 16 spp, blur 1 px; seed 5 not yet):
-the edge fit's rotation errors against truth.json were 0.065, 0.061, 0.013, 0.014, 0.032,
-0.041 deg; the fringes' step, taken unguarded, made them 0.078, 0.102, 0.049, 0.050, 0.047,
-0.036 deg: worse on five of six. The cost at the *true* camera is no lower than at the edge
+synthetic datasets of seeds 0, 1, 2 and 5 (two photos each; 16 spp, blur 1 px): the edge
+fit's rotation errors against truth.json were 0.065, 0.061, 0.013, 0.014, 0.032, 0.041,
+0.083, 0.073 deg; the fringes' step, taken unguarded, made them 0.078, 0.102, 0.049, 0.050,
+0.047, 0.036, 0.112, 0.084 deg: worse on seven of eight. The cost at the *true* camera is no lower than at the edge
 fit (0.0655 against 0.0604 on seed 0's view0, and within the seed noise elsewhere), so the
 fringes cannot see the edge fit's error: a rotation moves the disc and its fringes together
 (the fringe colours depend on the directions to the light and to the camera's centre,
@@ -48,11 +48,12 @@ standard deviation), whether it was accepted and why; a large residual or a larg
 step on a real photo says the scene model (the CD's place, its grating) or the pose is off.
 With ``cd_fringes_apply`` the step is taken only when it lies within GUARD_SIGMA of the edge
 fit's rotation uncertainty and the cost falls by more than MIN_FALL and by more than
-NOISE_FACTOR times the cost's change with the render seed (its noise floor); on the six
-photos above the guard refused all six steps (5.6-15.7 sigma, or no clear fall).
+NOISE_FACTOR times the cost's change with the render seed (its noise floor); on the eight
+photos above the guard refused all eight steps (5.6-15.7 sigma, or no clear fall).
 Time: 17-21 evaluations of a render cropped to the disc (3-4 % of the wide render's pixels),
-10-25 s per photo on this 2-core machine while loaded; ``calibrate DATASET`` on the draft
-dataset took 87 s in all with it (bar 120 s).
+7-25 s per photo on this 2-core machine (more when it is loaded); ``calibrate DATASET`` on
+the draft dataset took 31 s in all with it (seed 5, 15 s of it the fringes), 46-87 s while
+other jobs shared the cores (bar 120 s).
 """
 
 from __future__ import annotations
@@ -75,8 +76,8 @@ NOISE_FACTOR = 3.0      # ... and by this many times the cost's change when only
 MIN_CD_PIXELS = 200     # fewer compared CD pixels than this: the photo does not show the disc well enough
 CHARBONNIER_EPS = 0.05  # relative residuals below this count quadratically (the render's and photo's noise at 1 px blur)
 RIM_POINTS = 180        # points on each projected circle (a 1-degree polygon: < 0.02 px from the ellipse at 640 x 480)
-APPLY_NOTE = ("on draft datasets of seeds 0-2 the fringes' step was further from the truth than the edge fit on 5 of "
-              "6 photos (calibration/photometric.py's docstring), so it is reported and not applied by default")
+APPLY_NOTE = ("on draft datasets of seeds 0, 1, 2, 5 the fringes' step was further from the truth than the edge fit on "
+              "7 of 8 photos (calibration/photometric.py's docstring), so it is reported and not applied by default")
 
 
 @dataclass(frozen=True)
