@@ -313,6 +313,22 @@ def _seam(total: np.ndarray) -> int:
     return int(np.argmin(np.nan_to_num(total, nan=np.inf)))
 
 
+def _sampled_profiles(polar: PolarGrid, pred_samples: np.ndarray, image: np.ndarray | None, clipped: np.ndarray | None):
+    """The prediction and the image sampled along the grid's profiles, smoothed alike:
+    (periodic, pred (orders, 3, profiles, n), raw and values (3, profiles, n) or None,
+    clip (profiles, n) or None, steps (profiles, n) px)."""
+    periodic = polar.kind == "circle"
+    pred = smooth(np.moveaxis(pred_samples, 3 if periodic else 2, -1), periodic)
+    raw = values = None
+    if image is not None:
+        raw = np.moveaxis(sample(image, polar, robust=True), (2, 1 if periodic else 0), (0, -1))
+        values = smooth(raw, periodic)
+    clip = (np.moveaxis(sample(clipped.astype(np.float32), polar), 1 if periodic else 0, -1) > 0
+            if clipped is not None else None)
+    steps = polar.step_px()
+    return periodic, pred, raw, values, clip, (steps if periodic else steps.T)
+
+
 def find_edges(polar: PolarGrid, pred_samples: np.ndarray, orders: list[int], image: np.ndarray | None = None,
                clipped: np.ndarray | None = None, correlation_px: float = NOISE_CORRELATION_PX) -> list[Edge]:
     """Band edges along every profile of ``polar``.
@@ -323,15 +339,7 @@ def find_edges(polar: PolarGrid, pred_samples: np.ndarray, orders: list[int], im
     ``clipped`` (H, W) bool: saturated pixels. ``correlation_px``: the distance over which the
     image's noise is shared (``MOSAIC_CORRELATION_PX`` for a demosaiced raw photo).
     """
-    periodic = polar.kind == "circle"
-    pred = smooth(np.moveaxis(pred_samples, 3 if periodic else 2, -1), periodic)  # (orders, 3, profiles, n)
-    if image is not None:
-        raw = np.moveaxis(sample(image, polar, robust=True), (2, 1 if periodic else 0), (0, -1))
-        values = smooth(raw, periodic)
-        clip = (np.moveaxis(sample(clipped.astype(np.float32), polar), 1 if periodic else 0, -1) > 0
-                if clipped is not None else None)
-    steps = polar.step_px()
-    steps = steps if periodic else steps.T  # (profiles, n)
+    periodic, pred, raw, values, clip, steps = _sampled_profiles(polar, pred_samples, image, clipped)
     edges: list[Edge] = []
     for p in range(polar.profile_count):
         roll = _seam(pred[:, :, p].sum(axis=(0, 1))) if periodic else 0
@@ -575,15 +583,7 @@ def find_hue_crossings(polar: PolarGrid, pred_samples: np.ndarray, orders: list[
     ``RAMP_REACH_PX`` apart), ``overlap`` (another order lit there),
     ``weak`` (position uncertainty, wavelength noise / (slope sqrt(N)), over ``HUE_SIGMA_MAX_PX``),
     else ``ok``."""
-    periodic = polar.kind == "circle"
-    pred = smooth(np.moveaxis(pred_samples, 3 if periodic else 2, -1), periodic)  # (orders, 3, profiles, n)
-    if image is not None:
-        raw = np.moveaxis(sample(image, polar, robust=True), (2, 1 if periodic else 0), (0, -1))
-        values = smooth(raw, periodic)
-    clip = (np.moveaxis(sample(clipped.astype(np.float32), polar), 1 if periodic else 0, -1) > 0
-            if clipped is not None else None)
-    steps = polar.step_px()
-    steps = steps if periodic else steps.T
+    periodic, pred, _, values, clip, steps = _sampled_profiles(polar, pred_samples, image, clipped)
     edges: list[Edge] = []
     n = pred.shape[-1]
     for p in range(polar.profile_count):
