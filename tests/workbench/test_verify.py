@@ -254,3 +254,32 @@ def test_force_replaces_another_run_and_only_what_a_run_writes(tmp_path: Path) -
 def test_score_refuses_a_folder_that_is_not_a_run(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     err = _error(["score", str(tmp_path), "--truth", str(tmp_path / "truth.json")], capsys)
     assert str(tmp_path / "run.json") in err and "not a verify run" in err
+
+
+@pytest.mark.slow
+def test_the_render_stage_runs_on_a_dask_scheduler(reference: tuple[Path, dict, float], dataset: Path,
+                                                   tmp_path: Path) -> None:
+    """--scheduler ADDRESS: a copy of the reference run without its render and report stages,
+    resumed with a loopback LocalCluster (one worker process): the finished stages are
+    skipped, and the renders made on the cluster equal the local ones (every pass has its
+    own seed wherever it runs; float round-off tolerance, as tests/renderer/test_scene_render.py)."""
+    import shutil
+
+    import OpenImageIO as oiio
+    from distributed import LocalCluster
+
+    out = tmp_path / "run"
+    shutil.copytree(reference[0], out)
+    for stage in ("render", "report"):
+        shutil.rmtree(out / stage)
+    with LocalCluster(n_workers=1, threads_per_worker=1, processes=True, host="127.0.0.1",
+                      dashboard_address=None) as cluster:
+        record = verify(dataset, "cornell_cd", out, VerifySettings(spp=SPP, progress=False,
+                                                                   scheduler=cluster.scheduler_address))
+    stages = record["stages"]
+    assert all(stages[name]["skipped"] for name in ("plan", "tables", "calibration")), stages
+    assert not stages["render"]["skipped"] and not stages["report"]["skipped"]
+    for photo in ("view0", "view1"):
+        local = oiio.ImageBuf(str(reference[0] / "render" / f"{photo}.exr")).get_pixels()
+        remote = oiio.ImageBuf(str(out / "render" / f"{photo}.exr")).get_pixels()
+        assert np.allclose(local, remote, rtol=1e-4, atol=1e-6)
