@@ -3,8 +3,8 @@
 #   make verify DATASET=folder SCENE=scene [RUN=out/verify]   photos to report in one resumable run
 #   make paper   verify with the paper's settings (paper tables, 2045 spp, the paper's 978 x 734 frame)
 #   make check   lint (ruff) and types (mypy), configured in pyproject.toml
-#   make test    the whole test suite (about a minute; `make test-fast` skips the slow marker)
-#   make bench   benchmarks against open-source peers (separate env .venv-bench)
+#   make test    the whole test suite (about 10 minutes on 2 cores; `make test-fast` skips the slow marker)
+#   make bench   benchmarks: the solver against open-source peers (separate env .venv-bench), tables, renders, calibration, reports, the planner
 
 PYTHON ?= python3
 VENV   := .venv
