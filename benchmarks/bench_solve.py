@@ -692,6 +692,14 @@ def _ratios(num: dict | None, den: dict | None) -> str:
 PEER_TIME_KEY = {"s": "seconds_s", "p": "seconds_p", "both": "seconds_both_best"}
 
 
+def _our_seconds(row: dict) -> tuple[dict | None, dict]:
+    """A case's first timing of ours (default factorization) and its seconds by polarization."""
+    ours = (row.get("ours") or [None])[0]
+    if ours is None:
+        return None, {}
+    return ours, {"s": ours["seconds_s"], "p": ours["seconds_p"], "both": ours["seconds_both_pols"]}
+
+
 def print_summary(rows: list[dict]) -> None:
     """Issue 17's table: per case and polarization, ours (default factorization) against the
     fastest peer and against the case's eigen-solve floor, all CPU time in the same run."""
@@ -701,10 +709,9 @@ def print_summary(rows: list[dict]) -> None:
     print(head)
     print("-" * len(head))
     for r in rows:
-        ours = (r.get("ours") or [None])[0]
+        ours, mine = _our_seconds(r)
         if ours is None:
             continue
-        mine = {"s": ours["seconds_s"], "p": ours["seconds_p"], "both": ours["seconds_both_pols"]}
         floor = r.get("floor")
         diffs = " ".join(fmt_e(p.get("vs_ours", {}).get(ours["factorization"], {}).get("max_abs_dDE")) for p in r["peers"])
         for pol in ("s", "p", "both"):
@@ -735,10 +742,9 @@ def print_floor_table(rows: list[dict]) -> None:
     print(head)
     print("-" * len(head))
     for r in rows:
-        ours = (r.get("ours") or [None])[0]
+        ours, mine = _our_seconds(r)
         if ours is None:
             continue
-        mine = {"s": ours["seconds_s"], "p": ours["seconds_p"], "both": ours["seconds_both_pols"]}
         floor, base = r.get("floor"), r.get("base")
         print(f"{r['name']:22s} {fmt_ms(mine['s'])} {fmt_ms(mine['p'], 7)} {fmt_ms(mine['both'], 7)} | "
               f"{fmt_ms(floor and floor['s'])} {fmt_ms(floor and floor['p'], 7)} {fmt_ms(floor and floor['both'], 7)} | "

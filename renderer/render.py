@@ -25,7 +25,7 @@ import numpy as np
 from renderer.scene import SceneSpec, load_scene
 from workbench.core.errors import UserInputError
 from workbench.core.files import atomic_write as _atomic
-from workbench.core.files import atomic_write_text
+from workbench.core.files import atomic_write_text, file_sha256
 from workbench.core.timing import timed
 from workbench.core.version import __version__ as workbench_version
 
@@ -122,7 +122,7 @@ def render(scene: str | Path, out: str | Path, *, preset: str = "draft", spp: in
     _atomic(preview, lambda tmp: _write_preview(rgb, tmp))
     sidecar = out.with_suffix(".json")
     info = {
-        "format": SIDECAR_FORMAT, "request_key": key, "output_sha256": _file_sha256(out),
+        "format": SIDECAR_FORMAT, "request_key": key, "output_sha256": file_sha256(out),
         "scene": spec.name, "scene_source": spec.source, "scene_sha256": hashlib.sha256(spec.text.encode()).hexdigest(),
         "output": str(out), "preview": str(preview), "preset": preset, "spp": passes * pass_spp, "passes": passes,
         "resolution": [spec.camera.model.width, spec.camera.model.height], "integrator": integrator, "mode": mode,
@@ -219,7 +219,7 @@ def _finished_render(out: Path, key: str) -> dict | None:
     info = _read_sidecar(out)
     if info is None or info.get("request_key") != key or not all(p.is_file() for p in _outputs(out)):
         return None
-    if _file_sha256(out) != info.get("output_sha256"):
+    if file_sha256(out) != info.get("output_sha256"):
         return None
     return info | {"served": True}
 
@@ -234,7 +234,7 @@ def _refuse_to_overwrite(out: Path, partial: Path, key: str, force: bool) -> Non
     info = _read_sidecar(out)
     if info is None:
         what = "files that no render of this workbench described: " + ", ".join(p.name for p in present)
-    elif out.is_file() and _file_sha256(out) != info.get("output_sha256"):
+    elif out.is_file() and file_sha256(out) != info.get("output_sha256"):
         what = "a render whose EXR was changed since it was written"
     elif info.get("request_key") == key:
         return  # this request, with a part missing (a deleted preview): rendered again
@@ -243,14 +243,6 @@ def _refuse_to_overwrite(out: Path, partial: Path, key: str, force: bool) -> Non
                 f"seed {info.get('seed')})")
     raise UserInputError(f"the output already holds {what}", file=out,
                          expected="a new path, the same request, or --force to replace it")
-
-
-def _file_sha256(path: Path) -> str:
-    digest = hashlib.sha256()
-    with open(path, "rb") as f:
-        for block in iter(lambda: f.read(1 << 20), b""):
-            digest.update(block)
-    return digest.hexdigest()
 
 
 def _write_preview(rgb: np.ndarray, path: Path) -> None:

@@ -51,7 +51,7 @@ from pathlib import Path
 from typing import Any
 
 from workbench.core.errors import UserInputError
-from workbench.core.files import atomic_write_text
+from workbench.core.files import atomic_write_text, file_sha256
 from workbench.core.version import __version__ as workbench_version
 
 RUN_FORMAT = "workbench-verify"
@@ -122,14 +122,6 @@ class _Run:
 
 
 # ---------------------------------------------------------------- inputs
-
-
-def file_sha256(path: Path) -> str:
-    digest = hashlib.sha256()
-    with open(path, "rb") as f:
-        for block in iter(lambda: f.read(1 << 20), b""):
-            digest.update(block)
-    return digest.hexdigest()
 
 
 def stage_key(name: str, files: dict[str, Path], settings: dict[str, Any]) -> str:
