@@ -39,14 +39,14 @@ def test_order_kxy_applies_the_sign_on_each_axis():
     kx, ky = order_kxy(0.1, -0.2, m, n, (1.0, 2.0), 0.55)
     np.testing.assert_allclose(kx, order_kx(0.1, m, 1.0, 0.55), atol=TOLERANCE)
     np.testing.assert_allclose(ky, order_kx(-0.2, n, 2.0, 0.55), atol=TOLERANCE)
-    kx1, ky1 = order_kxy(0.1, -0.2, [-1, 0, 1], 0, (1.0,), 0.55)  # 1D: ky stays the incident one
+    kx1, ky1 = order_kxy(0.1, -0.2, np.array([-1, 0, 1]), 0, (1.0,), 0.55)  # 1D: ky stays the incident one
     np.testing.assert_allclose(ky1, [-0.2] * 3, atol=0)
     np.testing.assert_allclose(kx1, kx[:, 1], atol=TOLERANCE)
 
 
 def test_a_1d_grating_has_no_y_orders():
     with pytest.raises(ValueError, match="only n = 0"):
-        order_kxy(0.0, 0.0, [0, 1], [0, 1], (1.0,), 0.5)
+        order_kxy(0.0, 0.0, np.array([0, 1]), np.array([0, 1]), (1.0,), 0.5)
 
 
 def test_kz_branch_is_outgoing():

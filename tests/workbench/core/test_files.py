@@ -39,8 +39,13 @@ def test_a_finished_write_replaces_the_file_and_leaves_no_temporary(tmp_path):
 
 
 def test_the_temporary_keeps_the_suffix_for_writers_that_choose_a_format_by_it(tmp_path):
-    seen = []
-    atomic_write(tmp_path / "image.exr", lambda tmp: (seen.append(tmp), tmp.write_bytes(b"x")))
+    seen: list[Path] = []
+
+    def write(tmp: Path) -> None:
+        seen.append(tmp)
+        tmp.write_bytes(b"x")
+
+    atomic_write(tmp_path / "image.exr", write)
     assert seen[0].suffix == ".exr" and seen[0].parent == tmp_path and seen[0].name.startswith(".")
 
 
@@ -86,7 +91,7 @@ atomic_write({str(path)!r}, slow)
 
 
 def test_csv_has_every_key_as_a_column(tmp_path):
-    rows = [{"b": 1, "a": 0.5}, {"a": 2.0, "c": "x"}]
+    rows: list[dict] = [{"b": 1, "a": 0.5}, {"a": 2.0, "c": "x"}]
     atomic_write_csv(tmp_path / "rows.csv", rows)
     with open(tmp_path / "rows.csv", newline="") as f:
         back = list(csv.DictReader(f))

@@ -13,6 +13,10 @@ UPPER_S = 2.0
 
 
 def test_timed_returns_the_result_and_the_seconds_it_took():
-    result, seconds = timed(lambda a, b: (time.sleep(SLEEP_S), a + b)[1], 2, 3)
+    def add_slowly(a: int, b: int) -> int:
+        time.sleep(SLEEP_S)
+        return a + b
+
+    result, seconds = timed(add_slowly, 2, 3)
     assert result == 5
     assert SLEEP_S <= seconds < UPPER_S
