@@ -4,7 +4,9 @@
 - the libraries (rcwa, renderer, calibration, datasets_synthetic, reports) never import
   the face (``workbench`` outside ``workbench.core``: the CLI, the demo, the planner);
 - calibration never sees how synthetic photos are made, and the synthetic datasets'
-  truth never comes from the calibration code (neither imports the other).
+  truth never comes from the calibration code (neither imports the other);
+- benchmarks live in ``benchmarks/`` only: the wheel's packages (pyproject.toml) hold no
+  ``bench_*`` module and do not import ``benchmarks``, which is not shipped.
 
 Imports are read with ``ast`` from every module, including imports inside functions, so a
 late ``from workbench.cli import main`` is caught as well as a top-level one.
@@ -13,6 +15,7 @@ late ``from workbench.cli import main`` is caught as well as a top-level one.
 from __future__ import annotations
 
 import ast
+import tomllib
 from pathlib import Path
 
 import pytest
@@ -78,6 +81,25 @@ def test_calibration_and_synthetic_data_stay_apart(package: str, forbidden: tupl
                  for p in modules_of(package)}
     offenders = {k: v for k, v in offenders.items() if v}
     assert not offenders, f"{package} imports {forbidden}: {offenders}"
+
+
+def shipped_packages() -> list[str]:
+    """The packages the wheel installs (pyproject.toml, scikit-build-core's wheel.packages)."""
+    config = tomllib.loads((ROOT / "pyproject.toml").read_text(encoding="utf-8"))
+    return list(config["tool"]["scikit-build"]["wheel"]["packages"])
+
+
+def test_the_wheel_ships_every_library_and_no_benchmark() -> None:
+    packages = shipped_packages()
+    assert set(LIBRARIES) | {"workbench"} <= set(packages), packages
+    assert "benchmarks" not in packages and "tests" not in packages, packages
+    bench_modules = [str(p.relative_to(ROOT)) for package in packages for p in modules_of(package)
+                     if p.name.startswith("bench")]
+    assert not bench_modules, f"benchmarks inside shipped packages (move them to benchmarks/): {bench_modules}"
+    importing = {str(p.relative_to(ROOT)): sorted(m for m in imported_modules(p) if m.split(".")[0] == "benchmarks")
+                 for package in packages for p in modules_of(package)}
+    importing = {k: v for k, v in importing.items() if v}
+    assert not importing, f"shipped modules importing benchmarks/, which the wheel does not hold: {importing}"
 
 
 def test_the_check_sees_a_violation(tmp_path: Path) -> None:
