@@ -65,7 +65,7 @@ for the peers):
 * err vs ref: the same against meent at a much higher truncation (3x the orders in 1D,
   21 x 21 in 2D), so that truncation error and disagreement can be told apart.
 
-Conventions (``workbench/conventions.py``): order m has k_x,m = k_x,inc - m 2 pi/Lambda_x;
+Conventions (``workbench/core/conventions.py``): order m has k_x,m = k_x,inc - m 2 pi/Lambda_x;
 the incident wave travels toward -z with tangential k0 n_sup (sin t cos p, sin t sin p);
 s = TE (E perpendicular to the plane of incidence). peer_runner maps each peer onto them;
 ``check_peer_conventions.py`` proves the mapping against independent references.

@@ -30,7 +30,7 @@ excitation). The three are interleaved within each repeat. Everything runs on on
 (OMP/OPENBLAS/MKL threads = 1, XLA's CPU client single-threaded). fmmax's solve is
 ``jax.jit``-compiled once in the warm-up, as its users run it.
 
-Conventions (the project's, ``workbench/conventions.py``; every mapping below was checked
+Conventions (the project's, ``workbench/core/conventions.py``; every mapping below was checked
 against an independent reference by ``check_peer_conventions.py``):
 
 * exp(-i omega t), Im(n) > 0 for lossy media.

@@ -5,7 +5,7 @@ gratings. Asserted: the number of harmonics the Laurent rule needs to come (and 
 within 1e-2 of the converged Littrow efficiency is at least MIN_RATIO times what the
 inverse rule needs. Measured here: 21 against 161 (ratio 7.7); MIN_RATIO = 4 leaves
 room for a different reference while still failing if the rules were swapped or equal.
-`python -m rcwa.convergence` prints the whole curve.
+`python -m benchmarks.bench_convergence` (make bench) prints the whole curve.
 """
 
 from rcwa.convergence import lamellar_tm_study, orders_to_reach

@@ -6,7 +6,7 @@
 * Convergence: zero-order transmission at 550 nm. Asserted: between 11 x 11 and 15 x 15
   harmonics Li's 1997 rule moves by less than GOLD2D_LI_STEP (measured 0.0044, while the
   Laurent rule still jumps by 0.02-0.2 between successive truncations); its value is
-  close to the value at 19 x 19 (slow test). `python -m rcwa.convergence` prints the curve.
+  close to the value at 19 x 19 (slow test). `python -m benchmarks.bench_convergence` (make bench) prints the curve.
 """
 
 import pytest

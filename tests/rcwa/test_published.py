@@ -5,7 +5,7 @@ code (GD-Calc) used as a cross-check of Example 2's set-up, marked as such; the 
 the parameters, the digits and the mapping of the paper's conventions onto ours are
 written next to it and, at more length, in docs/published_examples.md.
 
-Our conventions (DESIGN.md section 3, workbench/conventions.py): lengths in um,
+Our conventions (DESIGN.md section 3, workbench/core/conventions.py): lengths in um,
 wavelength in nm, exp(-i omega t) so absorbing media have Im(n) > 0, incident wave
 travelling toward -z from the superstrate, theta the polar angle of the incident
 direction, phi the azimuth of its tangential wave vector from +x toward +y, order m with
