@@ -12,6 +12,7 @@ from typing import Union
 
 import numpy as np
 import shapely
+import shapely.affinity
 from shapely.geometry import Point
 from shapely.geometry import Polygon as ShapelyPolygon
 
@@ -123,8 +124,6 @@ def periodic_copies(geometry, period: tuple[float, float]):
 
 def overlapping_pairs(shapes: list[Shape2D], period: tuple[float, float]) -> list[tuple[int, int]]:
     """Index pairs of shapes whose interiors overlap, periodic images included."""
-    import shapely.affinity  # noqa: F401  (used by periodic_copies)
-
     outlines = [s.outline() for s in shapes]
     pairs = []
     for i, a in enumerate(outlines):
@@ -136,8 +135,6 @@ def overlapping_pairs(shapes: list[Shape2D], period: tuple[float, float]) -> lis
 
 def visible_regions(shapes: list[Shape2D], period: tuple[float, float]) -> list[list[fourier.Polygon2D]]:
     """For each shape, the polygons of the part no later shape covers (painter's order)."""
-    import shapely.affinity  # noqa: F401
-
     outlines = [s.outline() for s in shapes]
     result: list[list[fourier.Polygon2D]] = []
     for k, outline in enumerate(outlines):
