@@ -139,6 +139,7 @@ class TablePlan:
     structure: Any
     settings: Any
     nodes: Any = None  # rcwa.table.NodePlan of a planned table (None: the whole table)
+    fallback: TablePlan | None = None  # for another plan's table serving this one: this plan's own, if that one is damaged
 
 
 def table_plan(element, where: str = "element", scene_file: str | None = None, nodes=None) -> TablePlan:
@@ -168,13 +169,13 @@ def table_plan(element, where: str = "element", scene_file: str | None = None, n
     whole = TablePlan(entry_path("tables", f"{structure.name}-{key[:16]}.zarr"), key, structure, settings)
     if nodes is None or _finished_table(whole.path, key) is not None:
         return whole
-    serving = _planned_superset(whole.path, nodes, structure)
-    if serving is not None:
-        return serving
     settings = planned(settings, nodes)
     planned_key = request_key(structure, settings)
-    return TablePlan(whole.path.with_name(f"{whole.path.stem}-planned-{planned_key[:12]}.zarr"), planned_key, structure,
-                     settings, nodes)
+    own = TablePlan(whole.path.with_name(f"{whole.path.stem}-planned-{planned_key[:12]}.zarr"), planned_key, structure,
+                    settings, nodes)
+    if own.path.exists():  # this plan's own table: build_table serves it, resumes it or computes damaged chunks again
+        return own
+    return _planned_superset(whole.path, nodes, own) or own
 
 
 def _finished_table(path: Path, key: str | None = None) -> dict | None:
@@ -188,10 +189,10 @@ def _finished_table(path: Path, key: str | None = None) -> dict | None:
     return meta if meta.get("complete") and key in (None, meta.get("key")) else None
 
 
-def _planned_superset(whole: Path, nodes, structure) -> TablePlan | None:
+def _planned_superset(whole: Path, nodes, own: TablePlan) -> TablePlan | None:
     """A finished planned table of the same request whose exactly solved nodes include
     ``nodes``' with the same fill: it serves this plan (another camera's plan, a run's plan
-    for the scene's camera with a margin)."""
+    for the scene's camera with a margin). ``own`` (this plan's table) is its fallback."""
     import zarr
 
     for path in sorted(whole.parent.glob(f"{whole.stem}-planned-*.zarr")):
@@ -203,7 +204,7 @@ def _planned_superset(whole: Path, nodes, structure) -> TablePlan | None:
         except Exception:  # unreadable: not a candidate
             continue
         if mask.shape == nodes.mask.shape and not np.any(nodes.mask & ~mask):
-            return TablePlan(path, meta["key"], structure, None)  # built: checked like a table a scene names
+            return TablePlan(path, meta["key"], own.structure, None, fallback=own)  # built: checked like a named table
     return None
 
 
@@ -243,8 +244,14 @@ def element_table(element, camera_sens, where: str = "element", scene_file: str 
 
     plan = table_plan(element, where, scene_file, nodes)
     if plan.settings is None:
-        wavelengths = _check_named_table(plan, where, scene_file)
-    else:
+        try:
+            wavelengths = _check_named_table(plan, where, scene_file)
+        except UserInputError as exc:
+            if plan.fallback is None:  # a table the scene names: the user's to repair
+                raise
+            print(f"{plan.path}: not used ({exc.reason}); building this camera's own table", file=sys.stderr)
+            plan = plan.fallback
+    if plan.settings is not None:
         try:
             report = build_table(plan.structure, plan.settings, plan.path, progress=True, force=True,  # the cache's path
                                  nodes=plan.nodes)
