@@ -24,6 +24,7 @@ import numpy as np
 from rcwa import _core
 from rcwa.solver import STACK_METHOD_OF, check_stack, efficiencies, mirrors_of, prepare
 from rcwa.structure import Structure
+from workbench.core.conventions import incident_tangential_k
 from workbench.core.errors import UserInputError
 
 
@@ -94,8 +95,7 @@ def sweep_directions(
     keep_counts = prep.counts if keep is None else _keep_counts(keep, prep.counts)
     idx = kept_harmonics(prep.harmonics.m, prep.harmonics.n, keep_counts)
     n_sup = math.sqrt(prep.eps_sup.real)
-    kx0 = n_sup * np.sin(theta) * np.cos(phi)
-    ky0 = n_sup * np.sin(theta) * np.sin(phi)
+    kx0, ky0 = incident_tangential_k(n_sup, theta, phi)
     sol = _core.sweep(
         prep.dkx, prep.dky, prep.zero, prep.eps_sup, prep.eps_sub, prep.core_layers,
         kx0, ky0, -np.sin(phi), np.cos(phi), [int(i) for i in idx], STACK_METHOD_OF[stack], threads or default_threads(),

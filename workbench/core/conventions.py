@@ -28,6 +28,7 @@ from __future__ import annotations
 
 import math
 from enum import Enum
+from typing import overload
 
 import numpy as np
 
@@ -74,16 +75,29 @@ def order_kxy(
     return kx, order_kx(ky_inc, n_arr, period[1], wavelength)
 
 
-def incident_tangential_k(n_superstrate: float, theta_rad: float, phi_rad: float) -> tuple[float, float]:
+@overload
+def incident_tangential_k(n_superstrate: float, theta_rad: float, phi_rad: float) -> tuple[float, float]: ...
+
+
+@overload
+def incident_tangential_k(n_superstrate: float, theta_rad: np.ndarray, phi_rad: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    ...
+
+
+def incident_tangential_k(n_superstrate, theta_rad, phi_rad):
     """Normalized tangential wave vector ``(kx, ky) / k0`` of the incident wave.
 
     Lange et al. 2021, Eq. 2: ``k_x = cos(phi) sin(theta) k0 n1`` and
     ``k_y = sin(phi) sin(theta) k0 n1``, so the incident wave's tangential wave vector
     points along the azimuth ``phi``; its direction of travel has ``k_z < 0``.
     The specularly reflected order 0 then leaves with the same ``(kx, ky)``.
+    Scalars give floats (a single solve); arrays of directions broadcast (a sweep).
     """
-    s = n_superstrate * math.sin(theta_rad)
-    return s * math.cos(phi_rad), s * math.sin(phi_rad)
+    if np.ndim(theta_rad) == 0 and np.ndim(phi_rad) == 0:
+        s = n_superstrate * math.sin(theta_rad)
+        return s * math.cos(phi_rad), s * math.sin(phi_rad)
+    s_arr = n_superstrate * np.sin(theta_rad)
+    return s_arr * np.cos(phi_rad), s_arr * np.sin(phi_rad)
 
 
 def kz_branch(kz_squared: np.ndarray) -> np.ndarray:

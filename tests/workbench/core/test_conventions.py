@@ -76,3 +76,13 @@ def test_incident_tangential_k_points_along_phi():
 def test_polarizations_are_named_as_in_files():
     assert [p.value for p in Polarization] == ["s", "p", "unpolarized"]
     assert Polarization("p") is Polarization.P
+
+
+def test_incident_tangential_k_of_many_directions_equals_one_at_a_time():
+    """The sweep passes arrays, a single solve scalars: the same rule either way."""
+    theta = np.radians([0.0, 10.0, 45.0, 89.999])
+    phi = np.radians([0.0, 90.0, 200.0, 315.0])
+    kx, ky = incident_tangential_k(1.33, theta, phi)
+    one = [incident_tangential_k(1.33, float(t), float(p)) for t, p in zip(theta, phi, strict=True)]
+    assert all(type(v) is float for pair in one for v in pair)
+    np.testing.assert_allclose(np.stack([kx, ky], 1), one, atol=TOLERANCE)
