@@ -71,12 +71,42 @@ def _read_json(path: Path, what: str) -> dict:
     return data
 
 
+CAMERA_NUMBERS = ("width", "height", "fx", "fy", "cx", "cy")
+
+
+def _check_camera(data: dict, path: Path, what: str, photos: list[str] | None = None) -> list[str]:
+    """``data['camera']`` holds the numbers the score compares and a 4 x 4 world_to_camera per
+    photo (of ``photos``, or every one given); the photos it has."""
+    camera = data.get("camera")
+    if not isinstance(camera, dict):
+        raise UserInputError(f"{what} has no camera", file=path, field="camera",
+                             expected="an object with width, height, fx, fy, cx, cy and world_to_camera")
+    for key in CAMERA_NUMBERS:
+        if isinstance(camera.get(key), bool) or not isinstance(camera.get(key), (int, float)):
+            raise UserInputError(f"{what} has no number here", file=path, field=f"camera.{key}", expected="a number",
+                                 got=camera.get(key))
+    poses = camera.get("world_to_camera")
+    if not isinstance(poses, dict) or not poses:
+        raise UserInputError(f"{what} has no camera poses", file=path, field="camera.world_to_camera",
+                             expected="an object: photo file name -> 4 x 4 matrix")
+    for photo in poses if photos is None else [p for p in photos if p in poses]:
+        try:
+            ok = np.asarray(poses[photo], dtype=float).shape == (4, 4)
+        except (TypeError, ValueError):
+            ok = False
+        if not ok:
+            raise UserInputError(f"{what}'s pose is not a 4 x 4 matrix of numbers", file=path,
+                                 field=f"camera.world_to_camera.{photo}", expected="[[4 numbers] x 4]")
+    return sorted(poses)
+
+
 def _check_truth(truth: dict, path: Path, photos: list[str]) -> None:
     for key in ("camera", "sensor", "light_power_scale", "exposure_time_s", "response"):
         if key not in truth:
             raise UserInputError("not a synthetic dataset's truth", file=path, field=key,
                                  expected="truth.json as `workbench synth` writes it")
-    missing = [p for p in photos if p not in truth["camera"].get("world_to_camera", {})]
+    _check_camera(truth, path, "the truth", photos)
+    missing = [p for p in photos if p not in truth["camera"]["world_to_camera"]]
     if missing:
         raise UserInputError(f"the truth has no camera for the run's photos {', '.join(missing)}", file=path,
                              field="camera.world_to_camera", expected="the truth of the dataset the run calibrated")
@@ -94,10 +124,18 @@ def score_run(run: str | Path, truth_path: str | Path) -> dict[str, Any]:
     if record.get("stages", {}).get("calibration", {}).get("status") != "done":
         raise UserInputError("the run's calibration has not finished", file=root / "run.json",
                              field="stages.calibration.status", expected="done (run `workbench verify` to the end)")
-    calibration = _read_json(root / "calibration" / "calibration.json", "the run's calibration")
+    calibration_path = root / "calibration" / "calibration.json"
+    calibration = _read_json(calibration_path, "the run's calibration")
+    photos = _check_camera(calibration, calibration_path, "the run's calibration")
     truth = _read_json(truth_path, "the truth")
-    _check_truth(truth, truth_path, sorted(calibration["camera"]["world_to_camera"]))
-    errors = calibration_errors(calibration, truth)
+    _check_truth(truth, truth_path, photos)
+    try:
+        errors = calibration_errors(calibration, truth)
+    except (KeyError, TypeError, ValueError, IndexError, ZeroDivisionError) as exc:  # a field edited or from another version
+        raise UserInputError(f"the score cannot read a field of the truth or of the run's calibration "
+                             f"({type(exc).__name__}: {exc})", file=f"{truth_path} or {calibration_path}",
+                             expected="truth.json as `workbench synth` writes it and calibration.json as "
+                                      "`workbench verify` writes it") from None
     photos = (record.get("summary") or {}).get("photos", {})
     score = {"format": SCORE_FORMAT, "run": str(root), "truth": str(truth_path), "calibration": errors,
              "fringe_offset_px": {name: p.get("fringe_offset_px") for name, p in photos.items()}}

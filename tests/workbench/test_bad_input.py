@@ -8,6 +8,7 @@ Commands added later (calibration, reports, verify) add their cases here.
 
 from __future__ import annotations
 
+import json
 import subprocess
 import sys
 from pathlib import Path
@@ -60,6 +61,29 @@ def files(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
             (root / name / sub / file_name).write_bytes((root / "gray.png").read_bytes())
         if board is not None:
             (root / name / "calibration" / "board.json").write_text(board)
+        out[name] = root / name
+    (root / "dataset" / "photos").mkdir(parents=True)
+    (root / "dataset" / "photos" / "view0.png").write_bytes((root / "gray.png").read_bytes())
+    out["dataset"] = root / "dataset"
+    identity = [[1, 0, 0, 0], [0, 1, 0, 0], [0, 0, 1, 0], [0, 0, 0, 1]]
+    camera = {"width": 64, "height": 48, "fx": 60, "fy": 60, "cx": 32, "cy": 24, "world_to_camera": {"view0.png": identity}}
+    for name, calibration in (("run_unfinished", None), ("run_no_camera", {"camera": {"world_to_camera": {}}}),
+                              ("run_done", {"camera": camera})):
+        (root / name / "calibration").mkdir(parents=True)
+        status = "running" if calibration is None else "done"
+        (root / name / "run.json").write_text(json.dumps({"format": "workbench-verify",
+                                                          "stages": {"calibration": {"status": status}}}))
+        if calibration is not None:
+            (root / name / "calibration" / "calibration.json").write_text(json.dumps(calibration))
+        out[name] = root / name
+    truths = {"truth_camera_list.json": {"camera": [], "sensor": {}, "light_power_scale": 1, "exposure_time_s": {},
+                                         "response": {}},
+              "truth_no_fx.json": {"camera": {k: v for k, v in camera.items() if k != "fx"}, "sensor": {},
+                                   "light_power_scale": 1, "exposure_time_s": {}, "response": {}},
+              "truth_other_photos.json": {"camera": camera | {"world_to_camera": {"view9.png": identity}}, "sensor": {},
+                                          "light_power_scale": 1, "exposure_time_s": {}, "response": {}}}
+    for name, truth in truths.items():
+        (root / name).write_text(json.dumps(truth))
         out[name] = root / name
     out["root"] = root
     return out
@@ -146,10 +170,60 @@ CASES: list[tuple[str, list[str], str]] = [
                                        "{root}/s2"], "truth.json"),
     ("study-calibrate-bad-scale", ["study", "calibrate", "{undescribed_boards}", "--scene", "cornell_cd", "--out",
                                    "{root}/s3", "--scales", "1,half"], "--scales"),
+    ("report-missing-calibration", ["report", "--photo", "{gray.png}", "--render", "{gray.png}", "--calibration",
+                                    "{root}/c.json", "--scene", "cornell_cd", "--out", "{root}/rep"], "--calibration"),
     ("report-missing-photo", ["report", "--photo", "{root}/nosuch.dng", "--render", "{root}/r.exr", "--calibration",
-                              "{root}/c.json", "--scene", "cornell_cd", "--out", "{root}/rep"], "no such file"),
-    ("report-binary-scene", ["report", "--photo", "{gray.png}", "--render", "{root}/r.exr", "--calibration",
-                             "{root}/c.json", "--scene", "{binary.toml}", "--out", "{root}/rep"], "error"),
+                              "{run_done}/calibration/calibration.json", "--scene", "cornell_cd", "--out", "{root}/rep"],
+     "--photo"),
+    ("report-binary-photo", ["report", "--photo", "{binary.toml}", "--render", "{gray.png}", "--calibration",
+                             "{run_done}/calibration/calibration.json", "--scene", "cornell_cd", "--out", "{root}/rep"],
+     "cannot be read as an image"),
+    ("report-truncated-raw-photo", ["report", "--photo", "{truncated.dng}", "--render", "{gray.png}", "--calibration",
+                                    "{run_done}/calibration/calibration.json", "--scene", "cornell_cd", "--out",
+                                    "{root}/rep"], "truncated.dng"),
+    ("report-jpeg-without-response", ["report", "--photo", "{gray.png}", "--render", "{gray.png}", "--calibration",
+                                      "{run_done}/calibration/calibration.json", "--scene", "cornell_cd", "--out",
+                                      "{root}/rep"], "response"),
+    ("report-binary-scene", ["report", "--photo", "{gray.png}", "--render", "{gray.png}", "--calibration",
+                             "{run_done}/calibration/calibration.json", "--scene", "{binary.toml}", "--out", "{root}/rep"],
+     "not a text file"),
+    ("report-out-is-a-file", ["report", "--photo", "{gray.png}", "--render", "{gray.png}", "--calibration",
+                              "{run_done}/calibration/calibration.json", "--scene", "cornell_cd", "--out", "{notes.txt}"],
+     "--out"),
+    ("verify-missing-dataset", ["verify", "{root}/nosuch", "--scene", "cornell_cd", "--out", "{root}/v1"], "no such dataset"),
+    ("verify-dataset-is-a-file", ["verify", "{notes.txt}", "--scene", "cornell_cd", "--out", "{root}/v1"], "dataset"),
+    ("verify-without-photos", ["verify", "{a_folder}", "--scene", "cornell_cd", "--out", "{root}/v1"], "no photos"),
+    ("verify-binary-scene", ["verify", "{dataset}", "--scene", "{binary.toml}", "--out", "{root}/v1"], "not a text file"),
+    ("verify-missing-scene", ["verify", "{dataset}", "--scene", "{root}/nosuch.toml", "--out", "{root}/v1"], "not found"),
+    ("verify-out-is-a-file", ["verify", "{dataset}", "--scene", "cornell_cd", "--out", "{notes.txt}"], "--out"),
+    ("verify-out-holds-other-files", ["verify", "{dataset}", "--scene", "cornell_cd", "--out", "{undescribed_boards}"],
+     "no verify run wrote"),
+    ("verify-unknown-photo", ["verify", "{dataset}", "--scene", "cornell_cd", "--out", "{root}/v1", "--photo", "nosuch.png"],
+     "--photo"),
+    ("verify-spp-zero", ["verify", "{dataset}", "--scene", "cornell_cd", "--out", "{root}/v1", "--spp", "0"], "--spp"),
+    ("verify-seed-negative", ["verify", "{dataset}", "--scene", "cornell_cd", "--out", "{root}/v1", "--seed", "-1"], "--seed"),
+    ("verify-bad-board", ["verify", "{dataset}", "--scene", "cornell_cd", "--out", "{root}/v1", "--board", "9"], "--board"),
+    ("score-not-a-run", ["score", "{a_folder}", "--truth", "{root}/truth.json"], "not a verify run"),
+    ("score-unfinished-run", ["score", "{run_unfinished}", "--truth", "{root}/truth.json"], "not finished"),
+    ("score-calibration-without-camera", ["score", "{run_no_camera}", "--truth", "{root}/truth.json"], "camera.width"),
+    ("score-missing-truth", ["score", "{run_done}", "--truth", "{root}/nosuch.json"], "cannot read the truth"),
+    ("score-binary-truth", ["score", "{run_done}", "--truth", "{binary.toml}"], "not JSON"),
+    ("score-truth-of-another-kind", ["score", "{run_done}", "--truth", "{run_done}/run.json"], "not a synthetic dataset"),
+    ("score-truth-camera-not-an-object", ["score", "{run_done}", "--truth", "{truth_camera_list.json}"], "'camera'"),
+    ("score-truth-without-fx", ["score", "{run_done}", "--truth", "{truth_no_fx.json}"], "camera.fx"),
+    ("score-truth-of-other-photos", ["score", "{run_done}", "--truth", "{truth_other_photos.json}"], "view0.png"),
+    ("demo-cache-is-a-file", ["demo", "--cache", "{notes.txt}"], "--cache"),
+    ("cache-list-cache-is-a-file", ["cache", "list", "--cache", "{notes.txt}"], "--cache"),
+    ("cache-clear-cache-is-a-file", ["--cache", "{notes.txt}", "cache", "clear"], "--cache"),
+    ("render-workers-zero", ["render", "cornell_cd", "--out", "{root}/r.exr", "--workers", "0"], "--workers"),
+    ("table-workers-zero", ["rcwa", "table", "cd", "--out", "{root}/t8.zarr", "--preset", "draft", "--workers", "0"],
+     "--workers"),
+    ("table-bad-theta-range", ["rcwa", "table", "cd", "--out", "{root}/t9.zarr", "--theta-range", "0"], "LO,HI"),
+    ("solve-bad-pol", ["rcwa", "solve", "cd", "--wavelength", "500", "--orders", "5", "--pol", "circular"], "invalid choice"),
+    ("study-render-binary", ["study", "render", "{binary.toml}", "--out", "{root}/s"], "not a text file"),
+    ("study-rcwa-binary", ["study", "rcwa", "{binary.toml}", "--out", "{root}/s"], "not a text file"),
+    ("plan-empty", ["plan", "{empty.toml}"], "is empty"),
+    ("decode-bad-demosaic", ["decode", "{gray.png}", "--out", "{root}/o.exr", "--demosaic", "magic"], "invalid choice"),
     ("cache-unknown-action", ["cache", "shred"], "invalid choice"),
     ("list-unknown-kind", ["list", "gizmos"], "invalid choice"),
     ("unknown-command", ["frobnicate"], "invalid choice"),
