@@ -242,6 +242,7 @@ def _expand(argv: list[str], files: dict[str, Path]) -> list[str]:
 @pytest.mark.parametrize(("argv", "phrase"), [(c[1], c[2]) for c in CASES], ids=[c[0] for c in CASES])
 def test_bad_input_is_a_clear_error(argv: list[str], phrase: str, files: dict[str, Path],
                                     capsys: pytest.CaptureFixture[str]) -> None:
+    code: int | str | None
     try:
         code = main(_expand(argv, files))
     except SystemExit as exc:  # argparse's own errors
