@@ -67,7 +67,8 @@ class _HelpFormatter(argparse.RawDescriptionHelpFormatter):
 
     def _get_help_string(self, action: argparse.Action) -> str | None:
         text = action.help or ""
-        if action.default is None or action.default is False or action.default is argparse.SUPPRESS or "default" in text:
+        empty = action.default is None or action.default is False or action.default is argparse.SUPPRESS
+        if empty or action.default == [] or "default" in text:  # []: a repeatable option given no time
             return text
         if action.option_strings or action.nargs in (argparse.OPTIONAL, argparse.ZERO_OR_MORE):
             return f"{text} (default: %(default)s)"
@@ -112,11 +113,15 @@ def _build_parser() -> argparse.ArgumentParser:
     table.add_argument("--preset", choices=["paper", "draft", "fine"], default="paper", help=PRESET_HELP)
     table.add_argument("--theta-step", type=float, metavar="DEG", help="polar-angle step (default: the preset's)")
     table.add_argument("--phi-step", type=float, metavar="DEG", help="azimuth step (default: the preset's)")
-    table.add_argument("--wavelengths", metavar="START:STOP:COUNT", help="nm, inclusive (e.g. 400:700:31), or NM,NM,...")
-    table.add_argument("--theta-range", type=_pair_argument, metavar="LO,HI", help="polar angles to cover (deg)")
-    table.add_argument("--phi-range", type=_pair_argument, metavar="LO,HI", help="azimuths to cover (deg, in the stored range)")
-    table.add_argument("--orders", type=_orders_argument, metavar="N|NX,NY", help="retained harmonics (odd)")
-    table.add_argument("--keep-orders", type=_orders_argument, metavar="N|NX,NY", help="orders stored (odd, <= --orders)")
+    table.add_argument("--wavelengths", metavar="START:STOP:COUNT",
+                       help="nm, inclusive (e.g. 400:700:31), or NM,NM,... (default: the preset's)")
+    table.add_argument("--theta-range", type=_pair_argument, metavar="LO,HI", help="polar angles to cover (deg; default: 0,90)")
+    table.add_argument("--phi-range", type=_pair_argument, metavar="LO,HI",
+                       help="azimuths to cover (deg, in the stored range; default: all of it)")
+    table.add_argument("--orders", type=_orders_argument, metavar="N|NX,NY",
+                       help="retained harmonics (odd; default: the preset's for the structure's dimension)")
+    table.add_argument("--keep-orders", type=_orders_argument, metavar="N|NX,NY",
+                       help="orders stored (odd, <= --orders; default: the preset's, at most --orders)")
     table.add_argument("--pol", choices=["unpolarized", "s", "p", "all"], default="unpolarized",
                        help="polarizations stored; all = s, p and their mean")
     table.add_argument("--reflection-only", action="store_true", help="store R only, even where the substrate transmits")
@@ -124,8 +129,10 @@ def _build_parser() -> argparse.ArgumentParser:
     table.add_argument("--factorization", choices=["auto", "li", "nv", "laurent"], default="auto", help=FACTORIZATION_HELP)
     table.add_argument("--no-symmetry", action="store_true", help="compute the whole azimuth range")
     table.add_argument("--threads", type=int, default=None, help="solver threads (default: all cores)")
-    table.add_argument("--scheduler", metavar="ADDRESS", help="run the chunks on this dask.distributed scheduler")
-    table.add_argument("--workers", type=int, metavar="N", help="start a local dask cluster with N worker processes")
+    table.add_argument("--scheduler", metavar="ADDRESS",
+                       help="run the chunks on this dask.distributed scheduler (default: threads in this process)")
+    table.add_argument("--workers", type=int, metavar="N",
+                       help="start a local dask cluster with N worker processes (default: none, threads in this process)")
     table.add_argument("--force", action="store_true", help="overwrite a different table at --out")
     table.add_argument("--quiet", action="store_true", help="no progress bar")
 
@@ -142,8 +149,10 @@ def _build_parser() -> argparse.ArgumentParser:
     render.add_argument("--mode", choices=["paper", "improved"], default="improved",
                         help="BWDF sampling: paper reproduces Lange et al. 2021 Eqs. 2-5; improved is unbiased and less noisy")
     render.add_argument("--seed", type=count_argument(0, SEED_MAX), default=0, help="random seed of the first pass")
-    render.add_argument("--scheduler", metavar="ADDRESS", help="render the passes on this dask.distributed scheduler")
-    render.add_argument("--workers", type=int, metavar="N", help="start a local dask cluster with N worker processes")
+    render.add_argument("--scheduler", metavar="ADDRESS",
+                        help="render the passes on this dask.distributed scheduler (default: in this process)")
+    render.add_argument("--workers", type=int, metavar="N",
+                        help="start a local dask cluster with N worker processes (default: none, in this process)")
     render.add_argument("--quiet", action="store_true", help="no progress bar")
     render.add_argument("--force", action="store_true", help="replace a different render (its EXR, PNG and JSON) at --out")
     render.add_argument("--no-plan", action="store_true",
@@ -203,8 +212,9 @@ def _build_parser() -> argparse.ArgumentParser:
 
 SCENE_HELP = "a built-in scene (`workbench list scenes`) or a scene file (docs/scene_format.md)"
 STRUCTURE_HELP = "a built-in structure (`workbench list structures`) or a structure file (docs/structure_format.md)"
-FACTORIZATION_HELP = ("Fourier factorization rule: auto = li for 1D and for 2D cells of rectangles only, nv (normal "
-                      "vector method) for other 2D cells; laurent = the plain product rule, for comparison")
+FACTORIZATION_HELP = ("Fourier factorization rule: auto = li for 1D and for 2D cells of rectangles only, nv for other "
+                      "2D cells; li = Li's inverse rule (Li 1996 in 1D, 1997 in 2D); nv = the normal vector method; "
+                      "laurent = the plain product rule, for comparison")
 PRESET_HELP = ("paper: 31 wavelengths 400-700 nm, 2 deg steps in theta and phi, 61 (1D) or 11x11 (2D) harmonics "
                "(the CD takes about 70-95 s here); draft: 11 wavelengths, 5/10 deg steps, 31 or 7x7 harmonics "
                "(seconds); fine: 81 wavelengths 380-780 nm, 1 deg steps, 81 or 15x15 harmonics")

@@ -33,7 +33,8 @@ def _add_decode(commands) -> None:
     decode.add_argument("--out", required=True, metavar="OUT.exr", help="OpenEXR output; OUT.json beside it")
     decode.add_argument("--json", action="store_true", help="print one JSON object instead of a summary")
     decode.add_argument("--response", metavar="response.json",
-                        help='inverse response for non-raw images: {"points": [[irradiance, value], ...]} on [0, 1]')
+                        help='inverse response for non-raw images: {"points": [[irradiance, value], ...]} on [0, 1] '
+                             '(default: none; a JPEG/PNG/TIFF is then decoded as it is and flagged non-linear)')
     decode.add_argument("--demosaic", choices=DEMOSAIC_ALGORITHMS, default="linear",
                         help="LibRaw demosaicing for raw files (default: linear, i.e. bilinear)")
 
@@ -45,7 +46,7 @@ def _add_intrinsics(steps) -> None:
                    help="inner corners of a checkerboard (e.g. 9x6); with --charuco, the board's squares")
     p.add_argument("--square-mm", type=positive_number(float), required=True, metavar="S", help="side of a square, mm")
     p.add_argument("--charuco", metavar="DICT,MARKER_MM", help="a ChArUco board: OpenCV dictionary and marker side, "
-                   "e.g. DICT_5X5_100,15")
+                   "e.g. DICT_5X5_100,15 (default: a plain checkerboard)")
     p.add_argument("--out", required=True, metavar="intrinsics.json",
                    help="fx, fy, cx, cy, distortion with standard deviations, per-view errors, settings")
     p.add_argument("--fit-k3", action="store_true", help="fit k3 too (default: held at 0)")

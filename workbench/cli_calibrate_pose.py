@@ -42,8 +42,9 @@ def add_pose(steps) -> None:
     p.add_argument("photo", metavar="PHOTO", help="a raw file (DNG, NEF, CR2, ...) or a JPEG/PNG/TIFF of the scene")
     p.add_argument("--intrinsics", metavar="intrinsics.json",
                    help="hold these intrinsics fixed (`workbench calibrate intrinsics`); without them the focal "
-                        "length, principal point and k1, k2 are fitted from the photo alone (weakly constrained)")
-    p.add_argument("--response", metavar="response.json", help="inverse response for a non-raw photo")
+                        "length, principal point and k1, k2 are fitted from the photo alone (weakly constrained; the default)")
+    p.add_argument("--response", metavar="response.json",
+                   help="inverse response for a non-raw photo (default: none; a JPEG/PNG/TIFF is then used as it is, non-linear)")
     _add_common(p)
 
 
@@ -57,9 +58,9 @@ def add_dataset(steps) -> None:
                                                       "as `workbench synth` writes")
     p.add_argument("--board", type=board_argument, default=None, metavar="COLSxROWS",
                    help="inner corners of the checkerboard in calibration/ (ChArUco: its squares); overrides "
-                        "calibration/board.json, needed without it")
+                        "calibration/board.json (the default), needed without it")
     p.add_argument("--square-mm", type=positive_number(float), default=None, metavar="S",
-                   help="the board's square size in mm; overrides calibration/board.json, needed without it")
+                   help="the board's square size in mm; overrides calibration/board.json (the default), needed without it")
     _add_common(p)
 
 

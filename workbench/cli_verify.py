@@ -42,7 +42,7 @@ def add_parsers(commands) -> None:  # commands: the top-level parser's subparser
     verify.add_argument("--square-mm", type=positive_number(float), metavar="S",
                         help="the board's square size (default: calibrate DATASET's)")
     verify.add_argument("--scheduler", metavar="ADDRESS",
-                        help="build table chunks and render passes on this dask.distributed scheduler")
+                        help="build table chunks and render passes on this dask.distributed scheduler (default: in this process)")
     verify.add_argument("--force", action="store_true", help="replace another run (or write beside other files) in RUN")
     verify.add_argument("--quiet", action="store_true", help="no progress bars")
     add_cache_option(verify)

@@ -32,6 +32,26 @@ def test_every_option_of_every_command_has_help() -> None:
     assert not missing, f"arguments without help: {missing}"
 
 
+def test_every_option_that_takes_a_value_says_its_default() -> None:
+    """An option that may be left out says what happens then: its help, as --help shows it,
+    holds "default" (the formatter adds the value where there is one; options without a
+    value, such as --preset draft's --spp, say "default: the preset's" and the like).
+    Flags (store_true), required options and repeatable ones defaulting to none are exempt."""
+    missing = []
+    for path, parser in _parsers(_build_parser()):
+        formatter = parser._get_formatter()
+        for action in parser._actions:
+            if (not action.option_strings or action.required or action.nargs == 0
+                    or isinstance(action, (argparse._HelpAction, argparse._VersionAction))):
+                continue
+            if isinstance(action, argparse._AppendAction) and action.default == []:
+                continue
+            shown = formatter._expand_help(action) if action.help else ""
+            if "default" not in shown:
+                missing.append(f"{path} {'/'.join(action.option_strings)}")
+    assert not missing, f"options whose help does not say the default: {missing}"
+
+
 def test_version(capsys: pytest.CaptureFixture[str]) -> None:
     with pytest.raises(SystemExit) as info:
         main(["--version"])
