@@ -234,10 +234,11 @@ def table_keys(spec: SceneSpec) -> list[str]:
     return [table_plan(element, where, spec.source).key for where, element in elements]
 
 
-def element_table(element, camera_sens, where: str = "element", scene_file: str | None = None, nodes=None) -> Path:
+def element_table(element, camera_sens, where: str = "element", scene_file: str | None = None, nodes=None,
+                  progress: bool = True) -> Path:
     """The efficiency table of a CD or grating: the one its scene names (checked), or built
     through the table cache (planned with ``nodes``: see table_plan). ``where`` (``cd[0]``)
-    and ``scene_file`` locate errors.
+    and ``scene_file`` locate errors; ``progress``: a bar while a table is built.
     """
     from rcwa.table import build_table
     from renderer.checks import require_table_covers_camera
@@ -253,7 +254,7 @@ def element_table(element, camera_sens, where: str = "element", scene_file: str 
             plan = plan.fallback
     if plan.settings is not None:
         try:
-            report = build_table(plan.structure, plan.settings, plan.path, progress=True, force=True,  # the cache's path
+            report = build_table(plan.structure, plan.settings, plan.path, progress=progress, force=True,  # the cache's
                                  nodes=plan.nodes)
             for note in report.notes:  # damaged chunks computed again: say so, as `rcwa table` does
                 print(f"{plan.path}: {note}", file=sys.stderr)
@@ -314,12 +315,13 @@ def light_dict(mi, light) -> dict:
 
 
 def scene_dict(mi, spec: SceneSpec, *, spp: int, integrator: str = "path", mode: str = "improved",
-               max_depth: int = 8, plan: bool = False) -> tuple[dict, dict]:
+               max_depth: int = 8, plan: bool = False, progress: bool = True) -> tuple[dict, dict]:
     """The Mitsuba scene dict and what was built for it (tables, the pinhole plan).
 
     ``plan``: tables planned for this scene's camera (renderer.planner): the nodes its
     rays read solved in full, the rest with fewer orders; for a render of one camera.
-    Renders of many cameras (calibration's re-renders) use whole tables."""
+    Renders of many cameras (calibration's re-renders) use whole tables. ``progress``: a
+    bar while a table is built."""
     register_plugins()
     from renderer.dielectric import bsdf_dict
 
@@ -348,7 +350,7 @@ def scene_dict(mi, spec: SceneSpec, *, spp: int, integrator: str = "path", mode:
     polycarbonate = material_from_spec("polycarbonate")
     nodes = planned_nodes(spec) if plan else {}
     for i, cd in enumerate(spec.cds):
-        table = element_table(cd, sens, f"cd[{i}]", spec.source, nodes.get(f"cd[{i}]"))
+        table = element_table(cd, sens, f"cd[{i}]", spec.source, nodes.get(f"cd[{i}]"), progress)
         built["tables"].append(str(table))
         R = frame_to(cd.normal, cd.rotation_deg)
         mesh = str(annulus_mesh(cd.inner_radius, cd.outer_radius))
@@ -361,7 +363,7 @@ def scene_dict(mi, spec: SceneSpec, *, spp: int, integrator: str = "path", mode:
                                    "to_world": mi.ScalarTransform4f(transform(top, R).tolist()),
                                    "bsdf": bsdf_dict(polycarbonate, dispersion=cd.dispersion)}
     for i, g in enumerate(spec.gratings):
-        table = element_table(g, sens, f"grating[{i}]", spec.source, nodes.get(f"grating[{i}]"))
+        table = element_table(g, sens, f"grating[{i}]", spec.source, nodes.get(f"grating[{i}]"), progress)
         built["tables"].append(str(table))
         R = frame_to(g.normal, g.rotation_deg)
         plate = transform(g.center, R, (g.size[0] / 2, g.size[1] / 2, 1.0))

@@ -93,7 +93,7 @@ def render(scene: str | Path, out: str | Path, *, preset: str = "draft", spp: in
     from renderer.build import scene_dict
 
     started = time.perf_counter()
-    scene_d, built = scene_dict(mi, spec, spp=pass_spp, integrator=integrator, mode=mode, plan=plan)
+    scene_d, built = scene_dict(mi, spec, spp=pass_spp, integrator=integrator, mode=mode, plan=plan, progress=progress)
     total, done = _resume(partial, key)
     bar = tqdm(total=passes, initial=done, unit="pass", disable=not progress, desc=f"render {spec.name}")
     pass_seconds = []

@@ -40,6 +40,7 @@ def test_render_computes_a_damaged_cached_table_again_and_says_so(tmp_path, monk
     monkeypatch.setenv(ENVIRONMENT_VARIABLE, str(tmp_path / "cache"))
     argv = ["render", "cornell_cd", "--spp", "4", "--resolution", "48x36", "--quiet"]
     assert main([*argv, "--out", str(tmp_path / "a.exr")]) == 0
+    assert "wavelength/s" not in capsys.readouterr().err  # --quiet: no bar, not even the table build's
     (table,) = (tmp_path / "cache" / "tables").glob("*.zarr")
     chunks = _chunks(table)
     chunks[1].write_bytes(b"")  # truncated
