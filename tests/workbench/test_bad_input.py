@@ -263,3 +263,28 @@ def test_nothing_is_left_behind_by_refused_table_requests(files: dict[str, Path]
     """Validation comes before writing: refused table requests create no output folder."""
     leftovers = sorted(p.name for p in files["root"].iterdir() if p.name.startswith("t") and p.suffix == ".zarr")
     assert not leftovers, leftovers
+
+
+def _leaf_commands(parser, path: tuple[str, ...] = ()):
+    import argparse
+
+    subs = [a for a in parser._actions if isinstance(a, argparse._SubParsersAction)]
+    if not subs:
+        yield path
+    for action in subs:
+        for name, sub in action.choices.items():
+            yield from _leaf_commands(sub, (*path, name))
+
+
+def test_the_corpus_covers_every_subcommand() -> None:
+    """Each command the parser knows (``rcwa solve``, ``calibrate pose``, ``cache clear``...)
+    has at least one case above, so a command added later without bad-input cases fails here."""
+    from workbench.cli import _build_parser
+
+    def covers(argv: list[str], leaf: tuple[str, ...]) -> bool:
+        words = [a for a in argv if not a.startswith("-") and "{" not in a]
+        return tuple(words[:len(leaf)]) == leaf
+
+    uncovered = [" ".join(leaf) for leaf in _leaf_commands(_build_parser())
+                 if not any(covers(argv, leaf) for _, argv, _ in CASES)]
+    assert not uncovered, f"subcommands without a bad-input case: {uncovered}"
