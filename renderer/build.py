@@ -142,13 +142,57 @@ class TablePlan:
     fallback: TablePlan | None = None  # for another plan's table serving this one: this plan's own, if that one is damaged
 
 
+# rcwa.table.settings_for names the command line's options; a scene's table = {...} has these keys
+SCENE_TABLE_KEYS = {"--preset": "preset", "--wavelengths": "wavelengths", "--orders": "orders", "--keep-orders": "keep",
+                    "--theta-step": "theta_step", "--phi-step": "phi_step", "--theta-range": "theta_range",
+                    "--phi-range": "phi_range", "--pol": "pol", "--factorization": "factorization"}
+
+
+def scene_settings_for(structure, preset: str, options: dict, where: str, scene_file: str | None):
+    """rcwa.table.settings_for of a scene element's table options; a refused option names the
+    scene file and field (``cd[0].table.keep``), not the command line's (``--keep-orders``)."""
+    from rcwa.table import check_materials, settings_for
+
+    try:
+        settings = settings_for(structure, preset, **options)
+    except UserInputError as exc:
+        raise _in_scene(exc, where, scene_file) from None
+    try:
+        check_materials(structure, settings)
+    except UserInputError as exc:  # names the structure's field; the scene asked for the wavelengths
+        raise UserInputError(f"{exc.reason.split(';')[0]} (in {exc.file}, field '{exc.field}')", file=scene_file,
+                             field=f"{where}.table.wavelengths", expected="wavelengths inside every material's data",
+                             got=options.get("wavelengths", f"the {preset} preset's")) from None
+    return settings
+
+
+def _in_scene(exc: UserInputError, where: str, scene_file: str | None) -> UserInputError:
+    """``exc`` about a command-line option (SCENE_TABLE_KEYS) as the scene field it came from."""
+    key = SCENE_TABLE_KEYS.get(exc.field or "")
+    if key is None:
+        return exc
+    expected = (exc.expected or "").replace(f"--{key.replace('_', '-')}", key) or None
+    return UserInputError(exc.reason, file=scene_file, field=f"{where}.table.{key}", expected=expected, got=exc.got)
+
+
+def table_settings(element, structure, where: str = "element", scene_file: str | None = None):
+    """The table settings of an element's ``table = {...}`` (not ``path``): the scene's
+    options, with light from below for a see-through element (scene_settings_for)."""
+    options = {k: v for k, v in dict(element.table).items() if k != "path"}
+    preset = options.pop("preset", "draft")
+    eps = np.asarray(structure.substrate.epsilon(np.array([550.0])))
+    if np.all((eps.imag == 0) & (eps.real > 0)):
+        options.setdefault("both_sides", True)  # see-through: light from below too
+    return scene_settings_for(structure, preset, options, where, scene_file)
+
+
 def table_plan(element, where: str = "element", scene_file: str | None = None, nodes=None) -> TablePlan:
     """Where a CD's or grating's table is and what it holds, without building it.
 
     ``nodes`` (rcwa.table.NodePlan, from renderer.planner): a planned table, unless the
     whole table is in the cache already (it serves every plan)."""
     import rcwa
-    from rcwa.table import planned, read_table_metadata, request_key, settings_for
+    from rcwa.table import planned, read_table_metadata, request_key
 
     structure = rcwa.load_structure(element.structure)
     options = dict(element.table)
@@ -160,11 +204,7 @@ def table_plan(element, where: str = "element", scene_file: str | None = None, n
             raise UserInputError(f"{path}: {exc.reason}", file=scene_file, field=f"{where}.table.path",
                                  expected=exc.expected) from None
         return TablePlan(path, meta["key"], structure, None)
-    preset = options.pop("preset", "draft")
-    eps = np.asarray(structure.substrate.epsilon(np.array([550.0])))
-    if np.all((eps.imag == 0) & (eps.real > 0)):
-        options.setdefault("both_sides", True)  # see-through: light from below too
-    settings = settings_for(structure, preset, **options)
+    settings = table_settings(element, structure, where, scene_file)
     key = request_key(structure, settings)
     whole = TablePlan(entry_path("tables", f"{structure.name}-{key[:16]}.zarr"), key, structure, settings)
     if nodes is None or _finished_table(whole.path, key) is not None:

@@ -248,12 +248,12 @@ def hits_light(points: np.ndarray, directions: np.ndarray, spec: SceneSpec) -> n
 # ---------------------------------------------------------------- the plan
 
 
-def _table_settings(element, structure):
-    from rcwa.table import settings_for
+def _table_settings(element, structure, where: str, scene_file: str | None):
+    from renderer.build import scene_settings_for
 
     options = {k: v for k, v in dict(element.table).items() if k != "path"}
     preset = options.pop("preset", "draft")
-    return settings_for(structure, preset, **options)
+    return scene_settings_for(structure, preset, options, where, scene_file)
 
 
 def _indices(structure, wavelengths: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -291,7 +291,7 @@ def plan_element(spec: SceneSpec, hit: dict[str, Any], origin: np.ndarray, camer
 
     element = hit["element"]
     structure = rcwa.load_structure(element.structure)
-    settings = _table_settings(element, structure)
+    settings = _table_settings(element, structure, hit["key"], spec.source)
     sym = symmetry.detect(structure) if settings.use_symmetry else symmetry.MirrorSymmetry(False, False)
     see_through = _transmits(structure, settings) and not settings.reflection_only
     grid_theta, grid_phi = np.asarray(settings.theta_deg), np.asarray(settings.phi_deg)

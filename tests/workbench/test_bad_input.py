@@ -38,7 +38,10 @@ def files(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
     scene = (Path(__file__).resolve().parents[2] / "renderer" / "scenes" / "cornell_cd.toml").read_text()
     for name, table in (("misspelt.toml", '{ preset = "draft", ordres = 31 }'),
                         ("even.toml", '{ preset = "draft", orders = 20 }'),
-                        ("badpreset.toml", '{ preset = "huge" }')):
+                        ("badpreset.toml", '{ preset = "huge" }'),
+                        ("keepmore.toml", '{ preset = "draft", orders = 11, keep = 21 }'),
+                        ("thetarange.toml", '{ preset = "draft", theta_range = [50, 10] }'),
+                        ("uv.toml", '{ preset = "draft", wavelengths = "300:700:5" }')):
         (root / name).write_text(scene.replace('table = { preset = "draft" }', f"table = {table}"))
         out[name] = root / name
     (root / "nocamera.toml").write_text(scene.split("[camera]")[0])
@@ -122,6 +125,13 @@ CASES: list[tuple[str, list[str], str]] = [
     ("render-misspelt-table-key", ["render", "{misspelt.toml}", "--out", "{root}/r.exr"], "cd[0].table.ordres"),
     ("render-even-table-orders", ["render", "{even.toml}", "--out", "{root}/r.exr"], "cd[0].table.orders"),
     ("render-bad-table-preset", ["render", "{badpreset.toml}", "--out", "{root}/r.exr"], "cd[0].table.preset"),
+    ("render-table-keep-more-than-orders", ["render", "{keepmore.toml}", "--out", "{root}/r.exr"],
+     "keepmore.toml: field 'cd[0].table.keep'"),
+    ("render-table-theta-range", ["render", "{thetarange.toml}", "--out", "{root}/r.exr"], "field 'cd[0].table.theta_range'"),
+    ("render-table-wavelength-outside-data", ["render", "{uv.toml}", "--out", "{root}/r.exr"],
+     "uv.toml: field 'cd[0].table.wavelengths': material 'polycarbonate'"),
+    ("plan-table-wavelength-outside-data", ["plan", "{uv.toml}"], "uv.toml: field 'cd[0].table.wavelengths'"),
+    ("plan-table-keep-more-than-orders", ["plan", "{keepmore.toml}"], "field 'cd[0].table.keep'"),
     ("render-no-camera", ["render", "{nocamera.toml}", "--out", "{root}/r.exr"], "camera"),
     ("render-spp-zero", ["render", "cornell_cd", "--out", "{root}/r.exr", "--spp", "0"], "--spp"),
     ("render-seed-negative", ["render", "cornell_cd", "--out", "{root}/r.exr", "--seed", "-1"], "--seed"),
