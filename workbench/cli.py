@@ -176,11 +176,13 @@ def _build_parser() -> argparse.ArgumentParser:
     study_rcwa = study_commands.add_parser("rcwa", help="truncation and interpolation error versus time for tables")
     study_rcwa.add_argument("structure", help=STRUCTURE_HELP)
     study_rcwa.add_argument("--out", required=True, metavar="DIR", help="folder for the JSON, CSV and figures")
+    study_rcwa.add_argument("--quiet", action="store_true", help="no progress bar")
 
     study_render = study_commands.add_parser("render", help="render error versus time, paper against improved BWDF")
     study_render.add_argument("scene", nargs="?", default="cornell_cd",
                               help="a built-in scene name or a TOML file; its camera must see a CD or grating")
     study_render.add_argument("--out", required=True, metavar="DIR", help="folder for the JSON, CSV and figures")
+    study_render.add_argument("--quiet", action="store_true", help="no progress bar")
     cli_study.add_calibrate(study_commands)
 
     demo = commands.add_parser("demo", help="the main job on the built-in defaults: a synthetic dataset of cornell_cd, then "
@@ -277,7 +279,7 @@ def _run_study_rcwa(args: argparse.Namespace) -> int:
     structure = rcwa.load_structure(args.structure)
     if structure.dimension != 1:
         raise UserInputError("the study covers 1D structures for now", field="structure", got=args.structure)
-    data = run_study(structure, args.out)
+    data = run_study(structure, args.out, progress=not args.quiet)
     print(f"wrote {args.out}/study_rcwa.json, truncation.csv, interpolation.csv, presets.csv, study_rcwa.png/.svg")
     for p in data["presets"]:
         if p["reachable"]:
@@ -341,7 +343,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         if args.command == "study" and args.study_command == "render":
             from renderer.study import run_render_study
 
-            data = run_render_study(args.scene, args.out)
+            data = run_render_study(args.scene, args.out, progress=not args.quiet)
             print(f"wrote {args.out}/study_render.json, the CSV files and study_render.png/.svg")
             for e in data["energy"]:
                 print(f"furnace energy, {e['mode']} mode: {e['energy']:.4f}")

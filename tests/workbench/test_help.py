@@ -56,3 +56,23 @@ def test_version(capsys: pytest.CaptureFixture[str]) -> None:
     with pytest.raises(SystemExit) as info:
         main(["--version"])
     assert info.value.code == 0 and capsys.readouterr().out.strip() == f"workbench {__version__}"
+
+
+@pytest.mark.parametrize("quiet", [False, True])
+@pytest.mark.parametrize(("argv", "module", "function", "result"), [
+    (["study", "rcwa", "cd"], "rcwa.study", "run_study", {"presets": []}),
+    (["study", "render", "cornell_cd"], "renderer.study", "run_render_study", {"energy": []}),
+])
+def test_the_studies_show_progress_unless_quiet(argv, module, function, result, quiet, tmp_path, monkeypatch) -> None:
+    """The studies run for minutes: the command asks them for a progress bar, --quiet turns it off."""
+    import importlib
+
+    asked: list[bool] = []
+
+    def study(*args, progress: bool = True, **kwargs) -> dict:
+        asked.append(progress)
+        return result
+
+    monkeypatch.setattr(importlib.import_module(module), function, study)
+    assert main([*argv, "--out", str(tmp_path), *(["--quiet"] if quiet else [])]) == 0
+    assert asked == [not quiet]
