@@ -1,0 +1,74 @@
+"""`workbench list KIND` and `workbench rcwa info TABLE` (workbench/catalog.py, issue 13):
+what is built in, each with a line about it, and what a table holds and whether it is
+intact."""
+
+from __future__ import annotations
+
+import json
+
+import pytest
+
+from workbench.catalog import KINDS
+from workbench.cli import main
+
+
+def _accepts(kind: str, name: str) -> None:
+    """The name `workbench list` shows is one the commands and files accept."""
+    if kind == "structures":
+        import rcwa
+
+        rcwa.load_structure(name)
+    elif kind == "scenes":
+        from renderer.scene import load_scene
+
+        load_scene(name)
+    elif kind == "materials":
+        from rcwa.materials import material_from_spec
+
+        material_from_spec(name)
+    else:
+        import colour
+
+        assert name in colour.MSDS_CAMERA_SENSITIVITIES
+
+
+@pytest.mark.parametrize("kind", KINDS)
+def test_list_shows_every_builtin_with_a_line_about_it(kind: str, capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["list", kind]) == 0
+    lines = capsys.readouterr().out.strip().splitlines()
+    assert lines, f"no {kind} listed"
+    for line in lines:
+        name, _, description = line.partition("  ")
+        assert description.strip(), f"{kind}: {name!r} has no description"
+        _accepts(kind, name.strip())
+
+
+def test_list_names_the_builtins_the_readme_names(capsys: pytest.CaptureFixture[str]) -> None:
+    listed = {}
+    for kind in ("structures", "scenes"):
+        main(["list", kind])
+        listed[kind] = {line.split()[0] for line in capsys.readouterr().out.splitlines()}
+    assert {"cd", "gold2d"} <= listed["structures"]
+    assert {"cornell_cd", "cornell_cd_view2", "grating2d_gold"} <= listed["scenes"]
+
+
+def test_rcwa_info_shows_grid_settings_size_symmetry_and_integrity(tmp_path, capsys) -> None:
+    table = tmp_path / "t.zarr"
+    assert main(["rcwa", "table", "cd", "--out", str(table), "--preset", "draft", "--wavelengths", "500,600",
+                 "--theta-step", "45", "--phi-step", "45", "--orders", "11", "--keep-orders", "5", "--quiet"]) == 0
+    capsys.readouterr()
+    assert main(["rcwa", "info", str(table), "--json"]) == 0
+    info = json.loads(capsys.readouterr().out)
+    assert info["wavelengths_nm"] == {"count": 2, "first": 500.0, "last": 600.0}
+    assert info["theta_deg"]["step"] == 45.0 and info["orders_retained"] == [11] and info["orders_kept"] == [5]
+    assert info["symmetry"]["mirror_x"] and info["bytes_on_disk"] > 0 and info["integrity"].startswith("intact")
+    assert main(["rcwa", "info", str(table)]) == 0
+    text = capsys.readouterr().out
+    for word in ("wavelengths", "theta", "phi", "orders", "symmetry", "size", "integrity     intact"):
+        assert word in text, text
+
+    chunk = sorted(p for p in (table / "R" / "c").rglob("*") if p.is_file())[1]
+    chunk.write_bytes(b"")
+    assert main(["rcwa", "info", str(table)]) == 0  # a damaged table is described, not refused
+    text = capsys.readouterr().out
+    assert "NOT intact" in text and "chunk 1" in text and "workbench rcwa table" in text, text
