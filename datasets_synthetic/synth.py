@@ -4,7 +4,8 @@ Layout (other tools read it; DESIGN.md section 6)::
 
     DIR/photos/view*.dng          views of the scene (view0: the scene's camera, hidden offset applied;
                                   view1...: the same camera moved around the scene)
-    DIR/brackets/ev*.dng, *.jpg   exposure brackets of view0, 1 EV apart, RAW+JPEG as a camera writes them
+    DIR/brackets/ev*.dng, *.jpg   exposure brackets of view0, RAW+JPEG as a camera writes them: 1 EV apart from
+                                  ev-2 to ev+2 (for the response curve), and ev-4, ev-6 for the CD's bright orders
     DIR/calibration/board*.dng    a checkerboard held in the box in several poses, seen by view0's camera
                                   with its flash on
     DIR/calibration/board.json    what that board is, as a photographer would note it (BOARD_FORMAT:
@@ -82,7 +83,10 @@ PRESETS = {
     "draft": {"resolution": (640, 480), "spp": 64, "views": 2, "calibration_views": 20, "calibration_spp": 16},
     "full": {"resolution": (978, 734), "spp": 512, "views": 3, "calibration_views": 15, "calibration_spp": 64},
 }
-BRACKET_EV = (-2, -1, 0, 1, 2)
+BRACKET_EV = (-2, -1, 0, 1, 2)  # view0 re-exposed, 1 EV apart, RAW+JPEG: the response curve's bracket
+HIGHLIGHT_EV = (-4, -6)  # darker frames of view0 for the CD's first orders (30-60x the walls' level: clipped at ev-2);
+# taken after the board views, so the frames before them keep their noise draws
+ALL_BRACKET_EV = tuple(sorted(BRACKET_EV + HIGHLIGHT_EV))
 FLASH_KEY = "calibration_flash"
 FLASH_W_PER_SR = 20.0
 MARKER = "workbench-synthetic-dataset"
@@ -447,6 +451,8 @@ def _generate(spec, scene: str, out: Path, renders: _RenderStore, seed: int, pre
     poses = _calibration_set(hidden, camera, board, p, light_scale, seed, writer, rng_board, rng_noise, bar, renders)
     atomic_write_text(out / "calibration" / "board.json", json.dumps(board_description(board), indent=2) + "\n")
     timings["calibration_s"] = time.perf_counter() - tick
+    for ev in HIGHLIGHT_EV:
+        writer.capture("brackets", f"ev{ev:+d}", rgb, exposure_s * 2.0**ev, camera, rng_noise, jpeg=True)
     bar.close()
 
     truth = {
@@ -461,7 +467,7 @@ def _generate(spec, scene: str, out: Path, renders: _RenderStore, seed: int, pre
         "board": board.to_json() | {"board_to_world": {name: pose.tolist() for name, pose in poses.items()},
                                     "flash": {"at": "the camera's centre", "intensity_w_per_sr": FLASH_W_PER_SR,
                                               "spectrum": spec.light.spectrum}},
-        "brackets": {"of": "view0.dng", "ev": list(BRACKET_EV)},
+        "brackets": {"of": "view0.dng", "ev": list(ALL_BRACKET_EV)},
         "sensor": dataclasses.asdict(sensor) | {"white_level": sensor.white_level} | writer.colour,
     }
     atomic_write_text(out / "truth.json", json.dumps(truth, indent=2))

@@ -14,7 +14,7 @@ from PIL import Image
 
 from datasets_synthetic.jpeg import demosaic, develop, read_exposure_time
 from datasets_synthetic.sensor import SensorModel
-from datasets_synthetic.synth import BRACKET_EV, PRESETS, synth
+from datasets_synthetic.synth import ALL_BRACKET_EV, BRACKET_EV, PRESETS, synth
 from renderer.response import ResponseCurve
 from tests.conftest import synthetic_dataset
 from workbench.core.errors import UserInputError
@@ -43,7 +43,7 @@ def test_layout_and_truth(dataset):
     photos = sorted(f.name for f in (out / "photos").iterdir())
     assert photos == [f"view{k}.dng" for k in range(p["views"])]
     assert sorted(f.name for f in (out / "brackets").iterdir()) == sorted(
-        f"ev{ev:+d}.{ext}" for ev in BRACKET_EV for ext in ("dng", "jpg"))
+        f"ev{ev:+d}.{ext}" for ev in ALL_BRACKET_EV for ext in ("dng", "jpg"))
     boards = sorted(f.name for f in (out / "calibration").iterdir() if f.suffix == ".dng")
     assert boards == [f"board{i:02d}.dng" for i in range(p["calibration_views"])]
     assert sorted(f.name for f in (out / "calibration").iterdir() if f.suffix != ".dng") == ["board.json"]
@@ -188,10 +188,10 @@ def test_camera_white_balance_shows_white_as_white(dataset):
         np.testing.assert_allclose(rgb / rgb[1], 1.0, atol=WALL_NEUTRAL_TOL, err_msg=str(space))
 
 
-def test_bracket_is_one_ev_apart_with_exif(dataset):
+def test_bracket_exposure_times_follow_their_ev_with_exif(dataset):
     out, truth = dataset
     t0 = truth["exposure_time_s"]["ev+0.dng"]
-    for ev in BRACKET_EV:
+    for ev in ALL_BRACKET_EV:
         assert truth["exposure_time_s"][f"ev{ev:+d}.dng"] == pytest.approx(t0 * 2.0**ev, rel=1e-12)
         # EXIF keeps the time as a rational with a denominator up to 1e6.
         assert read_exposure_time(out / "brackets" / f"ev{ev:+d}.jpg") == pytest.approx(t0 * 2.0**ev, rel=1e-5)
@@ -206,7 +206,7 @@ def test_bracket_jpegs_follow_the_response(dataset):
     out, truth = dataset
     response = _response(truth)
     sensor = SensorModel(**{k: truth["sensor"][k] for k in ("black_level", "bits", "cfa_pattern")})
-    for ev in BRACKET_EV:
+    for ev in ALL_BRACKET_EV:
         raw, _, _ = _raw(out / "brackets" / f"ev{ev:+d}.dng")
         jpeg = np.asarray(Image.open(out / "brackets" / f"ev{ev:+d}.jpg")).astype(float)
         error = np.abs(jpeg - develop(raw, sensor, response))
