@@ -113,3 +113,21 @@ def check_scene(camera: FittedCamera, spec, scene_argument: str) -> None:
     if camera.scene not in names and Path(camera.scene).stem not in names:
         raise UserInputError(f"the calibration was made for the scene {camera.scene!r}, not {spec.name!r}",
                              file=camera.source, field="scene", expected=f"a calibration of {spec.name!r}")
+
+
+def read_response(path: str | Path) -> dict | None:
+    """The fitted response in calibration.json (``response`` with ``points``), or None when it has none."""
+    try:
+        data = json.loads(Path(path).read_text())
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError):
+        return None  # read_camera has already refused an unreadable file
+    response = data.get("response") if isinstance(data, dict) else None
+    if not isinstance(response, dict) or "points" not in response:
+        return None
+    from calibration.decode import load_response
+
+    try:
+        load_response({"points": response["points"]})
+    except UserInputError as error:
+        raise error.located(file=str(path), field_prefix="response") from None
+    return {"points": response["points"]}

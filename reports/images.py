@@ -1,11 +1,12 @@
 """Photo and render brought to one linear camera RGB, region masks, and one display transform.
 
-* Photos: raw files (DNG and other raws rawpy reads) decoded to linear camera RGB by
-  LibRaw (rawpy): bilinear demosaic, no white balance, no gamma, no brightening, the
-  file's own black and white levels, so a value is (raw - black) / (white - black);
-  pixels within ``CLIP_MARGIN`` of the white level in any neighbouring Bayer site are
-  marked clipped. Linear float images (EXR, float TIFF) are read as they are (OpenImageIO).
-  An 8-bit JPEG would need the camera's fitted response (calibration) and is refused.
+* Photos: decoded by the calibration package (calibration.decode), as the calibration
+  read them: raw files (DNG and whatever LibRaw reads) to linear camera RGB, black level
+  subtracted per channel, 1 at the white level, no white balance, no gamma, bilinear
+  demosaicing; a pixel is clipped where a raw sample it was made from reached the white
+  level. Linear float images (EXR, float TIFF) as they are. A JPEG, PNG or integer TIFF
+  through the inverse of the calibration's fitted response (calibration.json's
+  ``response``); without one it is refused.
 * Renders: EXR, linear camera RGB (renderer.render), read with OpenImageIO.
 * Regions: a render of shape ids with the same camera: each pixel's centre ray (through
   the lens model) cast into the Mitsuba scene (``ray_intersect``) and the shape it meets
@@ -33,9 +34,6 @@ import numpy as np
 
 from workbench.core.errors import UserInputError
 
-CLIP_MARGIN = 0.002  # of the raw range: values this close to white are treated as clipped
-RAW_SUFFIXES = {".dng", ".cr2", ".cr3", ".nef", ".arw", ".raf", ".orf", ".rw2", ".pef", ".srw"}
-FLOAT_SUFFIXES = {".exr", ".tif", ".tiff", ".hdr", ".pfm"}
 WALL_REGIONS = ("wall_left", "wall_right", "wall_back")
 MIN_WALL_PIXELS = 50
 BRADFORD = np.array([[0.8951, 0.2664, -0.1614], [-0.7502, 1.7135, 0.0367], [0.0389, -0.0685, 1.0296]])
@@ -54,6 +52,7 @@ class Photo:
     kind: str  # "raw" or "linear"
     channel: np.ndarray | None = None  # (H, W) the Bayer site's channel (0 R, 1 G, 2 B) of a raw photo
     clip_level: float | None = None  # the value a saturated site reads, where the photo has some
+    decoding: dict | None = None  # calibration.decode's record (levels, CFA, demosaicing, response, EXIF)
 
 
 def read_linear(path: str | Path, what: str) -> np.ndarray:
@@ -76,46 +75,41 @@ def read_linear(path: str | Path, what: str) -> np.ndarray:
     return rgb
 
 
-def read_photo(path: str | Path) -> Photo:
-    """A photo as linear camera RGB (see the module docstring)."""
+def read_photo(path: str | Path, response: dict | None = None, what: str = "--photo") -> Photo:
+    """A photo as linear camera RGB through calibration.decode (see the module docstring).
+
+    ``response`` is the calibration's fitted response (calibration.json's ``response``,
+    ``points`` of normalised irradiance and value): a JPEG, PNG or integer TIFF is taken
+    through its inverse; without one such a photo is refused (it is not linear)."""
+    from calibration.decode import decode, is_raw
+
     path = Path(path)
-    suffix = path.suffix.lower()
     if not path.is_file():
-        raise UserInputError("no such file", field="--photo", got=str(path))
-    if suffix in RAW_SUFFIXES:
-        return _read_raw(path)
-    if suffix in FLOAT_SUFFIXES:
-        rgb = read_linear(path, "--photo")
-        return Photo(rgb, np.zeros(rgb.shape[:2], bool), str(path), "linear")
-    raise UserInputError("unsupported photo type", field="--photo",
-                         expected="a raw file (DNG, ...) or a linear float image (EXR, float TIFF); a JPEG needs the "
-                                  "camera's fitted response (the calibration)", got=str(path))
+        raise UserInputError("no such file", field=what, got=str(path))
+    raw = is_raw(path)
+    decoded = decode(path, response=None if raw or response is None else response)
+    if not decoded.info.linear:
+        raise UserInputError("the photo is not linear and the calibration holds no response curve to invert",
+                             field=what, got=str(path),
+                             expected="a raw file (DNG, ...), a linear float image (EXR, float TIFF), or a "
+                                      "calibration.json with a response (calibrate with a bracket)")
+    pixels = np.asarray(decoded.pixels, np.float32)
+    rgb = np.ascontiguousarray(np.repeat(pixels, 3, axis=2) if pixels.shape[2] == 1 else pixels[..., :3])
+    channel = _bayer_channels(decoded.info.cfa, rgb.shape[:2]) if raw else None
+    clip_level = 1.0 if raw and decoded.saturated.any() else None  # decode: 1 is the white level
+    return Photo(rgb, np.asarray(decoded.saturated, bool), str(path), "raw" if raw else "linear", channel, clip_level,
+                 decoded.info.to_json())
 
 
-def _read_raw(path: Path) -> Photo:
-    import rawpy
-
-    try:
-        with rawpy.imread(str(path)) as raw:
-            colours = np.asarray(raw.raw_colors_visible)
-            black = np.asarray(raw.black_level_per_channel, float)[colours]
-            white = float(raw.white_level)
-            mosaic = raw.raw_image_visible.astype(float)
-            counts = raw.postprocess(gamma=(1, 1), no_auto_bright=True, use_camera_wb=False, use_auto_wb=False,
-                                     user_wb=[1.0, 1.0, 1.0, 1.0], output_bps=16, output_color=rawpy.ColorSpace.raw,
-                                     demosaic_algorithm=rawpy.DemosaicAlgorithm.LINEAR, user_flip=0,
-                                     user_black=int(round(float(np.mean(raw.black_level_per_channel)))),
-                                     user_sat=int(white), adjust_maximum_thr=0.0)
-    except (rawpy.LibRawError, OSError, ValueError) as error:
-        raise UserInputError(f"cannot read the raw file ({error})", field="--photo", got=str(path)) from None
-    clipped_sites = (mosaic - black) >= (1.0 - CLIP_MARGIN) * (white - black)
-    clipped = cv2.dilate(clipped_sites.astype(np.uint8), np.ones((3, 3), np.uint8)) > 0
-    rgb = counts.astype(np.float32) / 65535.0  # LibRaw scales (raw - black) / (white - black) to 16 bits
-    if rgb.shape[:2] != clipped.shape:
-        return Photo(rgb, np.zeros(rgb.shape[:2], bool), str(path), "raw")
-    sites = np.where(colours == 3, 1, colours)  # the second green is green
-    level = float(np.max(rgb[clipped_sites, sites[clipped_sites]])) if clipped_sites.any() else None
-    return Photo(rgb, clipped, str(path), "raw", sites, level)
+def _bayer_channels(cfa: str | None, shape: tuple[int, int]) -> np.ndarray | None:
+    """Each pixel's colour-filter channel (0 R, 1 G, 2 B) for a 2 x 2 pattern such as "RGGB"; None otherwise."""
+    if not cfa or len(cfa) != 4 or set(cfa) - set("RGB"):
+        return None
+    channel = np.empty(shape, np.int64)
+    for k, colour in enumerate(cfa):
+        dy, dx = divmod(k, 2)
+        channel[dy::2, dx::2] = "RGB".index(colour)
+    return channel
 
 
 def through_photo_sensor(render: np.ndarray, photo: Photo) -> np.ndarray:

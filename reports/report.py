@@ -7,7 +7,12 @@ DIR/report.html the page (reports.page). Steps:
 
 1. The camera: the calibration's fitted camera for the photo (reports.camera_file); the
    scene's camera is replaced by it, so prediction, masks and render share its pixels.
-2. Photo (reports.images.read_photo) and render (EXR) as linear camera RGB, same size.
+2. Photo (reports.images.read_photo: calibration.decode) and render (EXR) as linear camera
+   RGB, same size. With a bracket (``brackets``), the photo's clipped pixels are filled from
+   its darker frames (reports.exposure_merge): the filled photo is what the page shows and
+   what prediction, hues and maps are measured on; photo and render are compared through
+   the photo's own saturation as taken (``fringe_offset_px``) and, unclipped, on the filled
+   photo (``fringe_offset_unclipped_px``).
 3. Regions from a shape-id render (reports.images.region_masks); one photometric scale
    fitted on the walls brings the render to the photo's units.
 4. The CD: rim ellipses found in both images; the grating-equation prediction
@@ -38,7 +43,7 @@ from typing import Any
 import numpy as np
 
 from reports import fringes, images, metrics, page, polar
-from reports.camera_file import FittedCamera, check_scene, read_camera
+from reports.camera_file import FittedCamera, check_scene, read_camera, read_response
 from reports.prediction import Prediction, predict
 from workbench.core.errors import UserInputError
 from workbench.core.files import atomic_write_text
@@ -65,6 +70,8 @@ class Inputs:
     scene: str
     out: Path
     studies: tuple[Path, ...] = ()
+    brackets: tuple[Path, ...] = ()  # darker frames of the photo's view, for its clipped highlights
+    brackets_strict: bool = True  # a frame that does not fit is an error (else it is left out, with the reason)
 
 
 def _scene_with_camera(scene: str, fitted: FittedCamera):
@@ -111,23 +118,40 @@ def _correlation(photo: images.Photo) -> float:
 
 
 def measure_fringes(pred: Prediction, photo: images.Photo, render: np.ndarray, grids: tuple[polar.PolarGrid, ...],
-                    focal_px: float) -> dict[str, Any]:
-    """Band edges in prediction, photo and render on ``grids``; pairs and summaries."""
+                    focal_px: float, as_taken: images.Photo | None = None) -> dict[str, Any]:
+    """Band edges in prediction, photo and render on ``grids``; pairs and summaries.
+
+    ``photo`` is the photo as measured: with its clipped highlights filled from a bracket
+    (reports.exposure_merge) when there is one, so that its bands have half-maximum edges and
+    hues to set against the prediction. ``as_taken`` is the single frame before filling: photo
+    and render are compared through its sensor (its mosaic and saturation), so a band that
+    saturates it saturates the render alike and its sharp edges count too. Without a bracket
+    the two are the same photo. With one, ``photo_render_unclipped`` pairs the filled photo's
+    half-maximum edges with the render's."""
+    as_taken = as_taken if as_taken is not None else photo
+    merged = as_taken is not photo
     edges: dict[str, list] = {"prediction": [], "photo": [], "render": [], "render_through_photo_sensor": []}
+    if merged:
+        edges["photo_as_taken"] = []
     pairs: dict[str, list] = {"photo_render": [], "prediction_photo": [], "prediction_render": []}
-    as_photo = images.through_photo_sensor(render, photo)
+    if merged:
+        pairs["photo_render_unclipped"] = []
+    through_sensor = images.through_photo_sensor(render, as_taken)
     for grid in grids:
         sampled = _sampled_prediction(pred, grid)
         found = {"prediction": fringes.find_edges(grid, sampled, pred.orders),
                  "photo": fringes.find_edges(grid, sampled, pred.orders, photo.rgb, photo.clipped, _correlation(photo)),
                  "render": fringes.find_edges(grid, sampled, pred.orders, render),
-                 "render_through_photo_sensor": fringes.find_edges(grid, sampled, pred.orders, as_photo, photo.clipped,
-                                                                   _correlation(photo))}
+                 "render_through_photo_sensor": fringes.find_edges(grid, sampled, pred.orders, through_sensor,
+                                                                   as_taken.clipped, _correlation(as_taken))}
+        if merged:
+            found["photo_as_taken"] = fringes.find_edges(grid, sampled, pred.orders, as_taken.rgb, as_taken.clipped,
+                                                         _correlation(as_taken))
+            pairs["photo_render_unclipped"] += fringes.pair_edges(grid, found["photo"], found["render"], focal_px)
         for name, e in found.items():
             edges[name] += [(grid.kind, x) for x in e]
-        # photo and render alike: the render through the photo's sensor (its mosaic and saturation), so that bands
-        # that saturate the photo are compared too
-        pairs["photo_render"] += fringes.pair_edges(grid, found["photo"], found["render_through_photo_sensor"], focal_px,
+        pairs["photo_render"] += fringes.pair_edges(grid, found["photo_as_taken" if merged else "photo"],
+                                                    found["render_through_photo_sensor"], focal_px,
                                                     accept=("ok", "clipped"))
         pairs["prediction_photo"] += fringes.pair_edges(grid, found["prediction"], found["photo"], focal_px)
         pairs["prediction_render"] += fringes.pair_edges(grid, found["prediction"], found["render"], focal_px)
@@ -197,9 +221,10 @@ def _prediction_spread(spec, fitted: FittedCamera, grids, reference: list) -> tu
 
 
 def analyse_cd(spec, fitted: FittedCamera, photo: images.Photo, render: np.ndarray, messages: list[str],
-               problems: list[str]) -> dict[str, Any]:
+               problems: list[str], as_taken: images.Photo | None = None) -> dict[str, Any]:
     """Everything about the CD (module docstring, step 4); ``problems`` for what could not be
-    done, ``messages`` for what the reader should know."""
+    done, ``messages`` for what the reader should know; ``as_taken``: the photo before its
+    highlights were filled from a bracket (measure_fringes)."""
     from reports.prediction import cd_bbox, cd_geometry
 
     started = time.perf_counter()
@@ -217,7 +242,7 @@ def analyse_cd(spec, fitted: FittedCamera, photo: images.Photo, render: np.ndarr
     photo_rim = fringes.fit_rim(photo.rgb, expected_rim)
     render_rim = fringes.fit_rim(render, expected_rim)
     grids = polar.standard_grids(camera, cd)
-    measured = measure_fringes(pred, photo, render, grids, camera.fx)
+    measured = measure_fringes(pred, photo, render, grids, camera.fx, as_taken)
     result: dict[str, Any] = {
         "status": "measured", "orders_predicted": pred.orders, "period_um": cd.period_um,
         "top_dispersive": cd.top_dispersive, "prediction_seconds": pred.seconds,
@@ -367,6 +392,33 @@ def _studies(paths: tuple[Path, ...]) -> list[tuple[str, str]]:
     return sections
 
 
+def _photo(inputs: Inputs, messages: list[str]) -> tuple[images.Photo, images.Photo]:
+    """The photo with its clipped highlights filled from the bracket's darker frames (reports.exposure_merge), and
+    the photo as taken (the same object when nothing was filled)."""
+    from reports.exposure_merge import merge_highlights
+
+    response = read_response(inputs.calibration)
+    photo = images.read_photo(inputs.photo, response)
+    if not inputs.brackets:
+        return photo, photo
+    frames = []
+    for path in inputs.brackets:
+        try:
+            frames.append(images.read_photo(path, response, what="--bracket"))
+        except UserInputError:
+            if inputs.brackets_strict:
+                raise
+    merged, used, _ = merge_highlights(photo, frames, strict=inputs.brackets_strict)
+    if used:
+        messages.append(f"the photo's clipped pixels ({int(photo.clipped.sum())}) were filled from "
+                        f"{len(used)} darker bracket frame(s); {int(merged.clipped.sum())} stay clipped. Photo and "
+                        "render are compared through the photo's own saturation (fringe_offset_px) and, unclipped, "
+                        "by the filled photo's half-maximum edges (photo_render_unclipped), which the prediction "
+                        "and the hues use too")
+        return merged, photo
+    return photo, photo
+
+
 def build_report(inputs: Inputs) -> dict[str, Any]:
     """Write DIR/report.json, DIR/fringes.csv and DIR/report.html; returns report.json's content."""
     started = time.perf_counter()
@@ -374,14 +426,14 @@ def build_report(inputs: Inputs) -> dict[str, Any]:
     problems: list[str] = []
     fitted = read_camera(inputs.calibration, inputs.photo.name)
     spec = _scene_with_camera(inputs.scene, fitted)
-    photo = images.read_photo(inputs.photo)
+    photo, as_taken = _photo(inputs, messages)
     render = images.read_linear(inputs.render, "--render")
     _check_sizes(photo.rgb, render, fitted, inputs)
     study_sections = _studies(inputs.studies)
     masks = images.region_masks(spec)
     scale, wall_pixels = images.photometric_scale(photo.rgb, render, masks, photo.clipped)
     aligned = render * scale
-    cd = analyse_cd(spec, fitted, photo, aligned, messages, problems)
+    cd = analyse_cd(spec, fitted, photo, aligned, messages, problems, as_taken)
 
     matrix = images.display_matrix(spec)
     photo_display, render_display = images.to_display(photo.rgb, matrix), images.to_display(aligned, matrix)
@@ -405,6 +457,7 @@ def build_report(inputs: Inputs) -> dict[str, Any]:
         "format": REPORT_FORMAT, "photo": str(inputs.photo), "render": str(inputs.render),
         "calibration": fitted.summary(), "scene": spec.name, "scene_source": spec.source,
         "size": [fitted.model.width, fitted.model.height], "photo_kind": photo.kind,
+        "photo_decoding": photo.decoding,
         "photo_clipped_pixels": int(photo.clipped.sum()),
         "photometric_scale": {"render_to_photo": scale, "wall_pixels": wall_pixels, "how": "median of photo / render "
                               "(channel sums) over the walls"},
@@ -416,6 +469,8 @@ def build_report(inputs: Inputs) -> dict[str, Any]:
     }
     offsets = cd.get("offsets", {})
     report["fringe_offset_px"] = offsets.get("photo_render", {"median": None, "p95": None, "count": 0})
+    if "photo_render_unclipped" in offsets:
+        report["fringe_offset_unclipped_px"] = offsets["photo_render_unclipped"]
     report["prediction_offset_px"] = {"photo": offsets.get("prediction_photo"), "render": offsets.get("prediction_render")}
     hue_offsets = (cd.get("hue") or {}).get("offsets", {})
     report["hue_offset_px"] = hue_offsets.get("photo_render", {"median": None, "p95": None, "count": 0})

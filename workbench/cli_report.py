@@ -17,7 +17,8 @@ def add_parsers(commands) -> None:  # commands: the top-level parser's subparser
                     "error maps, the CD's band edges against the grating equation), DIR/report.json (every number; "
                     "fringe_offset_px = {median, p95, count} of the photo-render band-edge offsets) and DIR/fringes.csv.")
     parser.add_argument("--photo", required=True, metavar="PHOTO",
-                        help="the photo: a raw file (DNG, ...) or a linear float image (EXR)")
+                        help="the photo: a raw file (DNG, ...), a linear float image (EXR), or a JPEG/PNG/TIFF when the "
+                             "calibration holds a fitted response (decoded by calibration.decode)")
     parser.add_argument("--render", required=True, metavar="RENDER.exr",
                         help="the render made with the calibration's camera (linear camera RGB, `workbench render`)")
     parser.add_argument("--calibration", required=True, metavar="calibration.json",
@@ -25,6 +26,10 @@ def add_parsers(commands) -> None:  # commands: the top-level parser's subparser
                              "{photo file name: 4x4}} (a synthetic dataset's truth.json has this form)")
     parser.add_argument("--scene", required=True, metavar="SCENE", help="the scene (a built-in name or a TOML file)")
     parser.add_argument("--out", required=True, metavar="DIR", help="the report's folder")
+    parser.add_argument("--bracket", nargs="+", default=[], metavar="FRAME",
+                        help="darker frames of the photo's view (an exposure bracket, raw or linear like the photo): "
+                             "the photo's clipped pixels, such as the CD's bright first orders, are taken from them, "
+                             "scaled by the exposure ratio measured from the images; default: none")
     parser.add_argument("--study", action="append", default=[], metavar="DIR",
                         help="a folder written by `workbench study ...` whose figures the page shows (repeatable)")
     add_cache_option(parser)
@@ -37,7 +42,7 @@ def run(args: argparse.Namespace) -> int:
     if out.exists() and not out.is_dir():
         raise UserInputError("is a file, not a folder", field="--out", expected="a folder for the report", got=args.out)
     report = build_report(Inputs(Path(args.photo), Path(args.render), Path(args.calibration), args.scene, out,
-                                 tuple(Path(s) for s in args.study)))
+                                 tuple(Path(s) for s in args.study), tuple(Path(b) for b in args.bracket)))
     fo = report.get("fringe_offset_px") or {}
     median, p95 = fo.get("median"), fo.get("p95")
     offsets = (f"fringe offset photo-render: median {median:.2f} px, p95 {p95:.2f} px over {fo.get('count')} band edges"

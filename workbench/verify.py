@@ -9,7 +9,8 @@ plan           renderer.planner on the run's scene: tables, orders, directions, 
 tables         the scene's efficiency tables, built (or resumed) in the user's cache  RUN/scene.toml
 calibration    calibration.dataset on DATASET's photos/, brackets/, calibration/      those files, RUN/scene.toml
 render         every photo's fitted scene (calibration/scenes/NAME.toml), rendered     the fitted scenes
-report         reports.report: each photo against its render                          photos, renders, calibration
+report         reports.report: each photo against its render, its clipped highlights  photos, renders, brackets,
+               filled from the bracket frames that show its view                      calibration
 =============  =====================================================================  ==========================
 
 The tables stage builds whole tables: calibration re-renders the scene from many
@@ -459,11 +460,19 @@ def _stage_render(run: _Run) -> dict:
                      lambda folder: all((folder / f"{Path(n).stem}.exr").is_file() for n in scenes))
 
 
+def _bracket_frames(dataset: Path) -> tuple[Path, ...]:
+    """DATASET/brackets' files: each report fills its photo's clipped highlights from the darker frames that show
+    the photo's view (reports.exposure_merge checks that pixel by pixel and leaves the others out)."""
+    folder = dataset / "brackets"
+    return tuple(sorted(p for p in folder.iterdir() if p.is_file())) if folder.is_dir() else ()
+
+
 def _stage_report(run: _Run) -> dict:
     renders = {p.name: run.root / "render" / f"{p.stem}.exr" for p in run.photos}
     calibration = run.root / "calibration" / "calibration.json"
+    brackets = _bracket_frames(run.dataset)
     inputs = ({f"photos/{p.name}": p for p in run.photos} | {f"render/{k}": p for k, p in renders.items()}
-              | {"calibration.json": calibration, "scene.toml": run.scene})
+              | {f"brackets/{p.name}": p for p in brackets} | {"calibration.json": calibration, "scene.toml": run.scene})
 
     def work(folder: Path) -> dict[str, Any]:
         from tqdm import tqdm
@@ -476,7 +485,8 @@ def _stage_report(run: _Run) -> dict:
             if (out / "report.html").is_file():  # finished by a killed run with these inputs (written after report.json)
                 report = json.loads((out / "report.json").read_text())
             else:
-                report = build_report(Inputs(photo, renders[photo.name], calibration, str(run.scene), out))
+                report = build_report(Inputs(photo, renders[photo.name], calibration, str(run.scene), out,
+                                             brackets=brackets, brackets_strict=False))
             reports[photo.name] = {"html": f"{photo.stem}/report.html", "fringe_offset_px": report["fringe_offset_px"],
                                    "problems": report.get("problems", []), "seconds": report["seconds"]}
         return {"reports": reports}

@@ -76,11 +76,63 @@ def test_broken_calibration(tmp_path, capsys, content, words):
     assert code == 2 and words in text
 
 
-def test_jpeg_photo_is_refused_with_the_reason(tmp_path, capsys):
+def _write_jpeg(path, codes):
+    import cv2
+
+    assert cv2.imwrite(str(path), np.ascontiguousarray(codes[..., ::-1]), [cv2.IMWRITE_JPEG_QUALITY, 100])
+    return path
+
+
+GAMMA = 2.2  # the test camera's response: value = irradiance ** (1 / GAMMA)
+
+
+def _gamma_response():
+    irradiance = np.linspace(0.0, 1.0, 65)
+    return {"points": [[float(e), float(e ** (1 / GAMMA))] for e in irradiance]}
+
+
+def test_jpeg_without_a_fitted_response_is_refused_with_the_reason(tmp_path, capsys):
+    photo = _write_jpeg(tmp_path / "photo.jpg", np.full((SIZE[1], SIZE[0], 3), 128, np.uint8))
+    render = _write_exr(tmp_path / "render.exr", _flat())
+    code, text = _run(tmp_path, capsys, photo, render, _calibration(tmp_path / "c.json", _camera(), photo="photo.jpg"))
+    assert code == 2 and "no response curve" in text and "--photo" in text
+
+
+def test_damaged_jpeg_is_refused_naming_the_file(tmp_path, capsys):
     (tmp_path / "photo.jpg").write_bytes(b"\xff\xd8\xff")
     render = _write_exr(tmp_path / "render.exr", _flat())
     code, text = _run(tmp_path, capsys, tmp_path / "photo.jpg", render, _calibration(tmp_path / "c.json", _camera()))
-    assert code == 2 and "fitted response" in text
+    assert code == 2 and "photo.jpg" in text and "cannot be read" in text
+
+
+def test_jpeg_is_linearised_through_the_calibrations_response(tmp_path):
+    """calibration.decode inverts the fitted response: a grey ramp encoded with gamma 2.2 comes back linear
+    within 1.5 % of full scale (JPEG at quality 100 keeps codes within about 1 of 255; the inverse response's
+    slope near 0.2 irradiance is about 0.5 / 255 per code; the 65-knot table interpolates within 0.3 %)."""
+    from reports import images
+    from reports.camera_file import read_response
+
+    linear = np.tile(np.linspace(0.05, 0.95, SIZE[0]), (SIZE[1], 1))
+    codes = np.round(255 * linear ** (1 / GAMMA)).astype(np.uint8)
+    photo_path = _write_jpeg(tmp_path / "photo.jpg", np.repeat(codes[..., None], 3, axis=2))
+    calibration = _calibration(tmp_path / "c.json", _camera(), photo="photo.jpg")
+    record = json.loads(calibration.read_text())
+    calibration.write_text(json.dumps({**record, "response": _gamma_response()}))
+    photo = images.read_photo(photo_path, read_response(calibration))
+    assert photo.kind == "linear" and photo.channel is None
+    assert np.max(np.abs(photo.rgb[..., 1] - linear)) < 0.015
+    assert photo.decoding is not None and photo.decoding["response"] == "response"
+
+
+def test_broken_response_in_the_calibration_names_file_and_field(tmp_path):
+    from reports.camera_file import read_response
+    from workbench.core.errors import UserInputError
+
+    calibration = tmp_path / "c.json"
+    calibration.write_text(json.dumps({"response": {"points": [[0, 0.5], [1, 0.2]]}}))
+    with pytest.raises(UserInputError) as caught:
+        read_response(calibration)
+    assert "c.json" in str(caught.value) and "response" in str(caught.value)
 
 
 @pytest.mark.slow

@@ -10,6 +10,7 @@ to issue 15's bars, and the grating-equation prediction must agree with both.
 
 import dataclasses
 import json
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -21,7 +22,10 @@ from workbench.cli import main
 SCENE = "cornell_cd"  # its CD, propped toward the camera, shows first orders on a quarter of its pixels; the seed-0
 # dataset is shared with the calibration tests (tests/calibration/test_pose.py)
 SEED = 0
-PHOTO = "ev-2.dng"  # the darkest bracket of view0: the CD's first orders saturate the brighter ones
+PHOTO = "ev+0.dng"  # view0 as exposed for the room: the CD's first orders (30-60x the walls) clip in it
+BRACKET = ("ev-1.dng", "ev-2.dng", "ev-4.dng", "ev-6.dng", "ev+1.dng")  # the darker frames fill them (the brighter
+# one is left out); reports.exposure_merge
+KNOWN_ERROR_PHOTO = "ev-2.dng"  # fewer clipped bands: the known-error pairs need both images' edges, clipped or not
 RENDER_SPP = 64  # the photo's own
 RENDER_SEED = 901  # not the photo's
 MEDIAN_BAR_PX = 0.5  # issue 15: photo vs render, median
@@ -70,7 +74,8 @@ def test_report_on_a_synthetic_pair_meets_the_bars(tmp_path_factory, tmp_path, c
     render = _render(dataset, tmp_path / "render.exr")
     out = tmp_path / "report"
     code = main(["report", "--photo", str(dataset / "brackets" / PHOTO), "--render", str(render),
-                 "--calibration", str(dataset / "truth.json"), "--scene", SCENE, "--out", str(out)])
+                 "--calibration", str(dataset / "truth.json"), "--scene", SCENE, "--out", str(out),
+                 "--bracket", *(str(dataset / "brackets" / name) for name in BRACKET)])
     text = capsys.readouterr()
     assert code == 0, text.err
     report = json.loads((out / "report.json").read_text())
@@ -78,12 +83,12 @@ def test_report_on_a_synthetic_pair_meets_the_bars(tmp_path_factory, tmp_path, c
     assert offsets["count"] >= MIN_EDGES, report["cd"]["edge_quality"]
     assert offsets["median"] < MEDIAN_BAR_PX and offsets["p95"] < P95_BAR_PX, offsets
     assert report["prediction_offset_px"]["render"]["median"] < PREDICTION_BAR_PX, report["prediction_offset_px"]
-    photo = report["prediction_offset_px"]["photo"]
-    if photo["count"] >= MIN_PREDICTION_EDGES:
-        assert photo["median"] < PREDICTION_BAR_PX, report["prediction_offset_px"]
-    else:  # cornell_cd's first orders (about 20x the walls) saturate even this bracket: the report must say so
-        # (benchmarks/bench_report.py measures the bar on cornell_cd_view2, whose ev-2 bands are not all clipped)
-        assert any("prediction is compared with the photo on" in m for m in report["messages"]), report["messages"]
+    photo = report["prediction_offset_px"]["photo"]  # on the photo filled from the bracket: unclipped bands
+    assert photo["count"] >= MIN_PREDICTION_EDGES and photo["median"] < PREDICTION_BAR_PX, report["prediction_offset_px"]
+    used = report["photo_decoding"]["bracket"]
+    assert [Path(u["path"]).name for u in used] == ["ev-1.dng", "ev-2.dng", "ev-4.dng", "ev-6.dng"]
+    assert report["photo_clipped_pixels"] == 0  # ev-6 holds the brightest band (its peak is about 60x the walls)
+    assert {"median", "p95", "count"} <= set(report["fringe_offset_unclipped_px"])
     # the second measure is reported (no bar: issue 15 sets none; tests/reports/test_hue.py checks it against known
     # wavelengths); cornell_cd's clipped first orders leave it few or no crossings here
     assert {"median", "p95", "count"} <= set(report["hue_offset_px"])
@@ -127,7 +132,7 @@ def test_known_camera_error_is_reported_as_the_predicted_offset(tmp_path_factory
     truth = read_camera(dataset / "truth.json", PHOTO).model
     wrong = KNOWN_ERRORS[error](truth)
     spec = _spec(wrong)
-    photo = images.read_photo(dataset / "brackets" / PHOTO)
+    photo = images.read_photo(dataset / "brackets" / KNOWN_ERROR_PHOTO)
     render = _render_image(wrong, KNOWN_ERROR_SPP)
     scale, _ = images.photometric_scale(photo.rgb, render, images.region_masks(spec), photo.clipped)
     right, bad = predict(spec, truth), predict(spec, wrong)
