@@ -71,7 +71,7 @@ def dataset_files(dataset: str | Path) -> dict[str, list[Path]]:
     """The photos, bracket files and board views of a dataset folder (checked: photos exist)."""
     root = Path(dataset)
     if not root.is_dir():
-        raise UserInputError("no such dataset folder", file=root,
+        raise UserInputError("is a file, not a dataset folder" if root.exists() else "no such dataset folder", file=root,
                              expected="a folder with photos/ (and optionally brackets/ and calibration/)")
     photos = _files(root / "photos")
     if not photos:

@@ -236,3 +236,9 @@ def test_board_views_without_a_description_are_refused(tmp_path: Path, board, sq
         calibrate_dataset(tmp_path / "ds", "cornell_cd", tmp_path / "out", board=board, square_mm=square_mm, progress=False)
     assert info.value.file == str(tmp_path / "ds" / "calibration" / "board.json") and missing in str(info.value)
     assert not (tmp_path / "out").exists()
+
+
+def test_a_file_given_as_the_dataset_is_called_a_file(tmp_path: Path) -> None:
+    (tmp_path / "view0.dng").write_bytes(b"not a folder")
+    with pytest.raises(UserInputError, match="is a file, not a dataset folder"):
+        dataset_files(tmp_path / "view0.dng")
