@@ -109,7 +109,27 @@ def table_info(path: str | Path) -> dict:
         "symmetry": meta["symmetry"], "solver_version": meta["solver_version"], "complete": bool(meta.get("complete")),
         "bytes_on_disk": sum(f.stat().st_size for f in path.rglob("*") if f.is_file()),
         "integrity": integrity, "check_seconds": time.perf_counter() - start,
+        "planned": _planned(path, settings),
     }
+
+
+def _planned(path: Path, settings: dict) -> dict | None:
+    """A planned table (rcwa.table.NodePlan): how many nodes hold the table's orders, the others' orders."""
+    if not settings.get("planned_nodes_sha256"):
+        return None
+    import numpy as np
+
+    from rcwa.table import PLANNED_NODES
+
+    try:
+        import zarr
+
+        mask = np.asarray(zarr.open_group(str(path), mode="r")[PLANNED_NODES][...], bool)
+        solved, total = int(mask.sum()), int(mask.size)
+    except (KeyError, OSError, ValueError):
+        solved = total = None
+    return {"nodes_solved": solved, "nodes": total, "fill_orders": settings.get("fill_orders"),
+            "digest": settings["planned_nodes_sha256"]}
 
 
 def _axis(values: list[float]) -> dict:
@@ -135,4 +155,10 @@ def format_table_info(info: dict) -> str:
         f"  size          {info['bytes_on_disk'] / 1e6:.2f} MB on disk; solver {info['solver_version']}",
         f"  integrity     {info['integrity']} ({info['check_seconds']:.2f} s to check)",
     ]
+    plan = info.get("planned")
+    if plan:
+        share = (f"{plan['nodes_solved']} of {plan['nodes']} nodes" if plan["nodes"] else "its nodes (mask unreadable)")
+        fill = "x".join(map(str, plan["fill_orders"] or []))
+        lines.insert(-2, f"  planned       {share} solved with the retained orders (the nodes a render's camera reads); "
+                         f"the others with {fill} (renderer.planner)")
     return "\n".join(lines)

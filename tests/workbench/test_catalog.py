@@ -72,3 +72,28 @@ def test_rcwa_info_shows_grid_settings_size_symmetry_and_integrity(tmp_path, cap
     assert main(["rcwa", "info", str(table)]) == 0  # a damaged table is described, not refused
     text = capsys.readouterr().out
     assert "NOT intact" in text and "chunk 1" in text and "workbench rcwa table" in text, text
+
+
+def test_rcwa_info_says_a_table_is_planned(tmp_path, capsys) -> None:
+    """A planned table (rcwa.table.NodePlan: the nodes a camera reads, the rest with fewer orders) says so, with how
+    many nodes carry the table's orders (3 of the small grid here)."""
+    import numpy as np
+
+    import rcwa
+    from rcwa.table import NodePlan, build_table, planned, settings_for
+
+    structure = rcwa.load_structure("cd")
+    settings = settings_for(structure, "draft", wavelengths="500,600", theta_step=40.0, phi_step=45.0,
+                            orders=11, keep=5)
+    shape = (len(settings.wavelengths_nm), len(settings.theta_deg), len(settings.phi_deg))
+    mask = np.zeros(shape, bool)
+    mask.ravel()[[0, 5, 7]] = True
+    plan = NodePlan(mask, (5,))
+    table = tmp_path / "planned.zarr"
+    build_table(structure, planned(settings, plan), table, progress=False, nodes=plan)
+    assert main(["rcwa", "info", str(table), "--json"]) == 0
+    info = json.loads(capsys.readouterr().out)
+    assert info["planned"]["nodes_solved"] == 3 and info["planned"]["nodes"] == mask.size
+    assert info["planned"]["fill_orders"] == [5]
+    assert main(["rcwa", "info", str(table)]) == 0
+    assert f"3 of {mask.size} nodes solved" in capsys.readouterr().out
