@@ -121,13 +121,15 @@ def _planned(path: Path, settings: dict) -> dict | None:
 
     from rcwa.table import PLANNED_NODES
 
+    solved: int | None = None
+    total: int | None = None
     try:
         import zarr
 
-        mask = np.asarray(zarr.open_group(str(path), mode="r")[PLANNED_NODES][...], bool)
+        mask = np.asarray(zarr.open_array(str(path / PLANNED_NODES), mode="r")[:], bool)
         solved, total = int(mask.sum()), int(mask.size)
     except (KeyError, OSError, ValueError):
-        solved = total = None
+        pass
     return {"nodes_solved": solved, "nodes": total, "fill_orders": settings.get("fill_orders"),
             "digest": settings["planned_nodes_sha256"]}
 
