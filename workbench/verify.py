@@ -46,7 +46,8 @@ import os
 import platform
 import shutil
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
@@ -523,6 +524,31 @@ def verify(dataset: str | Path, scene: str | Path, out: str | Path, settings: Ve
     photos = _selected_photos(dataset, settings.photos)
     size = _check_sizes(dataset, spec.source, (spec.camera.model.width, spec.camera.model.height))
     identity = {"dataset": str(dataset.resolve()), "scene": str(scene)}
+    with run_lock(root):
+        return _verify_locked(root, dataset, scene, spec, photos, size, identity, settings, force)
+
+
+@contextmanager
+def run_lock(root: Path) -> Iterator[None]:
+    """One verify run at a time in RUN: an ``flock`` (filelock) on ``.RUN.verify.lock`` beside it, taken without
+    waiting; a second run into the same folder is refused while the first holds it."""
+    from filelock import FileLock, Timeout
+
+    root.parent.mkdir(parents=True, exist_ok=True)
+    lock = FileLock(str(root.parent / f".{root.name}.verify.lock"))
+    try:
+        lock.acquire(timeout=0)
+    except Timeout:
+        raise UserInputError("another verify run is writing into this folder now", file=root,
+                             expected="to wait until it has finished, or another --out") from None
+    try:
+        yield
+    finally:
+        lock.release()
+
+
+def _verify_locked(root: Path, dataset: Path, scene: str | Path, spec, photos: list[Path], size: tuple[int, int],
+                   identity: dict[str, str], settings: VerifySettings, force: bool) -> dict[str, Any]:
     run = _Run(root, open_run(root, identity, settings, force), dataset, photos, size, settings)
     atomic_write_text(run.scene, run_scene_text(spec, PRESETS[settings.preset]["tables"]))
     run.save()

@@ -251,6 +251,22 @@ def test_force_replaces_another_run_and_only_what_a_run_writes(tmp_path: Path) -
     assert not (root / "render").exists() and not (root / "run.json").exists() and (root / "notes.txt").read_text() == "mine"
 
 
+def test_a_second_run_into_the_same_folder_is_refused_while_the_first_runs(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """Two verify runs writing one RUN would interleave their stages: the second is refused, naming the folder,
+    and nothing of the first is touched (here the first is held by this process's lock on the same file)."""
+    from filelock import FileLock
+
+    data = _fake_dataset(tmp_path / "data")
+    root = tmp_path / "run"
+    root.mkdir()
+    (root / "notes.txt").write_text("the first run's")
+    with FileLock(str(tmp_path / ".run.verify.lock")):
+        err = _error(["verify", str(data), "--scene", "cornell_cd", "--out", str(root)], capsys)
+    assert "another verify run is writing into this folder" in err and str(root) in err
+    assert sorted(p.name for p in root.iterdir()) == ["notes.txt"]
+
+
 def test_score_refuses_a_folder_that_is_not_a_run(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     err = _error(["score", str(tmp_path), "--truth", str(tmp_path / "truth.json")], capsys)
     assert str(tmp_path / "run.json") in err and "not a verify run" in err
