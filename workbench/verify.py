@@ -453,12 +453,23 @@ def _stage_render(run: _Run) -> dict:
             info = render(scene, folder / f"{Path(name).stem}.exr", preset=s.preset, spp=s.render_spp,
                           resolution=run.size, integrator=s.integrator, mode=s.mode, seed=s.seed, progress=s.progress,
                           executor=run.executor, force=True)  # the staging folder is the run's own
+            _point_sidecar_at(folder / f"{Path(name).stem}.json", run.root / "render")
             renders[name] = {"exr": f"{Path(name).stem}.exr", "seconds": info["seconds_total"],
                              "served": info.get("served", False), "resumed_passes": info.get("resumed_passes", 0)}
         return {"renders": renders}
 
     return run_stage(run, "render", {f"scenes/{k}": p for k, p in scenes.items()}, settings, estimate, work,
                      lambda folder: all((folder / f"{Path(n).stem}.exr").is_file() for n in scenes))
+
+
+def _point_sidecar_at(sidecar: Path, final_folder: Path) -> None:
+    """The render's sidecar names where its images will be once the stage is moved into place, not the staging
+    folder they were written in (renderer.render reads neither path back)."""
+    info = json.loads(sidecar.read_text())
+    for key in ("output", "preview"):
+        if isinstance(info.get(key), str):
+            info[key] = str(final_folder / Path(info[key]).name)
+    atomic_write_text(sidecar, json.dumps(info, indent=2))
 
 
 def _bracket_frames(dataset: Path) -> tuple[Path, ...]:

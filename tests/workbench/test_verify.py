@@ -76,6 +76,13 @@ def test_verify_ends_with_a_report_and_run_json(reference: tuple[Path, dict, flo
         assert 0 < p["pose_rms_px"] < 1.0  # calibration's residual: sub-pixel on a synthetic dataset
     inputs = [name for stage in saved["stages"].values() for name in stage["inputs"]]
     assert "photos/view0.dng" in inputs and not any("truth" in name for name in inputs)  # verify never reads the truth
+    assert "brackets/ev-6.dng" in inputs  # the report fills view0's clipped highlights from its bracket
+    sidecar = json.loads((out / "render" / "view0.json").read_text())
+    assert Path(sidecar["output"]) == out / "render" / "view0.exr"  # where the render is, not the staging folder
+    view0 = json.loads((out / "report" / "view0" / "report.json").read_text())
+    assert [Path(u["path"]).name for u in view0["photo_decoding"]["bracket"]][-1] == "ev-6.dng"
+    view1 = json.loads((out / "report" / "view1" / "report.json").read_text())
+    assert view1["photo_decoding"]["bracket"] == []  # the bracket shows view0: every frame is left out for view1
 
 
 @pytest.mark.slow
