@@ -182,6 +182,18 @@ def bilinear_demosaic(mosaic: np.ndarray, channel: np.ndarray) -> np.ndarray:
     return out
 
 
+def cfa_channels(cfa: str | None, shape: tuple[int, int]) -> np.ndarray | None:
+    """Each pixel's colour-filter channel (0 R, 1 G, 2 B) for a 2 x 2 pattern such as "RGGB" (row-major); None
+    for anything else (no CFA, X-Trans)."""
+    if not cfa or len(cfa) != 4 or set(cfa) - set("RGB"):
+        return None
+    channel = np.empty(shape, np.int64)
+    for k, colour in enumerate(cfa):
+        dy, dx = divmod(k, 2)
+        channel[dy::2, dx::2] = "RGB".index(colour)
+    return channel
+
+
 def _libraw_message(exc: Exception) -> str:
     text = exc.args[0] if exc.args else exc
     return text.decode(errors="replace") if isinstance(text, bytes) else str(text)

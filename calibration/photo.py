@@ -18,7 +18,7 @@ from pathlib import Path
 
 import numpy as np
 
-from calibration.decode import RAW_EXTENSIONS, bilinear_demosaic, decode, is_raw
+from calibration.decode import RAW_EXTENSIONS, bilinear_demosaic, cfa_channels, decode, is_raw
 
 RAW_SUFFIXES = RAW_EXTENSIONS
 
@@ -58,12 +58,8 @@ def read_photo(path: str | Path, inverse_response: Callable[[np.ndarray], np.nda
 def mosaic_like(rgb: np.ndarray, cfa: str | None) -> np.ndarray:
     """``rgb`` (H, W, 3) through a 2 x 2 colour filter array ``cfa`` (e.g. "RGGB", row-major)
     and calibration.decode's bilinear demosaicing; unchanged when there is no CFA."""
-    if not cfa or len(cfa) != 4 or set(cfa) - set("RGB"):
+    channel = cfa_channels(cfa, rgb.shape[:2])
+    if channel is None:
         return rgb
-    h, w, _ = rgb.shape
-    channel = np.empty((h, w), np.int64)
-    for k, c in enumerate(cfa):
-        dy, dx = divmod(k, 2)
-        channel[dy::2, dx::2] = "RGB".index(c)
     mosaic = np.take_along_axis(rgb, channel[..., None], axis=2)[..., 0]
     return bilinear_demosaic(np.ascontiguousarray(mosaic, np.float32), channel)

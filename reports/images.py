@@ -81,7 +81,7 @@ def read_photo(path: str | Path, response: dict | None = None, what: str = "--ph
     ``response`` is the calibration's fitted response (calibration.json's ``response``,
     ``points`` of normalised irradiance and value): a JPEG, PNG or integer TIFF is taken
     through its inverse; without one such a photo is refused (it is not linear)."""
-    from calibration.decode import decode, is_raw
+    from calibration.decode import cfa_channels, decode, is_raw
 
     path = Path(path)
     if not path.is_file():
@@ -95,21 +95,10 @@ def read_photo(path: str | Path, response: dict | None = None, what: str = "--ph
                                       "calibration.json with a response (calibrate with a bracket)")
     pixels = np.asarray(decoded.pixels, np.float32)
     rgb = np.ascontiguousarray(np.repeat(pixels, 3, axis=2) if pixels.shape[2] == 1 else pixels[..., :3])
-    channel = _bayer_channels(decoded.info.cfa, rgb.shape[:2]) if raw else None
+    channel = cfa_channels(decoded.info.cfa, rgb.shape[:2]) if raw else None
     clip_level = 1.0 if raw and decoded.saturated.any() else None  # decode: 1 is the white level
     return Photo(rgb, np.asarray(decoded.saturated, bool), str(path), "raw" if raw else "linear", channel, clip_level,
                  decoded.info.to_json())
-
-
-def _bayer_channels(cfa: str | None, shape: tuple[int, int]) -> np.ndarray | None:
-    """Each pixel's colour-filter channel (0 R, 1 G, 2 B) for a 2 x 2 pattern such as "RGGB"; None otherwise."""
-    if not cfa or len(cfa) != 4 or set(cfa) - set("RGB"):
-        return None
-    channel = np.empty(shape, np.int64)
-    for k, colour in enumerate(cfa):
-        dy, dx = divmod(k, 2)
-        channel[dy::2, dx::2] = "RGB".index(colour)
-    return channel
 
 
 def through_photo_sensor(render: np.ndarray, photo: Photo) -> np.ndarray:
