@@ -3,8 +3,9 @@
 For every camera pixel that sees the CD, every diffraction order m and every wavelength
 (5 nm apart over the camera's range) the camera ray is sent back through the grating
 equation and tested against the ceiling light's rectangle; a pixel of order m is lit at
-lambda when that ray reaches the light. Nothing here uses Mitsuba or an efficiency table:
-it is geometry, so it checks the renderer from outside.
+lambda when that ray reaches the light. Nothing here uses Mitsuba:
+its geometry checks the renderer from outside; its brightness weights (below) come from the
+RCWA solution of the CD's structure, the renderer's physics input, not from the renderer.
 
 The path, for one pixel (world frame, metres; the CD's frame is renderer.build.frame_to):
 
@@ -28,18 +29,64 @@ The path, for one pixel (world frame, metres; the CD's frame is renderer.build.f
    (renderer.planner.hits_light; occlusion by other objects is not tested).
 
 Per pixel, order and channel the lit fraction is the camera-sensitivity-weighted share
-of the light's spectrum that arrives: ``sum_lambda S_c E lit w / sum_lambda S_c E``, with
-E the light's spectrum and w the light's emission profile cos^n at the angle the ray
-leaves it (1 for a Lambertian light). The diffraction efficiency and the top's Fresnel
-transmission are left out: they change slowly with wavelength, so they move a band's
-brightness, not where its edges are. Pixels are supersampled (``SUPERSAMPLE`` per axis)
-and averaged, so a prediction is pixel-integrated as a render and a photo are.
+of the light's spectrum that arrives, weighted by what the light meets on the way:
+``sum_lambda S_c E lit w eta T_in T_out / (c_m sum_lambda S_c E)``, with E the light's
+spectrum, w the light's emission profile cos^n at the angle the ray leaves it (1 for a
+Lambertian light), and (``weighting="efficiency"``, the default):
+
+* eta_m(lambda, theta, phi): the order's diffraction efficiency for unpolarized light (the
+  mean of s and p), computed by RCWA (Moharam et al., JOSA A 12, 1068 (1995)) for the
+  CD's structure: the scene's efficiency table (rcwa.table, the one renderer.build serves
+  for the scene: built into the cache when missing), read at the incident wave's
+  direction inside the grating's superstrate (polycarbonate: sin theta = |k_inc| /
+  n(lambda), phi its azimuth about the radial axis, folded by the cell's mirror
+  symmetries with the order flip), linear in wavelength and bilinear in (theta, phi), as
+  the table is meant to be read (renderer.efficiency does the same in its kernels);
+  zero outside the table's wavelengths;
+* T_in, T_out: the flat top's Fresnel transmission, unpolarized ((T_s + T_p) / 2; Born &
+  Wolf, Principles of Optics, 7th ed., Sec. 1.5.2), for the camera's ray and for the
+  light's, each at its angle in air and the top's index (the n^2 law of radiance cancels
+  between entering and leaving the top);
+* c_m: the order's mean of eta T_in T_out over its lit (pixel, wavelength) pairs (weighted
+  by S_c E w; ``Prediction.order_efficiency``), so that a lit fraction stays a share of
+  the light's spectrum (about 0..1) and fringes.py's thresholds keep their meaning.
+
+Each factor is the unpolarized mean on its own, as the renderer's BWDF and dielectric take
+them (the top's Fresnel transmission partly polarizes the light the grating then sees; that
+correlation is left out by both).
+
+Why the efficiency (measured on cornell_cd, synthetic seed 0, 640 x 480, against renders
+with the truth camera; benchmarks/bench_report.py ``--parts weighting``): along a radius the
+lit wavelengths slide through the spectrum, about 5.5 nm per pixel, so a channel's band edge
+along a radius is where its spectral weight runs out, and that weight is S_c E eta: the
+first orders' efficiency falls from about 0.3 at 520-640 nm to 0.06-0.2 at 400 nm (the
+draft table, theta 10-30 deg). With geometry alone the radius edges sat 0.95 px inside the
+render's (signed median; median |offset| 1.19 px); weighted, +0.04 px (0.43 px, a 512 spp
+render), which is the renders' own noise: two independent 256 spp renders differ by 0.52 px
+there. Along a circle a band ends where the light's rectangle ends (a geometric edge, in
+every wavelength at once), so there the weighting changes little (0.10 px either way).
+``weighting="geometric"`` leaves eta and T out (the lit share of the spectrum alone; the
+edges of a grating of flat efficiency).
+
+A known difference from the renderer: with a non-dispersive top (``dispersion = false``)
+the renderer refracts at the top's mean index but diffracts with the table's n(lambda), so
+its orders leave as if m lambda / Lambda were scaled by n_mean / n(lambda) (1-2 % in the
+blue); this prediction keeps the consistent physics (the top's index drops out of the
+grating equation in air). On cornell_cd that moves the render's radius edges by about
+-0.25 px (signed median, measured by emulating it here); the report says when the top is
+not dispersive.
+
+Pixels are supersampled (``SUPERSAMPLE`` per axis) and averaged, so a prediction is
+pixel-integrated as a render and a photo are.
 """
 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from collections.abc import Iterator
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Literal
 
 import numpy as np
 
@@ -114,6 +161,144 @@ def cd_geometry(spec: SceneSpec, index: int = 0) -> CDGeometry:
                       cd.outer_radius, CD_TOP_THICKNESS_M if cd.top_surface else 0.0, cd.dispersion,
                       float(structure.period[0]))
 
+Weighting = Literal["efficiency", "geometric"]
+
+
+@dataclass(frozen=True)
+class Efficiency:
+    """A 1D grating's unpolarized reflection efficiencies, read as a table is meant to be read.
+
+    ``values`` (wavelength, theta, phi, order): rcwa.table's ``R`` for unpolarized light,
+    theta the incident wave's polar angle in the superstrate and phi its azimuth about the
+    grating vector, over the stored azimuths (``mirror_x``, ``mirror_y``: the cell's mirror
+    symmetries, rcwa.symmetry). ``superstrate``: (wavelengths, n) of the superstrate's index
+    on a 1 nm grid. ``source``: where the numbers come from (the table's path)."""
+
+    wavelengths_nm: np.ndarray
+    theta_deg: np.ndarray
+    phi_deg: np.ndarray
+    values: np.ndarray
+    orders_m: tuple[int, ...]
+    mirror_x: bool
+    mirror_y: bool
+    superstrate: tuple[np.ndarray, np.ndarray]
+    source: str
+
+    def fold(self, phi_deg: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Azimuths mapped into the stored range and whether the order flips (m -> -m);
+        rcwa.table.Table.fold_azimuth on arrays (a 1D grating's orders have n = 0)."""
+        phi = np.mod(phi_deg, 360.0)
+        flip = np.zeros(np.shape(phi), bool)
+        if self.mirror_y:
+            phi = np.where(phi > 180.0, 360.0 - phi, phi)
+            if self.mirror_x:
+                flip = phi > 90.0
+                phi = np.where(flip, 180.0 - phi, phi)
+        elif self.mirror_x:
+            flip = (phi > 90.0) & (phi < 270.0)
+            phi = np.where(flip, 180.0 - phi, np.where(phi >= 270.0, phi - 360.0, phi))
+        return phi, flip
+
+    def __call__(self, m: int, wavelengths_nm: np.ndarray, sin_air: np.ndarray, phi_deg: np.ndarray) -> np.ndarray:
+        """eta_m at each (wavelength, incident direction): ``sin_air`` = |k_inc| / k0, the
+        incident wave's tangential wave vector (the same in air and, by Snell's law at the flat
+        top, in the superstrate: sin theta = sin_air / n(lambda)); ``phi_deg`` its azimuth about
+        the grating vector. Linear in wavelength, bilinear in (theta, phi); zero outside the
+        table's wavelengths and for orders it does not keep."""
+        lam = np.asarray(wavelengths_nm, float)
+        n = np.interp(lam, *self.superstrate)
+        theta = np.degrees(np.arcsin(np.clip(np.asarray(sin_air) / n, 0.0, 1.0)))
+        phi, flip = self.fold(np.asarray(phi_deg, float))
+        order = np.full(lam.shape, -1)
+        for sign, where in ((m, ~flip), (-m, flip)):
+            if sign in self.orders_m:
+                order[where] = self.orders_m.index(sign)
+        (w0, wf), (t0, tf), (p0, pf) = (_axis(self.wavelengths_nm, lam), _axis(self.theta_deg, theta),
+                                         _axis(self.phi_deg, phi))
+        out = np.zeros(lam.shape)
+        k = np.maximum(order, 0)
+        for dw, ww in ((0, 1.0 - wf), (1, wf)):
+            for dt, wt in ((0, 1.0 - tf), (1, tf)):
+                for dp, wp in ((0, 1.0 - pf), (1, pf)):
+                    out += ww * wt * wp * self.values[w0 + dw, t0 + dt, p0 + dp, k]
+        inside = (lam >= self.wavelengths_nm[0] - 1e-6) & (lam <= self.wavelengths_nm[-1] + 1e-6) & (order >= 0)
+        return np.where(inside, out, 0.0)
+
+
+def _axis(grid: np.ndarray, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Lower node index and fraction of ``x`` on a sorted grid, clamped to its ends (one-node
+    grids give index 0, fraction 0; the upper index is then clamped by the caller's shape)."""
+    if len(grid) < 2:
+        return np.zeros(np.shape(x), int), np.zeros(np.shape(x))
+    x = np.clip(x, grid[0], grid[-1])
+    i = np.clip(np.searchsorted(grid, x, side="right") - 1, 0, len(grid) - 2)
+    return i, (x - grid[i]) / (grid[i + 1] - grid[i])
+
+
+def table_efficiency(path: str | Path) -> Efficiency:
+    """The efficiencies of an rcwa.table (opened and verified: rcwa.table.open_table)."""
+    import rcwa
+    from rcwa.table import open_table
+
+    table = open_table(path)
+    names = table.meta["pol_names"]
+    if "unpolarized" not in names or "R" not in table.arrays:
+        raise UserInputError("the prediction needs the table's unpolarized reflection efficiencies", file=path,
+                             expected="a table with pol 'unpolarized' (or 'both') and array R", got=names)
+    structure = rcwa.Structure.from_toml_string(table.meta["structure_text"], source=str(path))
+    if structure.dimension != 1 or any(n != 0 for n in table.meta["orders_n"]):
+        raise UserInputError("the prediction needs a 1D grating's table", file=path, got=f"period {structure.period}")
+    values = np.asarray(table.arrays["R"][..., names.index("unpolarized")], float)
+    if len(table.theta_deg) < 2 or len(table.phi_deg) < 2:  # one node: repeat it, so that node + 1 exists
+        values = np.repeat(np.repeat(values, 2 if len(table.theta_deg) < 2 else 1, axis=1),
+                           2 if len(table.phi_deg) < 2 else 1, axis=2)
+    if len(table.wavelengths_nm) < 2:
+        values = np.repeat(values, 2, axis=0)
+    material = structure.superstrate
+    lo, hi = material.wavelength_range_nm or SPECTRAL_RANGE_NM
+    grid = np.arange(SPECTRAL_RANGE_NM[0], SPECTRAL_RANGE_NM[1] + 1e-9, 1.0)
+    index = np.real(np.asarray(material.refractive_index(np.clip(grid, lo, hi)), complex))
+    sym = table.meta["symmetry"]
+    return Efficiency(table.wavelengths_nm, table.theta_deg, table.phi_deg, values,
+                      tuple(int(m) for m in table.meta["orders_m"]), bool(sym["mirror_x"]), bool(sym["mirror_y"]),
+                      (grid, index), str(path))
+
+
+EFFICIENCY_CACHE_SIZE = 4
+_efficiencies: dict[tuple[str, str], Efficiency] = {}
+
+
+def scene_efficiency(spec: SceneSpec, index: int = 0) -> Efficiency:
+    """The efficiencies of the scene's CD ``index``: the table renderer.build serves for it
+    (the scene's named table, or the cache's, built there when missing). Read (and
+    checksummed, about 1-2 s) once per process and request, however many cameras are predicted:
+    the report's uncertainty band predicts several."""
+    from renderer.build import camera_sensitivities, element_table, table_plan
+
+    cd = spec.cds[index]
+    where = f"cd[{index}]"
+    plan = table_plan(cd, where, spec.source)
+    key = (str(plan.path), plan.key)
+    if key not in _efficiencies:
+        path = element_table(cd, camera_sensitivities(spec.camera.sensitivities), where, spec.source, progress=False)
+        while len(_efficiencies) >= EFFICIENCY_CACHE_SIZE:
+            _efficiencies.pop(next(iter(_efficiencies)))
+        _efficiencies[key] = table_efficiency(path)
+    return _efficiencies[key]
+
+
+def fresnel_transmission(cos_i: np.ndarray, index: float | np.ndarray) -> np.ndarray:
+    """Unpolarized Fresnel transmission (T_s + T_p) / 2 of light meeting a flat interface from
+    air (index 1) at cos_i onto a medium of ``index`` (Born & Wolf, Principles of Optics, 7th ed.,
+    Sec. 1.5.2: T = 1 - R, r_s = (cos_i - n cos_t) / (cos_i + n cos_t), r_p = (n cos_i - cos_t) /
+    (n cos_i + cos_t)); the same for light leaving the medium into air at the refracted angle."""
+    cos_i = np.clip(np.asarray(cos_i, float), 0.0, 1.0)
+    cos_t = np.sqrt(np.maximum(1.0 - (1.0 - cos_i**2) / np.asarray(index) ** 2, 0.0))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        rs = (cos_i - index * cos_t) / (cos_i + index * cos_t)
+        rp = (index * cos_i - cos_t) / (index * cos_i + cos_t)
+    return np.where(cos_i > 0, 1.0 - 0.5 * (rs**2 + rp**2), 0.0)
+
 
 def pixel_rays(camera: CameraModel, pixels: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """The camera centre and unit world directions through pixel positions (CameraModel.pixel_rays)."""
@@ -149,7 +334,8 @@ class Prediction:
     """Predicted lit fractions over a crop of the image (rows y0.., columns x0..).
 
     ``lit`` (orders, 3, h, w): per order and camera channel, the weighted share of the
-    light's spectrum that reaches the pixel through that order (0..1). ``on_cd`` (h, w):
+    light's spectrum that reaches the pixel through that order (about 0..1; with the
+    efficiency weighting relative to the order's mean efficiency ``order_efficiency``). ``on_cd`` (h, w):
     the share of the pixel's sub-rays that meet the grating. ``lit_nm`` (orders, 2, h, w):
     the shortest and longest lit wavelength at the pixel's centre ray (nan where unlit).
     """
@@ -166,6 +352,9 @@ class Prediction:
     lit_nm: np.ndarray
     white: np.ndarray  # (3,) the light's camera RGB (light_white): the hue's white point
     seconds: float = 0.0
+    weighting: str = "geometric"  # predict's ``weighting``
+    order_efficiency: np.ndarray | None = None  # (orders,) c_m: each order's mean eta T_in T_out over its lit pairs
+    efficiency_source: str | None = None  # the efficiency table read (its path), or None
 
     def full(self, image: np.ndarray, fill: float = 0.0) -> np.ndarray:
         """A crop-shaped array (..., h, w) placed in the camera's whole frame (..., H, W)."""
@@ -260,29 +449,38 @@ def _light_box(spec: SceneSpec, cd: CDGeometry, margin: float = LIGHT_BOX_MARGIN
     return k.min(axis=0) - margin, k.max(axis=0) + margin
 
 
+@dataclass
+class _Light:
+    """Which back-traced rays of one order reach the light, and what weighs them there."""
+
+    lit: np.ndarray  # (N,) bool
+    emission: np.ndarray  # (N,) the emission profile cos^n at the angle the ray leaves the light
+    sin_air: np.ndarray  # (N,) |k_inc| / k0 of the incident wave (its sin theta in air)
+    phi_deg: np.ndarray  # (N,) the incident wave's azimuth about the grating vector
+
+
 def _light_hits(spec: SceneSpec, cd: CDGeometry, points: np.ndarray, axis: np.ndarray, ey: np.ndarray,
-                omega_t: np.ndarray, m: int, lam: np.ndarray, top_index: float) -> tuple[np.ndarray, np.ndarray]:
-    """For order m at wavelengths ``lam`` (one per row): which points receive the light, and
-    the emission-profile weight there."""
+                omega_t: np.ndarray, m: int, lam: np.ndarray, top_index: float) -> _Light:
+    """For order m at wavelengths ``lam`` (one per row): which points receive the light, the
+    emission-profile weight there, and the incident wave's direction (for its efficiency)."""
     theta, phi, ok = incident_directions(omega_t, m, 0, lam, (cd.period_um,), 1.0, 1.0)  # type: ignore[arg-type]
-    lit = np.zeros(len(points), bool)
-    weight = np.zeros(len(points))
+    sin_air = np.sin(np.radians(theta))
+    out = _Light(np.zeros(len(points), bool), np.zeros(len(points)), sin_air, phi)
     idx = np.flatnonzero(ok)
     if not len(idx):
-        return lit, weight
+        return out
     source = source_rays(theta[idx], phi[idx], axis[idx], ey[idx], cd.normal, above=True)  # in air, toward the light
     start = points[idx]
     if cd.top_thickness_m > 0:  # the back-traced ray climbs through the top before it leaves into air
-        sin_air = np.sin(np.radians(theta[idx]))
         tangential = source - (source @ cd.normal)[:, None] * cd.normal[None]
-        sin_in = sin_air / top_index
+        sin_in = sin_air[idx] / top_index
         cos_in = np.sqrt(1.0 - sin_in**2)
-        along = np.where(sin_air > 0, sin_in / np.maximum(sin_air, 1e-300), 0.0)
+        along = np.where(sin_air[idx] > 0, sin_in / np.maximum(sin_air[idx], 1e-300), 0.0)
         start = start + cd.top_thickness_m * (tangential * (along / cos_in)[:, None] + cd.normal[None])
     hit = hits_light(start, source, spec)
-    lit[idx] = hit
-    weight[idx] = np.where(hit, np.maximum(source[:, 1], 0.0) ** (spec.light.cos_power or 0.0), 0.0)
-    return lit, weight
+    out.lit[idx] = hit
+    out.emission[idx] = np.where(hit, np.maximum(source[:, 1], 0.0) ** (spec.light.cos_power or 0.0), 0.0)
+    return out
 
 
 @dataclass
@@ -337,25 +535,48 @@ def _candidate_pairs(hits: _Hits, m: int, lam: np.ndarray, period_um: float,
     return rays, first[rays] + offsets
 
 
+@dataclass
+class _Events:
+    """Lit (ray, wavelength) pairs of one order (``order`` indexes the orders asked for), or with
+    ``order`` -1 the rays that reach the grating (``rows`` only)."""
+
+    order: int
+    rows: np.ndarray
+    lam_index: np.ndarray = field(default_factory=lambda: np.zeros(0, int))
+    emission: np.ndarray = field(default_factory=lambda: np.zeros(0))  # the light's emission profile
+    factor: np.ndarray = field(default_factory=lambda: np.zeros(0))  # eta T_in T_out (1 for geometric weighting)
+
+
 def _lit_events(spec: SceneSpec, cd: CDGeometry, origin: np.ndarray, rays: np.ndarray, orders: list[int],
-                wavelengths: np.ndarray):
-    """Every lit (order index, ray rows, wavelength indices, emission weights), and once per top
-    index the rays that reach the grating (order index -1, rows, empty, empty)."""
+                wavelengths: np.ndarray, efficiency: Efficiency | None = None) -> Iterator[_Events]:
+    """Every order's lit pairs, and once per top index the rays that reach the grating.
+    With ``efficiency``, each pair's factor is the order's efficiency at its incident direction
+    times the top's Fresnel transmission for the camera's ray and the light's (module docstring)."""
     top_indices = cd.top_index(wavelengths)
     box = _light_box(spec, cd)
     for index in np.unique(top_indices):  # one index (a non-dispersive top) or one per wavelength
         hits = _grating_hits(origin, rays, cd, float(index))
-        yield -1, hits.rows, np.zeros(0, int), np.zeros(0)
+        yield _Events(-1, hits.rows)
         lam_index = np.flatnonzero(top_indices == index)
         lam = wavelengths[lam_index]
+        camera_in = np.ones(len(hits.rows))
+        if efficiency is not None and cd.top_thickness_m > 0:
+            camera_in = fresnel_transmission(np.sqrt(np.maximum(1.0 - (hits.omega_t**2).sum(axis=1), 0.0)), float(index))
         for i, m in enumerate(orders):
             ray, wl = _candidate_pairs(hits, m, lam, cd.period_um, box)
             if not len(ray):
                 continue
-            lit, weight = _light_hits(spec, cd, hits.points[ray], hits.axis[ray], hits.ey[ray], hits.omega_t[ray], m,
-                                      lam[wl], float(index))
-            if lit.any():
-                yield i, hits.rows[ray[lit]], lam_index[wl[lit]], weight[lit]
+            light = _light_hits(spec, cd, hits.points[ray], hits.axis[ray], hits.ey[ray], hits.omega_t[ray], m,
+                                lam[wl], float(index))
+            if not light.lit.any():
+                continue
+            lit = light.lit
+            factor = np.ones(int(lit.sum()))
+            if efficiency is not None:
+                factor = efficiency(m, lam[wl[lit]], light.sin_air[lit], light.phi_deg[lit]) * camera_in[ray[lit]]
+                if cd.top_thickness_m > 0:
+                    factor *= fresnel_transmission(np.sqrt(1.0 - light.sin_air[lit] ** 2), float(index))
+            yield _Events(i, hits.rows[ray[lit]], lam_index[wl[lit]], light.emission[lit], factor)
 
 
 def lit_table(spec: SceneSpec, camera: CameraModel, pixels: np.ndarray, order: int, *, cd_index: int = 0,
@@ -365,17 +586,21 @@ def lit_table(spec: SceneSpec, camera: CameraModel, pixels: np.ndarray, order: i
     wavelengths, _ = channel_weights(spec, step_nm)
     origin, rays = pixel_rays(camera, pixels)
     table = np.zeros((len(pixels), len(wavelengths)), bool)
-    for i, rows, lam_index, _weight in _lit_events(spec, cd, origin, rays, [order], wavelengths):
-        if i >= 0:
-            table[rows, lam_index] = True
+    for events in _lit_events(spec, cd, origin, rays, [order], wavelengths):
+        if events.order >= 0:
+            table[events.rows, events.lam_index] = True
     return wavelengths, table
 
 
 def predict(spec: SceneSpec, camera: CameraModel | None = None, *, cd_index: int = 0, supersample: int = SUPERSAMPLE,
-            step_nm: float = PREDICTION_STEP_NM) -> Prediction:
+            step_nm: float = PREDICTION_STEP_NM, weighting: Weighting = "efficiency",
+            efficiency: Efficiency | None = None) -> Prediction:
     """The lit fractions of every order over the CD's pixels for ``camera`` (the scene's by default).
 
-    Raises UserInputError when the CD is not in the camera's view."""
+    ``weighting``: ``"efficiency"`` weighs each lit (pixel, wavelength) by the order's
+    efficiency and the top's Fresnel transmission (module docstring), from ``efficiency``
+    (the scene's table by default: scene_efficiency); ``"geometric"`` by the light's spectrum
+    and emission profile alone. Raises UserInputError when the CD is not in the camera's view."""
     import time
 
     started = time.perf_counter()
@@ -386,25 +611,36 @@ def predict(spec: SceneSpec, camera: CameraModel | None = None, *, cd_index: int
     if box is None:
         raise UserInputError("the camera does not see the CD (it projects outside the image or lies behind the camera)",
                              file=spec.source, field=f"cd[{cd_index}].center")
+    if weighting not in ("efficiency", "geometric"):
+        raise ValueError(f"weighting must be 'efficiency' or 'geometric', not {weighting!r}")
+    if weighting == "efficiency" and efficiency is None:
+        efficiency = scene_efficiency(spec, cd_index)
     x0, y0, x1, y1 = box
     h, w, s = y1 - y0, x1 - x0, supersample
     pixels = _subpixels(x0, y0, x1, y1, s)
     origin, rays = pixel_rays(camera, pixels)
     orders = _candidate_orders(cd, wavelengths)
     lit_sum = np.zeros((len(orders), 3, len(pixels)))
+    plain = np.zeros(len(orders))  # sum of S_c E w over each order's lit pairs (all channels) ...
+    weighed = np.zeros(len(orders))  # ... and of S_c E w eta T_in T_out: their ratio is c_m
     lo_nm = np.full((len(orders), len(pixels)), np.inf)
     hi_nm = np.full((len(orders), len(pixels)), -np.inf)
     hit_any = np.zeros(len(pixels), bool)
-    for i, rows, lam_index, weight in _lit_events(spec, cd, origin, rays, orders, wavelengths):
+    for ev in _lit_events(spec, cd, origin, rays, orders, wavelengths, efficiency if weighting == "efficiency" else None):
+        i = ev.order
         if i < 0:
-            hit_any[rows] = True
+            hit_any[ev.rows] = True
             continue
+        spectral = weights[:, ev.lam_index] * ev.emission  # (3, pairs)
         for c in range(3):
-            np.add.at(lit_sum[i, c], rows, weights[c, lam_index] * weight)
-        np.minimum.at(lo_nm[i], rows, wavelengths[lam_index])
-        np.maximum.at(hi_nm[i], rows, wavelengths[lam_index])
+            np.add.at(lit_sum[i, c], ev.rows, spectral[c] * ev.factor)
+        plain[i] += spectral.sum()
+        weighed[i] += (spectral * ev.factor).sum()
+        np.minimum.at(lo_nm[i], ev.rows, wavelengths[ev.lam_index])
+        np.maximum.at(hi_nm[i], ev.rows, wavelengths[ev.lam_index])
     keep = [i for i in range(len(orders)) if lit_sum[i].any()]
-    lit = lit_sum[keep].reshape(len(keep), 3, h, s, w, s).mean(axis=(3, 5))
+    scale = np.array([weighed[i] / plain[i] for i in keep])  # c_m: the order's mean eta T_in T_out
+    lit = lit_sum[keep].reshape(len(keep), 3, h, s, w, s).mean(axis=(3, 5)) / scale.reshape(-1, 1, 1, 1)
     on_cd = hit_any.reshape(h, s, w, s).mean(axis=(1, 3))
     lo_img = lo_nm[keep].reshape(len(keep), h, s, w, s)
     hi_img = hi_nm[keep].reshape(len(keep), h, s, w, s)
@@ -412,7 +648,8 @@ def predict(spec: SceneSpec, camera: CameraModel | None = None, *, cd_index: int
     lit_nm = np.stack([lo_img[:, :, c, :, c], hi_img[:, :, c, :, c]], axis=1)
     lit_nm = np.where(np.isfinite(lit_nm), lit_nm, np.nan)
     return Prediction(camera, cd, [orders[i] for i in keep], wavelengths, weights, x0, y0, lit, on_cd, lit_nm,
-                      light_white(spec, step_nm), time.perf_counter() - started)
+                      light_white(spec, step_nm), time.perf_counter() - started, weighting, scale,
+                      efficiency.source if efficiency is not None and weighting == "efficiency" else None)
 
 
 CAMERA_STD_KEYS = ("fx", "fy", "cx", "cy", "rotation_deg", "translation_m")

@@ -246,6 +246,9 @@ def analyse_cd(spec, fitted: FittedCamera, photo: images.Photo, render: np.ndarr
     result: dict[str, Any] = {
         "status": "measured", "orders_predicted": pred.orders, "period_um": cd.period_um,
         "top_dispersive": cd.top_dispersive, "prediction_seconds": pred.seconds,
+        "prediction_weighting": {"weighting": pred.weighting, "efficiency_table": pred.efficiency_source,
+                                 "order_efficiency": None if pred.order_efficiency is None else
+                                 {str(m): float(c) for m, c in zip(pred.orders, pred.order_efficiency, strict=True)}},
         "rim": {"expected_center_px": expected_rim.mean(axis=0).tolist(),
                 "photo": photo_rim.to_json() if photo_rim else None, "render": render_rim.to_json() if render_rim else None},
         "edge_quality": {name: _quality_counts(e) for name, e in measured["edges"].items()},

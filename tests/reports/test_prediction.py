@@ -132,9 +132,11 @@ def test_top_refraction_follows_snell():
 
 def test_full_spectrum_pixels_have_lit_fraction_one():
     """Where an order delivers every wavelength of the camera's range, each channel's
-    weighted lit fraction is 1 (a Lambertian light: no profile weight)."""
+    weighted lit fraction is 1 (a Lambertian light: no profile weight; the geometric weighting:
+    the efficiency weighting is tested in test_prediction_efficiency.py)."""
     spec = _scene(top=True)
-    result = prediction.predict(spec, supersample=1)  # one ray per pixel: lit_nm and lit describe the same ray
+    # one ray per pixel: lit_nm and lit describe the same ray
+    result = prediction.predict(spec, supersample=1, weighting="geometric")
     i = result.orders.index(-1)  # cornell_cd_view2's order -1 spans the whole range somewhere
     full = (result.lit_nm[i, 0] <= result.wavelengths_nm[0]) & (result.lit_nm[i, 1] >= result.wavelengths_nm[-1])
     assert full.sum() >= 5
