@@ -11,6 +11,14 @@ Known camera errors (first seed): renders with the truth camera turned by 0.3 de
 its field of view widened by 0.2 deg, measured against the photo; each edge's measured
 offset minus the offset between the predictions of the wrong and the right camera
 (median < 0.5 px: issue 15).
+
+The prediction's weighting (``--parts weighting``; reports.prediction): on cornell_cd (seed 0,
+the first seed; view0 ev+0 filled from its darker bracket frames, as `workbench report
+--bracket` does) against a render with the truth camera (``--weighting-spp``), band-edge
+offsets of the prediction from the render and from the filled photo, by grid (circles,
+radii), with the efficiency weighting (the default) and with geometry alone. Measured
+(512 spp): radius edges against the render, signed median -1.02 px with geometry alone
+and +0.04 px weighted (median |offset| 1.16 and 0.43 px); circles 0.09-0.10 px either way.
 """
 
 from __future__ import annotations
@@ -31,20 +39,26 @@ KNOWN_BAR_PX = 0.5
 MIN_PREDICTION_EDGES = 5  # fewer unsaturated edges in an image: its median against the prediction is not shown
 
 
-def _spec_and_camera(dataset: Path, camera=None):
+WEIGHTING_SCENE = "cornell_cd"  # its CD propped toward the camera: first orders over a quarter of the disk
+WEIGHTING_PHOTO = "ev+0.dng"
+WEIGHTING_BRACKET = ("ev-1.dng", "ev-2.dng", "ev-4.dng", "ev-6.dng")  # the darker frames of view0 (synth)
+WEIGHTINGS = ("geometric", "efficiency")
+
+
+def _spec_and_camera(dataset: Path, camera=None, scene: str = SCENE, photo: str = PHOTO):
     from renderer.render import with_resolution
     from renderer.scene import load_scene
     from reports.camera_file import read_camera
 
-    camera = camera or read_camera(dataset / "truth.json", PHOTO).model
-    spec = with_resolution(load_scene(SCENE), (camera.width, camera.height))
+    camera = camera or read_camera(dataset / "truth.json", photo).model
+    spec = with_resolution(load_scene(scene), (camera.width, camera.height))
     return dataclasses.replace(spec, camera=dataclasses.replace(spec.camera, model=camera)), camera
 
 
-def render(dataset: Path, spp: int, camera=None, seed: int = 901) -> np.ndarray:
+def render(dataset: Path, spp: int, camera=None, seed: int = 901, scene: str = SCENE, photo: str = PHOTO) -> np.ndarray:
     from renderer.fit import FitRenderer
 
-    spec, camera = _spec_and_camera(dataset, camera)
+    spec, camera = _spec_and_camera(dataset, camera, scene, photo)
     fit = FitRenderer(spec, resolution=(camera.width, camera.height), spp=min(spp, 64))
     fit.set(camera=camera)
     passes = max(spp // 64, 1)
@@ -104,6 +118,42 @@ def known_error(dataset: Path, wrong) -> dict:
             "difference_median": float(np.median(np.abs(differences))) if differences else np.nan}
 
 
+def _by_grid(pairs) -> dict[str, list[float]]:
+    out: dict[str, list[float]] = {}
+    for p in pairs:
+        out.setdefault(p.key[0], []).append(p.offset_px)
+    return out
+
+
+def weighting_rows(dataset: Path, spp: int) -> list[dict]:
+    """The prediction's band edges against the render and the bracket-filled photo, by grid
+    kind, for each weighting (module docstring). Offsets are image minus prediction."""
+    from reports import images, polar
+    from reports.exposure_merge import merge_highlights
+    from reports.prediction import predict
+    from reports.report import measure_fringes
+
+    spec, camera = _spec_and_camera(dataset, scene=WEIGHTING_SCENE, photo=WEIGHTING_PHOTO)
+    taken = images.read_photo(dataset / "brackets" / WEIGHTING_PHOTO)
+    photo, _, _ = merge_highlights(taken, [images.read_photo(dataset / "brackets" / n) for n in WEIGHTING_BRACKET])
+    picture = render(dataset, spp, scene=WEIGHTING_SCENE, photo=WEIGHTING_PHOTO)
+    scale, _ = images.photometric_scale(photo.rgb, picture, images.region_masks(spec), photo.clipped)
+    rows = []
+    for weighting in WEIGHTINGS:
+        start = time.perf_counter()
+        pred = predict(spec, camera, weighting=weighting)  # type: ignore[arg-type]
+        seconds = time.perf_counter() - start
+        pairs = measure_fringes(pred, photo, picture * scale, polar.standard_grids(camera, pred.cd), camera.fx,
+                                taken)["pairs"]
+        for against in ("render", "photo"):
+            for kind, values in sorted(_by_grid(pairs[f"prediction_{against}"]).items()):
+                v = np.asarray(values)
+                rows.append({"weighting": weighting, "against": against, "grid": kind, "count": len(v),
+                             "signed": float(np.median(v)), "median": float(np.median(np.abs(v))),
+                             "p95": float(np.percentile(np.abs(v), 95)), "seconds": seconds})
+    return rows
+
+
 def turned(camera, degrees: float):
     from scipy.spatial.transform import Rotation
 
@@ -125,24 +175,30 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--seeds", default="0,1", help="comma-separated dataset seeds")
     parser.add_argument("--spp", default="64,256", help="comma-separated render spp")
-    parser.add_argument("--parts", default="report,known", help="report (the bars per seed), known (camera errors)")
+    parser.add_argument("--parts", default="report,known,weighting",
+                        help="report (the bars per seed), known (camera errors), weighting (the prediction's, on cornell_cd)")
+    parser.add_argument("--weighting-spp", type=int, default=512, help="the cornell_cd render's spp for --parts weighting")
     parser.add_argument("--work", type=Path, help="keep datasets and renders here (a dataset already there is reused)")
+    parser.add_argument("--cd-dataset", type=Path, help="for --parts weighting: a `workbench synth cornell_cd` dataset to "
+                        "use (read only) instead of synthesizing one")
     args = parser.parse_args()
+    parts = set(args.parts.split(","))
     work = args.work or Path(tempfile.mkdtemp(prefix="bench_report-"))
     try:
-        print(f"workbench report on draft synthetic datasets of {SCENE} ({PHOTO}) with a truth-camera render "
-              f"(bars: median < {BARS['median']}, p95 < {BARS['p95']} px, prediction < {BARS['prediction']} px, "
-              f"< {BARS['seconds']:g} s, < {BARS['megabytes']:g} MB)")
-        print(f"{'seed':>4} {'spp':>5} {'median':>8} {'p95':>8} {'edges':>6} {'pred':>8} {'pred n':>8} {'hue med':>8} "
-              f"{'hue n':>6} {'s':>6} {'MB':>6}  (pred: the worse of prediction-photo and prediction-render medians, "
-              f"each where it has {MIN_PREDICTION_EDGES} or more unsaturated edges; pred n: photo/render edges)")
+        if parts & {"report", "known"}:
+            print(f"workbench report on draft synthetic datasets of {SCENE} ({PHOTO}) with a truth-camera render "
+                  f"(bars: median < {BARS['median']}, p95 < {BARS['p95']} px, prediction < {BARS['prediction']} px, "
+                  f"< {BARS['seconds']:g} s, < {BARS['megabytes']:g} MB)")
+            print(f"{'seed':>4} {'spp':>5} {'median':>8} {'p95':>8} {'edges':>6} {'pred':>8} {'pred n':>8} {'hue med':>8} "
+                  f"{'hue n':>6} {'s':>6} {'MB':>6}  (pred: the worse of prediction-photo and prediction-render medians, "
+                  f"each where it has {MIN_PREDICTION_EDGES} or more unsaturated edges; pred n: photo/render edges)")
         first = None
-        for seed in (int(s) for s in args.seeds.split(",")):
+        for seed in (int(s) for s in args.seeds.split(",")) if parts & {"report", "known"} else ():
             dataset = work / f"seed{seed}" / "dataset"
             if not (dataset / "truth.json").exists():
                 synth(SCENE, dataset, seed=seed, progress=False)
             first = first or dataset
-            for spp in (int(s) for s in args.spp.split(",")) if "report" in args.parts else ():
+            for spp in (int(s) for s in args.spp.split(",")) if "report" in parts else ():
                 path = write_exr(render(dataset, spp), work / f"seed{seed}" / f"render{spp}.exr")
                 r = report_row(dataset, path, work / f"seed{seed}" / f"report{spp}")
                 miss = "".join(f" MISS {k}" for k in BARS if r[k] >= BARS[k])
@@ -150,9 +206,21 @@ def main() -> None:
                       f"{r['prediction_counts']:>8} "
                       f"{r['hue_median'] if r['hue_median'] is not None else float('nan'):>8.3f} {r['hue_count']:>6} "
                       f"{r['seconds']:>6.1f} {r['megabytes']:>6.1f}{miss}", flush=True)
-        assert first is not None
-        if "known" not in args.parts:
+        if "weighting" in parts:
+            seed = int(args.seeds.split(",")[0])
+            dataset = args.cd_dataset or work / f"seed{seed}" / WEIGHTING_SCENE
+            if not (dataset / "truth.json").exists():
+                synth(WEIGHTING_SCENE, dataset, seed=seed, progress=False)
+            print(f"prediction weighting on {WEIGHTING_SCENE} seed {seed} ({args.weighting_spp} spp truth render; photo "
+                  f"{WEIGHTING_PHOTO} filled from {', '.join(WEIGHTING_BRACKET)}): image minus prediction, px")
+            print(f"{'weighting':>10} {'against':>7} {'grid':>6} {'edges':>5} {'signed':>7} {'|median|':>8} {'p95':>6} "
+                  f"{'predict s':>9}")
+            for r in weighting_rows(dataset, args.weighting_spp):
+                print(f"{r['weighting']:>10} {r['against']:>7} {r['grid']:>6} {r['count']:>5} {r['signed']:>+7.3f} "
+                      f"{r['median']:>8.3f} {r['p95']:>6.3f} {r['seconds']:>9.2f}", flush=True)
+        if "known" not in parts:
             return
+        assert first is not None
         _spec, truth = _spec_and_camera(first)
         print(f"known camera errors (first seed, 64 spp renders; bar: median |measured - predicted| < {KNOWN_BAR_PX} px)")
         for name, camera in (("turned 0.3 deg", turned(truth, 0.3)), ("FOV +0.2 deg", wider(truth, 0.2))):

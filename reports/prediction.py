@@ -60,18 +60,19 @@ with the truth camera; benchmarks/bench_report.py ``--parts weighting``): along 
 lit wavelengths slide through the spectrum, about 5.5 nm per pixel, so a channel's band edge
 along a radius is where its spectral weight runs out, and that weight is S_c E eta: the
 first orders' efficiency falls from about 0.3 at 520-640 nm to 0.06-0.2 at 400 nm (the
-draft table, theta 10-30 deg). With geometry alone the radius edges sat 0.95 px inside the
-render's (signed median; median |offset| 1.19 px); weighted, +0.04 px (0.43 px, a 512 spp
-render), which is the renders' own noise: two independent 256 spp renders differ by 0.52 px
-there. Along a circle a band ends where the light's rectangle ends (a geometric edge, in
-every wavelength at once), so there the weighting changes little (0.10 px either way).
+draft table, theta 10-30 deg). With geometry alone the render's radius edges sat 1.02 px
+nearer the centre than predicted (signed median; median |offset| 1.16 px; a 512 spp
+render); weighted, +0.04 px (median |offset| 0.43 px), about the renders' own noise: two
+independent 256 spp renders differ by 0.52 px there. Along a circle a band ends where the
+light's rectangle ends (a geometric edge, in every wavelength at once), so there the
+weighting changes little (0.09-0.10 px either way).
 ``weighting="geometric"`` leaves eta and T out (the lit share of the spectrum alone; the
 edges of a grating of flat efficiency).
 
 A known difference from the renderer: with a non-dispersive top (``dispersion = false``)
 the renderer refracts at the top's mean index but diffracts with the table's n(lambda), so
-its orders leave as if m lambda / Lambda were scaled by n_mean / n(lambda) (1-2 % in the
-blue); this prediction keeps the consistent physics (the top's index drops out of the
+its orders leave as if m lambda / Lambda were scaled by n_mean / n(lambda) (0.98 at 410 nm,
+1.008 at 685 nm); this prediction keeps the consistent physics (the top's index drops out of the
 grating equation in air). On cornell_cd that moves the render's radius edges by about
 -0.25 px (signed median, measured by emulating it here); the report says when the top is
 not dispersive.
