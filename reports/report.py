@@ -419,7 +419,8 @@ def _photo(inputs: Inputs, messages: list[str]) -> tuple[images.Photo, images.Ph
                         "by the filled photo's half-maximum edges (photo_render_unclipped), which the prediction "
                         "and the hues use too")
         return merged, photo
-    return photo, photo
+    recorded = dataclasses.replace(photo, decoding=merged.decoding)  # which frames were left out, and why
+    return recorded, recorded
 
 
 def build_report(inputs: Inputs) -> dict[str, Any]:
