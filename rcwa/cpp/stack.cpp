@@ -66,11 +66,6 @@ void outgoing_columns(const Basis& b, const CVec& kz, cplx eps, double direction
 
 namespace {
 
-struct LayerStep {
-    LU a;
-    CVec X;
-};
-
 CVec propagation(const LayerModes& m, double k0d) {
     CVec X(m.kz().size());
     for (std::size_t i = 0; i < X.size(); ++i) X[i] = std::exp(cplx(0.0, 1.0) * m.kz()[i] * k0d);
@@ -258,48 +253,26 @@ Mat close_top_layer(const StackProblem& pr, const Basis& basis, const LayerModes
 }
 
 void solve_etm(const StackProblem& pr, const Basis& basis, StackSolution& out) {
-    const int n2 = 2 * pr.harmonics.size();
     Mat f, g;
     outgoing_columns(basis, out.kz_substrate, pr.eps_substrate, -1.0, f, g);
-    bool substrate_columns = true;  // f and g are still sparse (times_order_blocks applies)
-    std::vector<LayerStep> steps;
-    steps.reserve(pr.layers.size());
-    Mat T;
-    for (std::size_t k = pr.layers.size(); k-- > 0;) {
+    if (pr.layers.empty()) {
+        out.t = close_top(pr, basis, f, g, out);
+        return;
+    }
+    const std::size_t bottom = pr.layers.size() - 1;
+    auto inverses = [&](std::size_t k, const Mat& fk, const Mat& gk) {
         const LayerModes& m = *pr.layers[k];
-        const Mat Wf = substrate_columns ? times_order_blocks(m.W_inverse(), f) : m.apply_W_inverse(f);
-        const Mat Vg = substrate_columns ? times_order_blocks(m.V_inverse(), g) : m.apply_V_inverse(g);
-        Mat a(n2, n2), b(n2, n2);
-        for (std::size_t q = 0; q < a.data.size(); ++q) {
-            a.data[q] = 0.5 * (Wf.data[q] - Vg.data[q]);
-            b.data[q] = 0.5 * (Wf.data[q] + Vg.data[q]);
-        }
-        CVec X = propagation(m, pr.thickness[k]);
-        LU lu(std::move(a));
-        Mat XMX = lu.solve_right(b);  // b a^{-1}
-        for (int j = 0; j < n2; ++j)
-            for (int i = 0; i < n2; ++i) XMX(i, j) *= X[i] * X[j];
-        steps.push_back(LayerStep{std::move(lu), std::move(X)});
-        if (k == 0) {
-            T = close_top_layer(pr, basis, m, XMX, out);
-            break;
-        }
-        Mat plus = XMX, minus = XMX;
-        for (int i = 0; i < n2; ++i) {
-            plus(i, i) += 1.0;
-            minus(i, i) -= 1.0;
-        }
-        f = m.apply_W(plus);
-        g = m.apply_V(minus);
-        substrate_columns = false;
-    }
-    if (pr.layers.empty()) T = close_top(pr, basis, f, g, out);
-    // Walk down: T_below = a^{-1} X T_above (steps were stored bottom layer first).
-    for (std::size_t k = steps.size(); k-- > 0;) {
-        for (int j = 0; j < T.cols; ++j)
-            for (int i = 0; i < n2; ++i) T(i, j) *= steps[k].X[i];
-        T = steps[k].a.solve(T);
-    }
+        // The substrate's columns are sparse: times_order_blocks applies.
+        if (k == bottom) return std::make_pair(times_order_blocks(m.W_inverse(), fk), times_order_blocks(m.V_inverse(), gk));
+        return std::make_pair(m.apply_W_inverse(fk), m.apply_V_inverse(gk));
+    };
+    auto forward = [&](std::size_t k, const Mat& P, const Mat& M) {
+        return std::make_pair(pr.layers[k]->apply_W(P), pr.layers[k]->apply_V(M));
+    };
+    auto kz = [&](std::size_t k) -> const CVec& { return pr.layers[k]->kz(); };
+    EtmSweep sweep = etm_sweep(pr.layers.size(), pr.thickness, std::move(f), std::move(g), kz, inverses, forward);
+    Mat T = close_top_layer(pr, basis, *pr.layers.front(), sweep.R, out);
+    etm_walk_down(sweep.steps, T);
     out.t = std::move(T);
 }
 
@@ -340,6 +313,14 @@ void solve_smatrix(const StackProblem& pr, const Basis& basis, StackSolution& ou
 }
 
 }  // namespace
+
+void etm_walk_down(const std::vector<EtmStep>& steps, Mat& T) {
+    for (std::size_t k = steps.size(); k-- > 0;) {
+        for (int j = 0; j < T.cols; ++j)
+            for (int i = 0; i < T.rows; ++i) T(i, j) *= steps[k].X[i];
+        T = steps[k].a.solve(T);
+    }
+}
 
 CVec half_space_kz(const Harmonics& h, cplx eps) {
     CVec kz(h.size());
