@@ -101,6 +101,12 @@ class StackSolution:
         """
 
     @property
+    def direct(self) -> bool:
+        """
+        Whether a one-layer stack of a general (2D) layer was solved as one 4N x 4N boundary system instead of through W^-1 and V^-1 (stack.cpp, solve_direct).
+        """
+
+    @property
     def hermitian_solves(self) -> int:
         """
         Eigen-solves of lossless 1D layers done by Hermitian solvers (zheevd, zhegvd) instead of zgeev.

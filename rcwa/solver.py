@@ -150,7 +150,9 @@ def solve(
         (x -> -x at k_x = 0: normal incidence or phi = +-90; y -> -y at k_y = 0: phi = 0
         or 180) is solved in mirror-symmetry sectors (rcwa/cpp/sectors.hpp), only those
         the asked polarization excites (for ``"s"`` or ``"p"`` the other's values are
-        NaN). ``SolveResult.fast_paths`` names what was used. False
+        NaN). A stack of one 2D layer is otherwise solved as one 4N x 4N boundary system
+        ("single_layer_direct", rcwa/cpp/stack.cpp) instead of through the layer's W^-1 and
+        V^-1. ``SolveResult.fast_paths`` names what was used. False
         forces the general path (to check the fast ones: tests/rcwa/test_fast_paths.py,
         tests/rcwa/test_sectors.py); the two agree to 1e-12.
     """
@@ -189,6 +191,8 @@ def _fast_paths(sol: _core.StackSolution, pol: Polarization) -> tuple[str, ...]:
         paths += ("te_tm_decoupled",) + single
     if sol.sectors_total:
         paths += ("mirror_sectors",) + single
+    if sol.direct:
+        paths += ("single_layer_direct",)
     if sol.hermitian_solves:
         paths += ("hermitian_eigensolver",)
     if sol.real_solves:

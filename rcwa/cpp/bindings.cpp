@@ -220,6 +220,9 @@ void bind_results(nb::module_& m) {
         .def_ro("decoupled", &rcwa::StackSolution::decoupled,
                 "Whether TE and TM were solved apart on N x N blocks (1D, every ky = 0: polarized.hpp); a "
                 "polarization not asked for then has NaN amplitudes.")
+        .def_ro("direct", &rcwa::StackSolution::direct,
+                "Whether a one-layer stack of a general (2D) layer was solved as one 4N x 4N boundary system "
+                "instead of through W^-1 and V^-1 (stack.cpp, solve_direct).")
         .def_ro("hermitian_solves", &rcwa::StackSolution::hermitian_solves,
                 "Eigen-solves of lossless 1D layers done by Hermitian solvers (zheevd, zhegvd) instead of zgeev.")
         .def_ro("real_solves", &rcwa::StackSolution::real_solves,

@@ -101,9 +101,7 @@ std::unique_ptr<LayerModes> uniform_modes(const Harmonics& h, cplx eps) {
     return std::make_unique<UniformModes>(h, eps);
 }
 
-DenseModes::DenseModes(Mat W, Mat V, CVec kz) : W_(W), V_(V), luW_(std::move(W)), luV_(std::move(V)) {
-    kz_ = std::move(kz);
-}
+DenseModes::DenseModes(Mat W, Mat V, CVec kz) : W_(std::move(W)), V_(std::move(V)) { kz_ = std::move(kz); }
 
 void pq_matrices(const Harmonics& h, const Mat& Z, const Mat& Exx, const Mat& Exy, const Mat& Eyx, const Mat& Eyy,
                  Mat& P, Mat& Q) {

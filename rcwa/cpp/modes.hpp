@@ -14,6 +14,7 @@
 #pragma once
 
 #include <memory>
+#include <optional>
 
 #include "linalg.hpp"
 
@@ -55,6 +56,9 @@ class LayerModes {
     virtual Mat W_inverse() const { return apply_W_inverse(identity()); }
     virtual Mat V_inverse() const { return apply_V_inverse(identity()); }
     const CVec& kz() const { return kz_; }
+    // Whether W and V are dense matrices at hand (DenseModes), so that a one-layer stack
+    // is solved directly (stack.cpp, solve_direct) rather than through W^-1 and V^-1.
+    virtual bool dense() const { return false; }
 
   protected:
     Mat identity() const { return Mat::identity(static_cast<int>(kz_.size())); }
@@ -124,22 +128,28 @@ Mat pq_product(const Harmonics& h, const Mat& Z, const Mat& Q);
 std::unique_ptr<LayerModes> general_modes(const Harmonics& h, const Mat& Z, const Mat& Exx,
                                           const Mat& Exy, const Mat& Eyx, const Mat& Eyy);
 
-// Dense modes (W, V given), with LU factorizations for the inverses.
+// Dense modes (W, V given), with LU factorizations for the inverses, taken on first use
+// (a one-layer stack solved directly needs none). One object serves one thread.
 class DenseModes : public LayerModes {
   public:
     DenseModes(Mat W, Mat V, CVec kz);
     Mat apply_W(const Mat& B) const override { return matmul(W_, B); }
     Mat apply_V(const Mat& B) const override { return matmul(V_, B); }
-    Mat apply_W_inverse(const Mat& B) const override { return luW_.solve(B); }
-    Mat apply_V_inverse(const Mat& B) const override { return luV_.solve(B); }
-    Mat W_inverse() const override { return luW_.inverse(); }
-    Mat V_inverse() const override { return luV_.inverse(); }
+    Mat apply_W_inverse(const Mat& B) const override { return lu(luW_, W_).solve(B); }
+    Mat apply_V_inverse(const Mat& B) const override { return lu(luV_, V_).solve(B); }
+    Mat W_inverse() const override { return lu(luW_, W_).inverse(); }
+    Mat V_inverse() const override { return lu(luV_, V_).inverse(); }
     Mat W() const override { return W_; }
     Mat V() const override { return V_; }
+    bool dense() const override { return true; }
 
   private:
+    static const LU& lu(std::optional<LU>& slot, const Mat& A) {
+        if (!slot) slot.emplace(A);
+        return *slot;
+    }
     Mat W_, V_;
-    LU luW_, luV_;
+    mutable std::optional<LU> luW_, luV_;
 };
 
 }  // namespace rcwa

@@ -141,10 +141,9 @@ SMatrix star(const SMatrix& a, const SMatrix& b) {
 
 }  // namespace
 
-Mat project_up(const StackProblem& pr, const Basis& basis, const CVec& kz, const Mat& F, const Mat& G) {
-    const int n = pr.harmonics.size();
+Mat project_out(const Basis& basis, const CVec& kz, cplx eps, double direction, const Mat& F, const Mat& G) {
+    const int n = static_cast<int>(kz.size());
     const int cols = F.cols > 0 ? F.cols : G.cols;
-    const cplx eps1 = pr.eps_superstrate;
     Mat P(2 * n, cols);
     for (int j = 0; j < cols; ++j) {
         for (int i = 0; i < n; ++i) {
@@ -157,11 +156,15 @@ Mat project_up(const StackProblem& pr, const Basis& basis, const CVec& kz, const
                 hs = basis.sx[i] * G(i, j) + basis.sy[i] * G(n + i, j);
                 hp = basis.px[i] * G(i, j) + basis.py[i] * G(n + i, j);
             }
-            P(i, j) = kz[i] * Es + hp;
-            P(n + i, j) = Ep - kz[i] / eps1 * hs;
+            P(i, j) = kz[i] * Es + direction * hp;
+            P(n + i, j) = Ep - direction * kz[i] / eps * hs;
         }
     }
     return P;
+}
+
+Mat project_up(const StackProblem& pr, const Basis& basis, const CVec& kz, const Mat& F, const Mat& G) {
+    return project_out(basis, kz, pr.eps_superstrate, 1.0, F, G);
 }
 
 void incident_fields(const StackProblem& pr, const Basis& basis, const CVec& kz_superstrate, Mat& Finc, Mat& Ginc) {
@@ -276,6 +279,65 @@ void solve_etm(const StackProblem& pr, const Basis& basis, StackSolution& out) {
     out.t = std::move(T);
 }
 
+// One layer between the half-spaces, its boundary conditions solved at once: with c_d the
+// down-going mode amplitudes at the top of the layer and c_u the up-going ones at its
+// bottom (so that only X = exp(i kz k0 d), |X| <= 1, appears), the field is
+// [W (c_d + X c_u); V (X c_u - c_d)] at the top and [W (X c_d + c_u); V (c_u - X c_d)] at
+// the bottom. The superstrate's rows (project_up) take the incident wave, the substrate's
+// (project_out of its up-going waves) nothing:
+//     [[PW - PV, (PW + PV) X], [(SW - SV) X, SW + SV]] [c_d; c_u] = [project_up(inc); 0],
+// one 4N x 4N LU factorization. It replaces the ETM step's explicit W^-1 and V^-1 (an LU
+// factorization and inversion each) and its two 2N x 2N products and two factorizations:
+// about half of the stack's work for a dense layer. r is measured from the field at the
+// top (reflected_amplitudes), t from the field at the bottom: the substrate's s wave has
+// E = s-hat and its p wave h = s-hat, and each's other field is along p-hat, so
+// t_s = s-hat . E and t_p = s-hat . h, exact also where kz = 0 in the substrate.
+void solve_direct(const StackProblem& pr, const Basis& basis, StackSolution& out) {
+    const LayerModes& m = *pr.layers.front();
+    const int n2 = 2 * pr.harmonics.size(), n = n2 / 2;
+    const CVec X = propagation(m, pr.thickness.front());
+    Mat M(2 * n2, 2 * n2);
+    {
+        const Mat W = m.W(), V = m.V();
+        const Mat PW = project_out(basis, out.kz_superstrate, pr.eps_superstrate, 1.0, W, Mat());
+        const Mat PV = project_out(basis, out.kz_superstrate, pr.eps_superstrate, 1.0, Mat(), V);
+        const Mat SW = project_out(basis, out.kz_substrate, pr.eps_substrate, -1.0, W, Mat());
+        const Mat SV = project_out(basis, out.kz_substrate, pr.eps_substrate, -1.0, Mat(), V);
+        for (int j = 0; j < n2; ++j)
+            for (int i = 0; i < n2; ++i) {
+                M(i, j) = PW(i, j) - PV(i, j);
+                M(i, n2 + j) = (PW(i, j) + PV(i, j)) * X[j];
+                M(n2 + i, j) = (SW(i, j) - SV(i, j)) * X[j];
+                M(n2 + i, n2 + j) = SW(i, j) + SV(i, j);
+            }
+    }
+    Mat Finc, Ginc;
+    incident_fields(pr, basis, out.kz_superstrate, Finc, Ginc);
+    const Mat top = project_up(pr, basis, out.kz_superstrate, Finc, Ginc);
+    Mat c(2 * n2, 2);
+    for (int j = 0; j < 2; ++j)
+        for (int i = 0; i < n2; ++i) c(i, j) = top(i, j);
+    c = LU(std::move(M)).solve(c);
+    Mat top_plus(n2, 2), top_minus(n2, 2), bottom_plus(n2, 2), bottom_minus(n2, 2);
+    for (int j = 0; j < 2; ++j)
+        for (int i = 0; i < n2; ++i) {
+            const cplx d = c(i, j), u = c(n2 + i, j);
+            top_plus(i, j) = d + X[i] * u;
+            top_minus(i, j) = X[i] * u - d;
+            bottom_plus(i, j) = X[i] * d + u;
+            bottom_minus(i, j) = u - X[i] * d;
+        }
+    reflected_amplitudes(basis, m.apply_W(top_plus), m.apply_V(top_minus), Finc, Ginc, out.r);
+    const Mat psi = m.apply_W(bottom_plus), phi = m.apply_V(bottom_minus);
+    out.t = Mat(n2, 2);
+    for (int j = 0; j < 2; ++j)
+        for (int i = 0; i < n; ++i) {
+            out.t(i, j) = basis.sx[i] * psi(i, j) + basis.sy[i] * psi(n + i, j);
+            out.t(n + i, j) = basis.sx[i] * phi(i, j) + basis.sy[i] * phi(n + i, j);
+        }
+    out.direct = true;
+}
+
 void solve_smatrix(const StackProblem& pr, const Basis& basis, StackSolution& out) {
     const int n2 = 2 * pr.harmonics.size();
     const auto gap = gap_medium(pr.harmonics);
@@ -334,7 +396,10 @@ StackSolution solve_stack(const StackProblem& pr, StackMethod method) {
     StackSolution out;
     out.kz_superstrate = half_space_kz(pr.harmonics, pr.eps_superstrate);
     out.kz_substrate = half_space_kz(pr.harmonics, pr.eps_substrate);
-    if (method == StackMethod::EnhancedTransmittance)
+    if (method == StackMethod::EnhancedTransmittance && pr.direct_single_layer && pr.layers.size() == 1 &&
+        pr.layers.front()->dense())
+        solve_direct(pr, basis, out);
+    else if (method == StackMethod::EnhancedTransmittance)
         solve_etm(pr, basis, out);
     else
         solve_smatrix(pr, basis, out);

@@ -16,6 +16,9 @@ struct StackProblem {
     double s_x = 0.0, s_y = 1.0;  // s direction used where kx = ky = 0 (from the plane of incidence)
     std::vector<const LayerModes*> layers;  // from the superstrate down
     std::vector<double> thickness;          // k0 * d of each layer
+    // One dense layer (LayerModes::dense) with the ETM: solve its 4N x 4N boundary system
+    // directly instead (solve_stack; `direct` in the solution).
+    bool direct_single_layer = false;
 };
 
 // Outgoing amplitudes for unit s and unit p incidence (columns 0 and 1). Row i is the s
@@ -27,6 +30,7 @@ struct StackSolution {
     CVec kz_superstrate;  // N, outgoing branch
     CVec kz_substrate;    // N
     bool decoupled = false;  // solved per polarization on N x N blocks (polarized.hpp)
+    bool direct = false;     // one dense layer's boundary system solved at once (solve_stack)
     int sectors_solved = 0;  // mirror-symmetry sectors solved, of sectors_total (sectors.hpp); 0 of 0: not used
     int sectors_total = 0;
     int hermitian_solves = 0;  // eigen-solves done by Hermitian solvers (lossless layers: LamellarParts)
@@ -59,6 +63,9 @@ void outgoing_columns(const Basis& basis, const CVec& kz, cplx eps, double direc
 // E_p - kz/eps h_s per order), applied to a field [F; G] at the top of the stack; an
 // empty F or G counts as zero.
 Mat project_up(const StackProblem& problem, const Basis& basis, const CVec& kz, const Mat& F, const Mat& G);
+// The same for a half-space of permittivity eps whose waves going in `direction` (+1 up,
+// -1 down) are annihilated: rows kz E_s + direction h_p and E_p - direction kz/eps h_s.
+Mat project_out(const Basis& basis, const CVec& kz, cplx eps, double direction, const Mat& F, const Mat& G);
 // The incident waves' psi and phi (2N x 2): unit s in column 0, unit p in column 1.
 void incident_fields(const StackProblem& problem, const Basis& basis, const CVec& kz_superstrate, Mat& Finc, Mat& Ginc);
 // r (2N x cols) from the total field [psi; phi] at the top of the stack: the s

@@ -134,10 +134,12 @@ StackSolution solve_decoupled(const SweepProblem& pr, const StackProblem& sp, In
 }
 
 // `mirrors`: those every layer respects (respected_mirrors), tried first (sectors.hpp).
-// Z: inverse_laurent.
+// Z: inverse_laurent. `direct`: a one-layer stack of a general layer is solved directly
+// (stack.hpp, direct_single_layer).
 StackSolution solve_with(const SweepProblem& pr, std::size_t p, const SharedEigen& eig, const std::vector<Mat>& Z,
-                         const std::vector<Mirror>& mirrors = {}) {
+                         const std::vector<Mirror>& mirrors = {}, bool direct = true) {
     StackProblem sp = stack_problem(pr, p);
+    sp.direct_single_layer = direct;
     if (!mirrors.empty())
         if (auto sectors = solve_sectors(pr, sp, mirrors, Incidence::Both, Z)) return std::move(*sectors);
     std::vector<std::unique_ptr<LayerModes>> modes;
@@ -301,7 +303,7 @@ StackSolution solve_point(const SweepProblem& pr, std::size_t p, Incidence incid
     if (!mirrors.empty())
         if (auto sectors = solve_sectors(pr, stack_problem(pr, p), mirrors, incidence, Z)) return std::move(*sectors);
     const SharedEigen eig = shared_eigen(pr, Z, harmonics_at(pr, pr.kx0[p], pr.ky0[p]), nullptr, fast_paths);
-    StackSolution out = solve_with(pr, p, eig, Z);  // no sectors: fast_paths is false, or none applies
+    StackSolution out = solve_with(pr, p, eig, Z, {}, fast_paths);  // no sectors: fast_paths is false, or none applies
     for (const auto& layer : eig)
         if (layer) {
             out.hermitian_solves += layer->hermitian;

@@ -130,10 +130,10 @@ def test_coupled_or_other_stacks_take_the_general_path(theta, phi, stack):
 
 def test_two_dimensional_cells_take_no_one_dimensional_fast_path():
     # Only the mirror sectors apply to 2D cells (tests/rcwa/test_sectors.py), and only in
-    # mirror planes; elsewhere the general path.
+    # mirror planes; elsewhere a one-layer stack is solved directly (tests/rcwa/test_direct.py).
     gold2d = rcwa.load_structure("gold2d")
     assert rcwa.solve(gold2d, 550.0, 0.0, 0.0, (5, 5), "s").fast_paths == ("mirror_sectors", "single_polarization")
-    assert rcwa.solve(gold2d, 550.0, 10.0, 30.0, (5, 5), "s").fast_paths == ()
+    assert rcwa.solve(gold2d, 550.0, 10.0, 30.0, (5, 5), "s").fast_paths == ("single_layer_direct",)
 
 
 @pytest.mark.parametrize("name", CASES)
