@@ -119,6 +119,12 @@ class StackSolution:
         """
 
     @property
+    def inverse_iteration_solves(self) -> int:
+        """
+        Eigen-solves of lossy 1D layers (fewer than 75 harmonics) done by the QR algorithm for the eigenvalues and inverse iteration for the eigenvectors (linalg.hpp, eig_small) instead of zgeev.
+        """
+
+    @property
     def sectors_solved(self) -> int:
         """
         Mirror-symmetry sectors solved (sectors.hpp), of sectors_total; 0 of 0 where none were used. A polarization not asked for then has NaN amplitudes.

@@ -234,6 +234,9 @@ void bind_results(nb::module_& m) {
         .def_ro("real_solves", &rcwa::StackSolution::real_solves,
                 "Of hermitian_solves, those done in real arithmetic (dsyevd, dsygvd): the layer is symmetric about a "
                 "point, and moving the origin there makes its matrices real (linalg.hpp, real_by_phase).")
+        .def_ro("inverse_iteration_solves", &rcwa::StackSolution::inverse_iteration_solves,
+                "Eigen-solves of lossy 1D layers (fewer than 75 harmonics) done by the QR algorithm for the "
+                "eigenvalues and inverse iteration for the eigenvectors (linalg.hpp, eig_small) instead of zgeev.")
         .def_ro("sectors_solved", &rcwa::StackSolution::sectors_solved,
                 "Mirror-symmetry sectors solved (sectors.hpp), of sectors_total; 0 of 0 where none were used. A "
                 "polarization not asked for then has NaN amplitudes.")

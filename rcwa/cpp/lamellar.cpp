@@ -26,10 +26,17 @@ namespace rcwa {
 
 namespace {
 
-Eigen eig_near(Mat A, const Mat* guess, int& refined) {
+// `fast`: single solves' fast paths (LamellarParts::hermitian) try eig_small (counted in
+// `small`) before zgeev.
+Eigen eig_near(Mat A, const Mat* guess, int& refined, bool fast, int& small) {
     if (guess)
         if (auto result = eig_from_guess(A, *guess)) {
             ++refined;
+            return std::move(*result);
+        }
+    if (fast)
+        if (auto result = eig_small(A)) {
+            ++small;
             return std::move(*result);
         }
     return eig(std::move(A));
@@ -81,7 +88,7 @@ LamellarEigen lamellar_eigen(const std::vector<double>& kx, const Mat& E, const 
             out.muA = std::move(ea.values);
             ++out.hermitian;
         } else {
-            Eigen ea = eig_near(std::move(MA), near ? &near->WA : nullptr, out.refined);
+            Eigen ea = eig_near(std::move(MA), near ? &near->WA : nullptr, out.refined, parts.hermitian, out.inverse_iteration);
             out.WA = std::move(ea.vectors);
             out.muA = std::move(ea.values);
             out.WA_inv = LU(out.WA).inverse();
@@ -147,7 +154,7 @@ LamellarEigen lamellar_eigen(const std::vector<double>& kx, const Mat& E, const 
             out.B_VB_inv = matmul(mu_inv_WH, Exx);  // (W mu)^-1 = mu^-1 W^H Exx
             ++out.hermitian;
         } else {
-            Eigen eb = eig_near(matmul(Exx, Bm), near ? &near->VB : nullptr, out.refined);
+            Eigen eb = eig_near(matmul(Exx, Bm), near ? &near->VB : nullptr, out.refined, parts.hermitian, out.inverse_iteration);
             out.VB = std::move(eb.vectors);
             out.muB = std::move(eb.values);
             out.B_VB = matmul(Bm, out.VB);

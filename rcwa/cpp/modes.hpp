@@ -86,6 +86,7 @@ struct LamellarEigen {
     int refined = 0;    // how many of the two eigen-solves were refined from `near` (0-2)
     int hermitian = 0;  // how many were solved as Hermitian problems (0-2; see LamellarParts)
     int real = 0;       // of those, how many in real arithmetic (real_by_phase)
+    int inverse_iteration = 0;  // how many general ones were solved by eig_small (linalg.hpp)
 };
 // Which parts of a LamellarEigen to compute. At ky = 0 the families never couple: the TE
 // family (A) alone serves s incidence, the TM family (B) alone p incidence, and the
@@ -100,7 +101,8 @@ struct LamellarParts {
     // the inverses: TE, MA = E - Kx^2 is Hermitian (zheevd: WA unitary, WA^-1 = WA^H); TM,
     // MB v = mu v is the Hermitian-definite pencil (Exx B Exx) w = mu Exx w with v = Exx w
     // (zhegvd, when Exx is positive definite: every permittivity > 0), so VB^-1 = W^H and
-    // B VB = W mu. Otherwise, or with a `near` guess, the general zgeev path.
+    // B VB = W mu. Otherwise, or with a `near` guess, the general zgeev path, or below
+    // kInverseIterationMax harmonics eig_small (linalg.hpp) where this flag is set.
     bool hermitian = false;
 };
 constexpr double kHermitianTolerance = 1e-14;

@@ -35,6 +35,7 @@ struct StackSolution {
     int sectors_total = 0;
     int hermitian_solves = 0;  // eigen-solves done by Hermitian solvers (lossless layers: LamellarParts)
     int real_solves = 0;       // of those, done in real arithmetic (dsyevd / dsygvd: real_by_phase)
+    int inverse_iteration_solves = 0;  // general 1D eigen-solves done by eig_small (linalg.hpp)
 };
 
 // kz of every harmonic in a half-space of permittivity eps, outgoing branch (outgoing_sqrt).

@@ -100,7 +100,7 @@ StackSolution solve_decoupled(const SweepProblem& pr, const StackProblem& sp, In
     const bool te = incidence != Incidence::P, tm = incidence != Incidence::S;
     const int n = sp.harmonics.size();
     std::vector<PolarizedModes> te_layers, tm_layers;
-    int hermitian_solves = 0, real_solves = 0;
+    int hermitian_solves = 0, real_solves = 0, inverse_iteration_solves = 0;
     for (const LayerInput& in : pr.layers) {
         if (in.kind == LayerKind::Uniform) {
             if (te) te_layers.push_back(uniform_polarized(sp.harmonics.kx, in.eps, Polarization::TE));
@@ -112,6 +112,7 @@ StackSolution solve_decoupled(const SweepProblem& pr, const StackProblem& sp, In
             lamellar_eigen(sp.harmonics.kx, in.matrices[0], in.matrices[1], Z, nullptr, LamellarParts{te, tm, false, true});
         hermitian_solves += e.hermitian;
         real_solves += e.real;
+        inverse_iteration_solves += e.inverse_iteration;
         if (te) te_layers.push_back(lamellar_polarized(e, Polarization::TE));
         if (tm) tm_layers.push_back(lamellar_polarized(e, Polarization::TM));
     }
@@ -123,6 +124,7 @@ StackSolution solve_decoupled(const SweepProblem& pr, const StackProblem& sp, In
     out.decoupled = true;
     out.hermitian_solves = hermitian_solves;
     out.real_solves = real_solves;
+    out.inverse_iteration_solves = inverse_iteration_solves;
     const cplx not_solved(std::nan(""), std::nan(""));
     for (int i = 0; i < 2 * n; ++i) {
         if (!te) out.r(i, 0) = out.t(i, 0) = not_solved;
@@ -308,6 +310,7 @@ StackSolution solve_point(const SweepProblem& pr, std::size_t p, Incidence incid
         if (layer) {
             out.hermitian_solves += layer->hermitian;
             out.real_solves += layer->real;
+            out.inverse_iteration_solves += layer->inverse_iteration;
         }
     return out;
 }
