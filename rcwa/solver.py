@@ -150,11 +150,12 @@ def solve(
         (x -> -x at k_x = 0: normal incidence or phi = +-90; y -> -y at k_y = 0: phi = 0
         or 180) is solved in mirror-symmetry sectors (rcwa/cpp/sectors.hpp), only those
         the asked polarization excites (for ``"s"`` or ``"p"`` the other's values are
-        NaN). A stack of one 2D layer is otherwise solved as one 4N x 4N boundary system
-        ("single_layer_direct", rcwa/cpp/stack.cpp) instead of through the layer's W^-1 and
-        V^-1. Lossy 1D layers below 75 harmonics take their eigenvalues from the QR algorithm
-        alone and their eigenvectors by inverse iteration ("inverse_iteration",
-        rcwa/cpp/linalg.hpp eig_small), 20 % faster than zgeev there.
+        NaN). Otherwise a stack of one patterned layer (2D, or 1D off the classical mount)
+        is solved as one 4N x 4N boundary system ("single_layer_direct", rcwa/cpp/stack.cpp)
+        instead of through the layer's W^-1 and V^-1. Lossy 1D layers below 75 harmonics
+        take their eigenvalues from the QR algorithm alone and their eigenvectors by inverse
+        iteration ("inverse_iteration", rcwa/cpp/linalg.hpp eig_small), 20 % faster than
+        zgeev there.
         ``SolveResult.fast_paths`` names what was used. False
         forces the general path (to check the fast ones: tests/rcwa/test_fast_paths.py,
         tests/rcwa/test_sectors.py); the two agree to 1e-12.

@@ -56,8 +56,9 @@ class LayerModes {
     virtual Mat W_inverse() const { return apply_W_inverse(identity()); }
     virtual Mat V_inverse() const { return apply_V_inverse(identity()); }
     const CVec& kz() const { return kz_; }
-    // Whether W and V are dense matrices at hand (DenseModes), so that a one-layer stack
-    // is solved directly (stack.cpp, solve_direct) rather than through W^-1 and V^-1.
+    // Whether a one-layer stack of this layer is solved directly (stack.cpp, solve_direct)
+    // rather than through W^-1 and V^-1: dense W and V at hand (DenseModes), or a lamellar
+    // layer whose inverses were not computed (LamellarParts::inverses).
     virtual bool dense() const { return false; }
 
   protected:
@@ -87,6 +88,7 @@ struct LamellarEigen {
     int hermitian = 0;  // how many were solved as Hermitian problems (0-2; see LamellarParts)
     int real = 0;       // of those, how many in real arithmetic (real_by_phase)
     int inverse_iteration = 0;  // how many general ones were solved by eig_small (linalg.hpp)
+    bool inverses = true;       // WA_inv, VB_inv, B_VB_inv, M1, M3 computed (LamellarParts::inverses)
 };
 // Which parts of a LamellarEigen to compute. At ky = 0 the families never couple: the TE
 // family (A) alone serves s incidence, the TM family (B) alone p incidence, and the
@@ -104,6 +106,10 @@ struct LamellarParts {
     // B VB = W mu. Otherwise, or with a `near` guess, the general zgeev path, or below
     // kInverseIterationMax harmonics eig_small (linalg.hpp) where this flag is set.
     bool hermitian = false;
+    // The inverses' blocks WA_inv, VB_inv, B_VB_inv, M1, M3, which only the ETM stack uses.
+    // Without them the layer's modes can only be solved directly (stack.cpp, solve_direct:
+    // a one-layer stack in a single solve), and LayerModes::dense says so.
+    bool inverses = true;
 };
 constexpr double kHermitianTolerance = 1e-14;
 // |Im| of D A D^H (real_by_phase) below which a lossless layer is solved in real arithmetic,

@@ -62,11 +62,13 @@ std::vector<Mat> inverse_laurent(const SweepProblem& pr, const std::vector<Mirro
 // Per-kx0 work shared by the points of a group: the lamellar eigen-solves, seeded by the
 // previous group's (`near`, at a neighbouring kx0) where there is one.
 // `hermitian`: lossless layers may use Hermitian solvers (LamellarParts); single solves only.
+// `inverses`: LamellarParts::inverses (false only where the stack is solved directly).
 SharedEigen shared_eigen(const SweepProblem& pr, const std::vector<Mat>& Z, const Harmonics& h, const SharedEigen* near,
-                         bool hermitian = false) {
+                         bool hermitian = false, bool inverses = true) {
     SharedEigen out(pr.layers.size());
     LamellarParts parts;
     parts.hermitian = hermitian;
+    parts.inverses = inverses;
     for (std::size_t k = 0; k < pr.layers.size(); ++k)
         if (pr.layers[k].kind == LayerKind::Lamellar)
             out[k] = std::make_unique<LamellarEigen>(lamellar_eigen(h.kx, pr.layers[k].matrices[0],
@@ -304,7 +306,12 @@ StackSolution solve_point(const SweepProblem& pr, std::size_t p, Incidence incid
     const std::vector<Mat> Z = inverse_laurent(pr, mirrors);
     if (!mirrors.empty())
         if (auto sectors = solve_sectors(pr, stack_problem(pr, p), mirrors, incidence, Z)) return std::move(*sectors);
-    const SharedEigen eig = shared_eigen(pr, Z, harmonics_at(pr, pr.kx0[p], pr.ky0[p]), nullptr, fast_paths);
+    // A single lamellar layer (1D, conical) is solved directly, without its inverses' blocks
+    // (stack.cpp, solve_direct): 4N x 4N LU instead of the ETM step's and the blocks' work.
+    const bool direct_lamellar = fast_paths && pr.method == StackMethod::EnhancedTransmittance &&
+                                 pr.layers.size() == 1 && pr.layers.front().kind == LayerKind::Lamellar;
+    const SharedEigen eig =
+        shared_eigen(pr, Z, harmonics_at(pr, pr.kx0[p], pr.ky0[p]), nullptr, fast_paths, !direct_lamellar);
     StackSolution out = solve_with(pr, p, eig, Z, {}, fast_paths);  // no sectors: fast_paths is false, or none applies
     for (const auto& layer : eig)
         if (layer) {
