@@ -279,16 +279,21 @@ void solve_etm(const StackProblem& pr, const Basis& basis, StackSolution& out) {
     out.t = std::move(T);
 }
 
-// One layer between the half-spaces, its boundary conditions solved at once: with c_d the
+// One layer between the half-spaces, its boundary conditions at both interfaces solved at
+// once, as for one grating layer in Moharam, Grann, Pommet & Gaylord 1995 (JOSA A 12, 1068,
+// Sec. 2, the tangential fields matched at z = 0 and z = d), here in the PQ form of
+// modes.hpp with the half-spaces' rows of this file's header. With c_d the
 // down-going mode amplitudes at the top of the layer and c_u the up-going ones at its
 // bottom (so that only X = exp(i kz k0 d), |X| <= 1, appears), the field is
 // [W (c_d + X c_u); V (X c_u - c_d)] at the top and [W (X c_d + c_u); V (c_u - X c_d)] at
-// the bottom. The superstrate's rows (project_up) take the incident wave, the substrate's
-// (project_out of its up-going waves) nothing:
+// the bottom. The superstrate's rows (project_up, which annihilate its up-going waves) take
+// the incident wave; the substrate's (project_out with direction -1, which annihilate its
+// down-going, outgoing waves) give zero, since the field there is those waves alone:
 //     [[PW - PV, (PW + PV) X], [(SW - SV) X, SW + SV]] [c_d; c_u] = [project_up(inc); 0],
 // one 4N x 4N LU factorization. It replaces the ETM step's explicit W^-1 and V^-1 (an LU
 // factorization and inversion each) and its two 2N x 2N products and two factorizations:
-// about half of the stack's work for a dense layer. r is measured from the field at the
+// about half of the stack's work for a dense layer (a lamellar one then needs no inverse
+// blocks either: LamellarParts::inverses). r is measured from the field at the
 // top (reflected_amplitudes), t from the field at the bottom: the substrate's s wave has
 // E = s-hat and its p wave h = s-hat, and each's other field is along p-hat, so
 // t_s = s-hat . E and t_p = s-hat . h, exact also where kz = 0 in the substrate.
