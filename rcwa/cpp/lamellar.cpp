@@ -249,11 +249,12 @@ class LamellarModes : public LayerModes {
     Mat W() const override {
         Mat out(2 * n_, 2 * n_);
         for (int j = 0; j < n_; ++j) {
-            const cplx kzB = kz_[n_ + j];
+            const cplx inv_kzB = 1.0 / kz_[n_ + j];  // one division a column
+            const cplx d = -ky_ * inv_kzB;
             for (int i = 0; i < n_; ++i) {
-                out(i, n_ + j) = e_.B_VB(i, j) / kzB;
+                out(i, n_ + j) = e_.B_VB(i, j) * inv_kzB;
                 out(n_ + i, j) = e_.WA(i, j);
-                out(n_ + i, n_ + j) = -ky_ * e_.ZKx_VB(i, j) / kzB;
+                out(n_ + i, n_ + j) = d * e_.ZKx_VB(i, j);
             }
         }
         return out;

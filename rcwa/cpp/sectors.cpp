@@ -215,8 +215,10 @@ std::unique_ptr<LayerModes> reduced_general(const Mat& P, const Mat& Q, const Co
     CVec kz(n);
     for (int i = 0; i < n; ++i) kz[i] = layer_kz(e.values[i]);
     Mat V = matmul(Qs, e.vectors);
-    for (int j = 0; j < n; ++j)
-        for (int i = 0; i < n; ++i) V(i, j) /= kz[j];
+    for (int j = 0; j < n; ++j) {
+        const cplx inv_kz = 1.0 / kz[j];
+        for (int i = 0; i < n; ++i) V(i, j) *= inv_kz;
+    }
     return std::make_unique<DenseModes>(std::move(e.vectors), std::move(V), std::move(kz));
 }
 

@@ -144,6 +144,8 @@ SMatrix star(const SMatrix& a, const SMatrix& b) {
 Mat project_out(const Basis& basis, const CVec& kz, cplx eps, double direction, const Mat& F, const Mat& G) {
     const int n = static_cast<int>(kz.size());
     const int cols = F.cols > 0 ? F.cols : G.cols;
+    CVec kz_eps(static_cast<std::size_t>(n));  // direction kz / eps per order, out of the O(N^2) loop
+    for (int i = 0; i < n; ++i) kz_eps[i] = direction * kz[i] / eps;
     Mat P(2 * n, cols);
     for (int j = 0; j < cols; ++j) {
         for (int i = 0; i < n; ++i) {
@@ -157,7 +159,7 @@ Mat project_out(const Basis& basis, const CVec& kz, cplx eps, double direction, 
                 hp = basis.px[i] * G(i, j) + basis.py[i] * G(n + i, j);
             }
             P(i, j) = kz[i] * Es + direction * hp;
-            P(n + i, j) = Ep - direction * kz[i] / eps * hs;
+            P(n + i, j) = Ep - kz_eps[i] * hs;
         }
     }
     return P;
