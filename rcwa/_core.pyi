@@ -101,6 +101,12 @@ class StackSolution:
         """
 
     @property
+    def direct(self) -> bool:
+        """
+        Whether a one-layer stack of a general (2D) layer was solved as one 4N x 4N boundary system instead of through W^-1 and V^-1 (stack.cpp, solve_direct).
+        """
+
+    @property
     def hermitian_solves(self) -> int:
         """
         Eigen-solves of lossless 1D layers done by Hermitian solvers (zheevd, zhegvd) instead of zgeev.
@@ -110,6 +116,12 @@ class StackSolution:
     def real_solves(self) -> int:
         """
         Of hermitian_solves, those done in real arithmetic (dsyevd, dsygvd): the layer is symmetric about a point, and moving the origin there makes its matrices real (linalg.hpp, real_by_phase).
+        """
+
+    @property
+    def inverse_iteration_solves(self) -> int:
+        """
+        Eigen-solves of lossy 1D layers (fewer than 75 harmonics) done by the QR algorithm for the eigenvalues and inverse iteration for the eigenvectors (linalg.hpp, eig_small) instead of zgeev.
         """
 
     @property

@@ -93,7 +93,10 @@ class SolveResult:
     # "hermitian_eigensolver" (lossless 1D layers solved as Hermitian problems),
     # "real_arithmetic" (of those, layers symmetric about a point, solved in real arithmetic),
     # "mirror_sectors" (a 2D cell's mirror-symmetry sectors, only those the incidence excites:
-    # rcwa/cpp/sectors.hpp; with "single_polarization" for pol "s" or "p").
+    # rcwa/cpp/sectors.hpp; with "single_polarization" for pol "s" or "p"),
+    # "single_layer_direct" (one patterned layer's boundary conditions solved as one system:
+    # rcwa/cpp/stack.cpp, solve_direct), "inverse_iteration" (lossy 1D layers below 75
+    # harmonics: eigenvalues by QR, eigenvectors by inverse iteration, rcwa/cpp/linalg.hpp).
     fast_paths: tuple[str, ...] = ()
 
     def order(self, m: int, n: int = 0) -> OrderResult:

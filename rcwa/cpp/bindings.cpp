@@ -16,6 +16,7 @@
 #include <nanobind/stl/tuple.h>
 #include <nanobind/stl/vector.h>
 
+#include <algorithm>
 #include <stdexcept>
 #include <string>
 
@@ -37,11 +38,16 @@ using CView3 = nb::ndarray<nb::numpy, const cplx, nb::ndim<3>>;
 using CArray2Out = nb::ndarray<nb::numpy, cplx, nb::ndim<2>>;
 
 Mat to_mat(const CArray2& a) {
+    // numpy's C order into the core's column order, tile by tile (a plain loop strides
+    // through one of the two: 1 ms a matrix at 15 x 15 orders).
+    constexpr int kTile = 32;
     const int rows = static_cast<int>(a.shape(0)), cols = static_cast<int>(a.shape(1));
     Mat m(rows, cols);
     auto v = a.view();
-    for (int j = 0; j < cols; ++j)
-        for (int i = 0; i < rows; ++i) m(i, j) = v(i, j);
+    for (int i0 = 0; i0 < rows; i0 += kTile)
+        for (int j0 = 0; j0 < cols; j0 += kTile)
+            for (int j = j0; j < std::min(j0 + kTile, cols); ++j)
+                for (int i = i0; i < std::min(i0 + kTile, rows); ++i) m(i, j) = v(i, j);
     return m;
 }
 
@@ -220,11 +226,17 @@ void bind_results(nb::module_& m) {
         .def_ro("decoupled", &rcwa::StackSolution::decoupled,
                 "Whether TE and TM were solved apart on N x N blocks (1D, every ky = 0: polarized.hpp); a "
                 "polarization not asked for then has NaN amplitudes.")
+        .def_ro("direct", &rcwa::StackSolution::direct,
+                "Whether a one-layer stack of a general (2D) layer was solved as one 4N x 4N boundary system "
+                "instead of through W^-1 and V^-1 (stack.cpp, solve_direct).")
         .def_ro("hermitian_solves", &rcwa::StackSolution::hermitian_solves,
                 "Eigen-solves of lossless 1D layers done by Hermitian solvers (zheevd, zhegvd) instead of zgeev.")
         .def_ro("real_solves", &rcwa::StackSolution::real_solves,
                 "Of hermitian_solves, those done in real arithmetic (dsyevd, dsygvd): the layer is symmetric about a "
                 "point, and moving the origin there makes its matrices real (linalg.hpp, real_by_phase).")
+        .def_ro("inverse_iteration_solves", &rcwa::StackSolution::inverse_iteration_solves,
+                "Eigen-solves of lossy 1D layers (fewer than 75 harmonics) done by the QR algorithm for the "
+                "eigenvalues and inverse iteration for the eigenvectors (linalg.hpp, eig_small) instead of zgeev.")
         .def_ro("sectors_solved", &rcwa::StackSolution::sectors_solved,
                 "Mirror-symmetry sectors solved (sectors.hpp), of sectors_total; 0 of 0 where none were used. A "
                 "polarization not asked for then has NaN amplitudes.")

@@ -26,10 +26,17 @@ namespace rcwa {
 
 namespace {
 
-Eigen eig_near(Mat A, const Mat* guess, int& refined) {
+// `fast`: single solves' fast paths (LamellarParts::hermitian) try eig_small (counted in
+// `small`) before zgeev.
+Eigen eig_near(Mat A, const Mat* guess, int& refined, bool fast, int& small) {
     if (guess)
         if (auto result = eig_from_guess(A, *guess)) {
             ++refined;
+            return std::move(*result);
+        }
+    if (fast)
+        if (auto result = eig_small(A)) {
+            ++small;
             return std::move(*result);
         }
     return eig(std::move(A));
@@ -81,10 +88,10 @@ LamellarEigen lamellar_eigen(const std::vector<double>& kx, const Mat& E, const 
             out.muA = std::move(ea.values);
             ++out.hermitian;
         } else {
-            Eigen ea = eig_near(std::move(MA), near ? &near->WA : nullptr, out.refined);
+            Eigen ea = eig_near(std::move(MA), near ? &near->WA : nullptr, out.refined, parts.hermitian, out.inverse_iteration);
             out.WA = std::move(ea.vectors);
             out.muA = std::move(ea.values);
-            out.WA_inv = LU(out.WA).inverse();
+            if (parts.inverses) out.WA_inv = LU(out.WA).inverse();
         }
     }
     std::optional<RealEigen> real_pencil;
@@ -144,15 +151,17 @@ LamellarEigen lamellar_eigen(const std::vector<double>& kx, const Mat& E, const 
                     out.B_VB(i, j) *= out.muB[j];
                     mu_inv_WH(i, j) /= out.muB[i];
                 }
-            out.B_VB_inv = matmul(mu_inv_WH, Exx);  // (W mu)^-1 = mu^-1 W^H Exx
+            if (parts.inverses) out.B_VB_inv = matmul(mu_inv_WH, Exx);  // (W mu)^-1 = mu^-1 W^H Exx
             ++out.hermitian;
         } else {
-            Eigen eb = eig_near(matmul(Exx, Bm), near ? &near->VB : nullptr, out.refined);
+            Eigen eb = eig_near(matmul(Exx, Bm), near ? &near->VB : nullptr, out.refined, parts.hermitian, out.inverse_iteration);
             out.VB = std::move(eb.vectors);
             out.muB = std::move(eb.values);
             out.B_VB = matmul(Bm, out.VB);
-            out.VB_inv = LU(out.VB).inverse();
-            out.B_VB_inv = LU(out.B_VB).inverse();
+            if (parts.inverses) {
+                out.VB_inv = LU(out.VB).inverse();
+                out.B_VB_inv = LU(out.B_VB).inverse();
+            }
         }
         if (parts.conical) {  // used only with ky != 0 (LamellarModes' D block, M1)
             Mat KxVB = out.VB;
@@ -161,7 +170,8 @@ LamellarEigen lamellar_eigen(const std::vector<double>& kx, const Mat& E, const 
             out.ZKx_VB = matmul(Z, KxVB);
         }
     }
-    if (parts.te && parts.tm && parts.conical) {
+    out.inverses = parts.inverses;
+    if (parts.te && parts.tm && parts.conical && parts.inverses) {
         out.M1 = matmul(out.WA_inv, matmul(out.ZKx_VB, out.B_VB_inv));
         Mat KxWA_mu = out.WA;  // Kx WA muA^-1
         for (int j = 0; j < n; ++j)
@@ -239,11 +249,12 @@ class LamellarModes : public LayerModes {
     Mat W() const override {
         Mat out(2 * n_, 2 * n_);
         for (int j = 0; j < n_; ++j) {
-            const cplx kzB = kz_[n_ + j];
+            const cplx inv_kzB = 1.0 / kz_[n_ + j];  // one division a column
+            const cplx d = -ky_ * inv_kzB;
             for (int i = 0; i < n_; ++i) {
-                out(i, n_ + j) = e_.B_VB(i, j) / kzB;
+                out(i, n_ + j) = e_.B_VB(i, j) * inv_kzB;
                 out(n_ + i, j) = e_.WA(i, j);
-                out(n_ + i, n_ + j) = -ky_ * e_.ZKx_VB(i, j) / kzB;
+                out(n_ + i, n_ + j) = d * e_.ZKx_VB(i, j);
             }
         }
         return out;
@@ -270,6 +281,7 @@ class LamellarModes : public LayerModes {
             }
         return out;
     }
+    bool dense() const override { return !e_.inverses; }
     Mat V_inverse() const override {
         Mat out(2 * n_, 2 * n_);
         for (int j = 0; j < n_; ++j)

@@ -110,6 +110,53 @@ Eigen eig(Mat A) {
     return out;
 }
 
+std::optional<Eigen> eig_small(Mat A) {
+    if (A.rows != A.cols) throw std::invalid_argument("eig_small: matrix is not square");
+    const int n = A.rows;
+    if (n == 0 || n >= kInverseIterationMax) return std::nullopt;
+    int ilo = 1, ihi = n;
+    std::vector<double> scale(static_cast<std::size_t>(n), 1.0);
+    if (scipy_LAPACKE_zgebal_work(LAPACK_COL_MAJOR, 'B', n, A.ptr(), n, &ilo, &ihi, scale.data()) != 0)
+        return std::nullopt;
+    CVec tau(static_cast<std::size_t>(std::max(1, n - 1)));
+    CVec work(static_cast<std::size_t>(n) * n);  // enough for zgehrd, zhseqr, zhsein and zunmhr at n < 75
+    const int lwork = static_cast<int>(work.size());
+    if (scipy_LAPACKE_zgehrd_work(LAPACK_COL_MAJOR, n, ilo, ihi, A.ptr(), n, tau.data(), work.data(), lwork) != 0)
+        return std::nullopt;
+    Mat H = A;  // the Hessenberg matrix (A keeps the reflectors below its subdiagonal)
+    for (int j = 0; j < n; ++j)
+        for (int i = j + 2; i < n; ++i) H(i, j) = 0.0;
+    Mat T = H;
+    Eigen out;
+    out.values.resize(static_cast<std::size_t>(n));
+    if (scipy_LAPACKE_zhseqr_work(LAPACK_COL_MAJOR, 'E', 'N', n, ilo, ihi, T.ptr(), n, out.values.data(), nullptr, 1,
+                                  work.data(), lwork) != 0)
+        return std::nullopt;
+    CVec w = out.values;  // zhsein may perturb close eigenvalues; the returned ones are zhseqr's
+    std::vector<int> select(static_cast<std::size_t>(n), 1), ifaill(static_cast<std::size_t>(n)),
+        ifailr(static_cast<std::size_t>(n));
+    std::vector<double> rwork(static_cast<std::size_t>(n));
+    out.vectors = Mat(n, n);
+    int found = 0;
+    cplx none;
+    const int info = scipy_LAPACKE_zhsein_work(LAPACK_COL_MAJOR, 'R', 'Q', 'N', select.data(), n, H.ptr(), n, w.data(),
+                                               &none, 1, out.vectors.ptr(), n, n, &found, work.data(), rwork.data(),
+                                               ifaill.data(), ifailr.data());
+    if (info != 0 || found != n) return std::nullopt;
+    if (scipy_LAPACKE_zunmhr_work(LAPACK_COL_MAJOR, 'L', 'N', n, n, ilo, ihi, A.ptr(), n, tau.data(),
+                                  out.vectors.ptr(), n, work.data(), lwork) != 0)
+        return std::nullopt;
+    if (scipy_LAPACKE_zgebak_work(LAPACK_COL_MAJOR, 'B', 'R', n, ilo, ihi, scale.data(), n, out.vectors.ptr(), n) != 0)
+        return std::nullopt;
+    for (int j = 0; j < n; ++j) {  // unit 2-norm, as zgeev's
+        double norm2 = 0.0;
+        for (int i = 0; i < n; ++i) norm2 += std::norm(out.vectors(i, j));
+        const double inv = 1.0 / std::sqrt(norm2);
+        for (int i = 0; i < n; ++i) out.vectors(i, j) *= inv;
+    }
+    return out;
+}
+
 bool is_hermitian(const Mat& A, double tolerance) {
     if (A.rows != A.cols) return false;
     double largest = 0.0, asymmetry = 0.0;

@@ -55,6 +55,16 @@ struct Eigen {
     Mat vectors;
 };
 Eigen eig(Mat A);
+// The same decomposition for small matrices (below kInverseIterationMax): balanced
+// Hessenberg reduction (zgebal, zgehrd), the eigenvalues alone by the QR algorithm (zhseqr
+// without Schur vectors: about half of zgeev's time), the eigenvectors by inverse
+// iteration on the Hessenberg matrix (zhsein, O(n^2) each) and back-transformed (zunmhr,
+// zgebak), columns normalized as zgeev's. 20 % faster than zgeev at n = 61, where zhseqr
+// runs its unblocked kernel; slower above (zgeev's blocked kernels). Nothing (use eig)
+// at n >= kInverseIterationMax or where inverse iteration does not converge for some
+// eigenvector. Its eigenvectors' residuals are ~1e-14 relative against zgeev's ~4e-15.
+constexpr int kInverseIterationMax = 75;
+std::optional<Eigen> eig_small(Mat A);
 
 // Whether A equals its conjugate transpose to `tolerance` relative to its largest entry.
 bool is_hermitian(const Mat& A, double tolerance);

@@ -101,9 +101,7 @@ std::unique_ptr<LayerModes> uniform_modes(const Harmonics& h, cplx eps) {
     return std::make_unique<UniformModes>(h, eps);
 }
 
-DenseModes::DenseModes(Mat W, Mat V, CVec kz) : W_(W), V_(V), luW_(std::move(W)), luV_(std::move(V)) {
-    kz_ = std::move(kz);
-}
+DenseModes::DenseModes(Mat W, Mat V, CVec kz) : W_(std::move(W)), V_(std::move(V)) { kz_ = std::move(kz); }
 
 void pq_matrices(const Harmonics& h, const Mat& Z, const Mat& Exx, const Mat& Exy, const Mat& Eyx, const Mat& Eyy,
                  Mat& P, Mat& Q) {
@@ -158,8 +156,10 @@ std::unique_ptr<LayerModes> general_modes(const Harmonics& h, const Mat& Z, cons
     CVec kz(2 * static_cast<std::size_t>(n));
     for (int i = 0; i < 2 * n; ++i) kz[i] = layer_kz(e.values[i]);
     Mat V = matmul(Q, e.vectors);
-    for (int j = 0; j < 2 * n; ++j)
-        for (int i = 0; i < 2 * n; ++i) V(i, j) /= kz[j];
+    for (int j = 0; j < 2 * n; ++j) {
+        const cplx inv_kz = 1.0 / kz[j];  // one division a column, not one an entry
+        for (int i = 0; i < 2 * n; ++i) V(i, j) *= inv_kz;
+    }
     return std::make_unique<DenseModes>(std::move(e.vectors), std::move(V), std::move(kz));
 }
 

@@ -14,6 +14,7 @@
 #pragma once
 
 #include <memory>
+#include <optional>
 
 #include "linalg.hpp"
 
@@ -55,6 +56,10 @@ class LayerModes {
     virtual Mat W_inverse() const { return apply_W_inverse(identity()); }
     virtual Mat V_inverse() const { return apply_V_inverse(identity()); }
     const CVec& kz() const { return kz_; }
+    // Whether a one-layer stack of this layer is solved directly (stack.cpp, solve_direct)
+    // rather than through W^-1 and V^-1: dense W and V at hand (DenseModes), or a lamellar
+    // layer whose inverses were not computed (LamellarParts::inverses).
+    virtual bool dense() const { return false; }
 
   protected:
     Mat identity() const { return Mat::identity(static_cast<int>(kz_.size())); }
@@ -82,6 +87,8 @@ struct LamellarEigen {
     int refined = 0;    // how many of the two eigen-solves were refined from `near` (0-2)
     int hermitian = 0;  // how many were solved as Hermitian problems (0-2; see LamellarParts)
     int real = 0;       // of those, how many in real arithmetic (real_by_phase)
+    int inverse_iteration = 0;  // how many general ones were solved by eig_small (linalg.hpp)
+    bool inverses = true;       // WA_inv, VB_inv, B_VB_inv, M1, M3 computed (LamellarParts::inverses)
 };
 // Which parts of a LamellarEigen to compute. At ky = 0 the families never couple: the TE
 // family (A) alone serves s incidence, the TM family (B) alone p incidence, and the
@@ -96,8 +103,13 @@ struct LamellarParts {
     // the inverses: TE, MA = E - Kx^2 is Hermitian (zheevd: WA unitary, WA^-1 = WA^H); TM,
     // MB v = mu v is the Hermitian-definite pencil (Exx B Exx) w = mu Exx w with v = Exx w
     // (zhegvd, when Exx is positive definite: every permittivity > 0), so VB^-1 = W^H and
-    // B VB = W mu. Otherwise, or with a `near` guess, the general zgeev path.
+    // B VB = W mu. Otherwise, or with a `near` guess, the general zgeev path, or below
+    // kInverseIterationMax harmonics eig_small (linalg.hpp) where this flag is set.
     bool hermitian = false;
+    // The inverses' blocks WA_inv, VB_inv, B_VB_inv, M1, M3, which only the ETM stack uses.
+    // Without them the layer's modes can only be solved directly (stack.cpp, solve_direct:
+    // a one-layer stack in a single solve), and LayerModes::dense says so.
+    bool inverses = true;
 };
 constexpr double kHermitianTolerance = 1e-14;
 // |Im| of D A D^H (real_by_phase) below which a lossless layer is solved in real arithmetic,
@@ -124,22 +136,28 @@ Mat pq_product(const Harmonics& h, const Mat& Z, const Mat& Q);
 std::unique_ptr<LayerModes> general_modes(const Harmonics& h, const Mat& Z, const Mat& Exx,
                                           const Mat& Exy, const Mat& Eyx, const Mat& Eyy);
 
-// Dense modes (W, V given), with LU factorizations for the inverses.
+// Dense modes (W, V given), with LU factorizations for the inverses, taken on first use
+// (a one-layer stack solved directly needs none). One object serves one thread.
 class DenseModes : public LayerModes {
   public:
     DenseModes(Mat W, Mat V, CVec kz);
     Mat apply_W(const Mat& B) const override { return matmul(W_, B); }
     Mat apply_V(const Mat& B) const override { return matmul(V_, B); }
-    Mat apply_W_inverse(const Mat& B) const override { return luW_.solve(B); }
-    Mat apply_V_inverse(const Mat& B) const override { return luV_.solve(B); }
-    Mat W_inverse() const override { return luW_.inverse(); }
-    Mat V_inverse() const override { return luV_.inverse(); }
+    Mat apply_W_inverse(const Mat& B) const override { return lu(luW_, W_).solve(B); }
+    Mat apply_V_inverse(const Mat& B) const override { return lu(luV_, V_).solve(B); }
+    Mat W_inverse() const override { return lu(luW_, W_).inverse(); }
+    Mat V_inverse() const override { return lu(luV_, V_).inverse(); }
     Mat W() const override { return W_; }
     Mat V() const override { return V_; }
+    bool dense() const override { return true; }
 
   private:
+    static const LU& lu(std::optional<LU>& slot, const Mat& A) {
+        if (!slot) slot.emplace(A);
+        return *slot;
+    }
     Mat W_, V_;
-    LU luW_, luV_;
+    mutable std::optional<LU> luW_, luV_;
 };
 
 }  // namespace rcwa

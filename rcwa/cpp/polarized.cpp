@@ -62,11 +62,6 @@ Projection projection(const StackProblem& pr, const std::vector<double>& sigma, 
     return p;
 }
 
-struct Step {
-    LU a;
-    CVec X;
-};
-
 }  // namespace
 
 Mat Operator::apply(const Mat& B) const { return diag.empty() ? matmul(dense, B) : scale_rows(B, diag); }
@@ -172,39 +167,19 @@ void solve_polarized(const StackProblem& pr, Polarization pol, const std::vector
             g0[i] = sigma[i];
         }
     }
-    Mat f, g;
-    std::vector<Step> steps;
-    steps.reserve(layers.size());
-    Mat R;  // X b a^-1 X of the top layer
-    for (std::size_t k = layers.size(); k-- > 0;) {
+    // The bottom layer meets the substrate's diagonal columns (times_diagonal).
+    const std::size_t bottom = layers.size() - 1;
+    auto inverses = [&](std::size_t k, const Mat& f, const Mat& g) {
         const PolarizedModes& m = layers[k];
-        const bool bottom = k + 1 == layers.size();
-        const Mat Wf = bottom ? m.W_inverse.times_diagonal(f0) : m.W_inverse.apply(f);
-        const Mat Vg = bottom ? m.V_inverse.times_diagonal(g0) : m.V_inverse.apply(g);
-        Mat a(n, n), b(n, n);
-        for (std::size_t q = 0; q < a.data.size(); ++q) {
-            a.data[q] = 0.5 * (Wf.data[q] - Vg.data[q]);
-            b.data[q] = 0.5 * (Wf.data[q] + Vg.data[q]);
-        }
-        CVec X(n);
-        for (int i = 0; i < n; ++i) X[i] = std::exp(cplx(0.0, 1.0) * m.kz[i] * pr.thickness[k]);
-        LU lu(std::move(a));
-        Mat XMX = lu.solve_right(b);
-        for (int j = 0; j < n; ++j)
-            for (int i = 0; i < n; ++i) XMX(i, j) *= X[i] * X[j];
-        steps.push_back(Step{std::move(lu), std::move(X)});
-        if (k == 0) {
-            R = std::move(XMX);
-            break;
-        }
-        Mat plus = XMX, minus = XMX;
-        for (int i = 0; i < n; ++i) {
-            plus(i, i) += 1.0;
-            minus(i, i) -= 1.0;
-        }
-        f = m.W.apply(plus);
-        g = m.V.apply(minus);
-    }
+        if (k == bottom) return std::make_pair(m.W_inverse.times_diagonal(f0), m.V_inverse.times_diagonal(g0));
+        return std::make_pair(m.W_inverse.apply(f), m.V_inverse.apply(g));
+    };
+    auto forward = [&](std::size_t k, const Mat& P, const Mat& M) {
+        return std::make_pair(layers[k].W.apply(P), layers[k].V.apply(M));
+    };
+    auto kz = [&](std::size_t k) -> const CVec& { return layers[k].kz; };
+    EtmSweep sweep = etm_sweep(layers.size(), pr.thickness, Mat(), Mat(), kz, inverses, forward);
+    const Mat& R = sweep.R;
 
     // Close with the superstrate (stack.cpp, close_top_layer): above the top layer the field
     // is [W (I + R); V (R - I)] T; its projection is PW - PV + (PW + PV) R.
@@ -239,11 +214,7 @@ void solve_polarized(const StackProblem& pr, Polarization pol, const std::vector
         const cplx field = pol == Polarization::TE ? u(i, 0) - (i == i0 ? u_inc : 0.0) : v(i, 0) - (i == i0 ? v_inc : 0.0);
         out.r(row0 + i, column) = sigma[i] * field;
     }
-    // Walk down: T_below = a^-1 X T_above.
-    for (std::size_t k = steps.size(); k-- > 0;) {
-        for (int i = 0; i < n; ++i) T(i, 0) *= steps[k].X[i];
-        T = steps[k].a.solve(T);
-    }
+    etm_walk_down(sweep.steps, T);
     for (int i = 0; i < n; ++i) out.t(row0 + i, column) = T(i, 0);
 }
 

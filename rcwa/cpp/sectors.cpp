@@ -215,8 +215,10 @@ std::unique_ptr<LayerModes> reduced_general(const Mat& P, const Mat& Q, const Co
     CVec kz(n);
     for (int i = 0; i < n; ++i) kz[i] = layer_kz(e.values[i]);
     Mat V = matmul(Qs, e.vectors);
-    for (int j = 0; j < n; ++j)
-        for (int i = 0; i < n; ++i) V(i, j) /= kz[j];
+    for (int j = 0; j < n; ++j) {
+        const cplx inv_kz = 1.0 / kz[j];
+        for (int i = 0; i < n; ++i) V(i, j) *= inv_kz;
+    }
     return std::make_unique<DenseModes>(std::move(e.vectors), std::move(V), std::move(kz));
 }
 
@@ -238,40 +240,15 @@ struct SectorSolution {
 SectorSolution sector_etm(const StackProblem& sp, const Shared& sh, const std::vector<const LayerModes*>& layers,
                           const Columns& UE, const Columns& UH, const Columns& D, const CVec& kz1) {
     const int n = static_cast<int>(D.size()), n2_full = 2 * sp.harmonics.size();
-    Mat f = reduce(sh.F, UE, D), g = reduce(sh.G, UH, D);
-    struct Step {
-        LU a;
-        CVec X;
+    auto inverses = [&](std::size_t k, const Mat& f, const Mat& g) {
+        return std::make_pair(layers[k]->apply_W_inverse(f), layers[k]->apply_V_inverse(g));
     };
-    std::vector<Step> steps;
-    Mat R;
-    for (std::size_t k = layers.size(); k-- > 0;) {
-        const LayerModes& m = *layers[k];
-        const Mat Wf = m.apply_W_inverse(f), Vg = m.apply_V_inverse(g);
-        Mat a(n, n), b(n, n);
-        for (std::size_t q = 0; q < a.data.size(); ++q) {
-            a.data[q] = 0.5 * (Wf.data[q] - Vg.data[q]);
-            b.data[q] = 0.5 * (Wf.data[q] + Vg.data[q]);
-        }
-        CVec X(n);
-        for (int i = 0; i < n; ++i) X[i] = std::exp(cplx(0.0, 1.0) * m.kz()[i] * sp.thickness[k]);
-        LU lu(std::move(a));
-        Mat XMX = lu.solve_right(b);
-        for (int j = 0; j < n; ++j)
-            for (int i = 0; i < n; ++i) XMX(i, j) *= X[i] * X[j];
-        steps.push_back(Step{std::move(lu), std::move(X)});
-        if (k == 0) {
-            R = std::move(XMX);
-            break;
-        }
-        Mat plus = XMX, minus = XMX;
-        for (int i = 0; i < n; ++i) {
-            plus(i, i) += 1.0;
-            minus(i, i) -= 1.0;
-        }
-        f = m.apply_W(plus);
-        g = m.apply_V(minus);
-    }
+    auto forward = [&](std::size_t k, const Mat& P, const Mat& M) {
+        return std::make_pair(layers[k]->apply_W(P), layers[k]->apply_V(M));
+    };
+    auto kz = [&](std::size_t k) -> const CVec& { return layers[k]->kz(); };
+    EtmSweep sweep = etm_sweep(layers.size(), sp.thickness, reduce(sh.F, UE, D), reduce(sh.G, UH, D), kz, inverses, forward);
+    const Mat& R = sweep.R;
     // Close with the superstrate: above the top layer the field is [W (I + R); V (R - I)] T.
     const LayerModes& top = *layers.front();
     const Mat PW = gather(D, project_up(sp, sh.basis, kz1, expand(UE, top.W(), n2_full), Mat()));
@@ -290,12 +267,7 @@ SectorSolution sector_etm(const StackProblem& sp, const Shared& sh, const std::v
         minus.data[q] -= T.data[q];
     }
     SectorSolution out{top.apply_W(plus), top.apply_V(minus), Mat()};
-    // Walk down: T_below = a^-1 X T_above.
-    for (std::size_t k = steps.size(); k-- > 0;) {
-        for (int j = 0; j < T.cols; ++j)
-            for (int i = 0; i < n; ++i) T(i, j) *= steps[k].X[i];
-        T = steps[k].a.solve(T);
-    }
+    etm_walk_down(sweep.steps, T);
     out.t = std::move(T);
     return out;
 }

@@ -66,11 +66,6 @@ void outgoing_columns(const Basis& b, const CVec& kz, cplx eps, double direction
 
 namespace {
 
-struct LayerStep {
-    LU a;
-    CVec X;
-};
-
 CVec propagation(const LayerModes& m, double k0d) {
     CVec X(m.kz().size());
     for (std::size_t i = 0; i < X.size(); ++i) X[i] = std::exp(cplx(0.0, 1.0) * m.kz()[i] * k0d);
@@ -146,10 +141,11 @@ SMatrix star(const SMatrix& a, const SMatrix& b) {
 
 }  // namespace
 
-Mat project_up(const StackProblem& pr, const Basis& basis, const CVec& kz, const Mat& F, const Mat& G) {
-    const int n = pr.harmonics.size();
+Mat project_out(const Basis& basis, const CVec& kz, cplx eps, double direction, const Mat& F, const Mat& G) {
+    const int n = static_cast<int>(kz.size());
     const int cols = F.cols > 0 ? F.cols : G.cols;
-    const cplx eps1 = pr.eps_superstrate;
+    CVec kz_eps(static_cast<std::size_t>(n));  // direction kz / eps per order, out of the O(N^2) loop
+    for (int i = 0; i < n; ++i) kz_eps[i] = direction * kz[i] / eps;
     Mat P(2 * n, cols);
     for (int j = 0; j < cols; ++j) {
         for (int i = 0; i < n; ++i) {
@@ -162,11 +158,15 @@ Mat project_up(const StackProblem& pr, const Basis& basis, const CVec& kz, const
                 hs = basis.sx[i] * G(i, j) + basis.sy[i] * G(n + i, j);
                 hp = basis.px[i] * G(i, j) + basis.py[i] * G(n + i, j);
             }
-            P(i, j) = kz[i] * Es + hp;
-            P(n + i, j) = Ep - kz[i] / eps1 * hs;
+            P(i, j) = kz[i] * Es + direction * hp;
+            P(n + i, j) = Ep - kz_eps[i] * hs;
         }
     }
     return P;
+}
+
+Mat project_up(const StackProblem& pr, const Basis& basis, const CVec& kz, const Mat& F, const Mat& G) {
+    return project_out(basis, kz, pr.eps_superstrate, 1.0, F, G);
 }
 
 void incident_fields(const StackProblem& pr, const Basis& basis, const CVec& kz_superstrate, Mat& Finc, Mat& Ginc) {
@@ -258,49 +258,91 @@ Mat close_top_layer(const StackProblem& pr, const Basis& basis, const LayerModes
 }
 
 void solve_etm(const StackProblem& pr, const Basis& basis, StackSolution& out) {
-    const int n2 = 2 * pr.harmonics.size();
     Mat f, g;
     outgoing_columns(basis, out.kz_substrate, pr.eps_substrate, -1.0, f, g);
-    bool substrate_columns = true;  // f and g are still sparse (times_order_blocks applies)
-    std::vector<LayerStep> steps;
-    steps.reserve(pr.layers.size());
-    Mat T;
-    for (std::size_t k = pr.layers.size(); k-- > 0;) {
+    if (pr.layers.empty()) {
+        out.t = close_top(pr, basis, f, g, out);
+        return;
+    }
+    const std::size_t bottom = pr.layers.size() - 1;
+    auto inverses = [&](std::size_t k, const Mat& fk, const Mat& gk) {
         const LayerModes& m = *pr.layers[k];
-        const Mat Wf = substrate_columns ? times_order_blocks(m.W_inverse(), f) : m.apply_W_inverse(f);
-        const Mat Vg = substrate_columns ? times_order_blocks(m.V_inverse(), g) : m.apply_V_inverse(g);
-        Mat a(n2, n2), b(n2, n2);
-        for (std::size_t q = 0; q < a.data.size(); ++q) {
-            a.data[q] = 0.5 * (Wf.data[q] - Vg.data[q]);
-            b.data[q] = 0.5 * (Wf.data[q] + Vg.data[q]);
-        }
-        CVec X = propagation(m, pr.thickness[k]);
-        LU lu(std::move(a));
-        Mat XMX = lu.solve_right(b);  // b a^{-1}
-        for (int j = 0; j < n2; ++j)
-            for (int i = 0; i < n2; ++i) XMX(i, j) *= X[i] * X[j];
-        steps.push_back(LayerStep{std::move(lu), std::move(X)});
-        if (k == 0) {
-            T = close_top_layer(pr, basis, m, XMX, out);
-            break;
-        }
-        Mat plus = XMX, minus = XMX;
-        for (int i = 0; i < n2; ++i) {
-            plus(i, i) += 1.0;
-            minus(i, i) -= 1.0;
-        }
-        f = m.apply_W(plus);
-        g = m.apply_V(minus);
-        substrate_columns = false;
-    }
-    if (pr.layers.empty()) T = close_top(pr, basis, f, g, out);
-    // Walk down: T_below = a^{-1} X T_above (steps were stored bottom layer first).
-    for (std::size_t k = steps.size(); k-- > 0;) {
-        for (int j = 0; j < T.cols; ++j)
-            for (int i = 0; i < n2; ++i) T(i, j) *= steps[k].X[i];
-        T = steps[k].a.solve(T);
-    }
+        // The substrate's columns are sparse: times_order_blocks applies.
+        if (k == bottom) return std::make_pair(times_order_blocks(m.W_inverse(), fk), times_order_blocks(m.V_inverse(), gk));
+        return std::make_pair(m.apply_W_inverse(fk), m.apply_V_inverse(gk));
+    };
+    auto forward = [&](std::size_t k, const Mat& P, const Mat& M) {
+        return std::make_pair(pr.layers[k]->apply_W(P), pr.layers[k]->apply_V(M));
+    };
+    auto kz = [&](std::size_t k) -> const CVec& { return pr.layers[k]->kz(); };
+    EtmSweep sweep = etm_sweep(pr.layers.size(), pr.thickness, std::move(f), std::move(g), kz, inverses, forward);
+    Mat T = close_top_layer(pr, basis, *pr.layers.front(), sweep.R, out);
+    etm_walk_down(sweep.steps, T);
     out.t = std::move(T);
+}
+
+// One layer between the half-spaces, its boundary conditions at both interfaces solved at
+// once, as for one grating layer in Moharam, Grann, Pommet & Gaylord 1995 (JOSA A 12, 1068,
+// Sec. 2, the tangential fields matched at z = 0 and z = d), here in the PQ form of
+// modes.hpp with the half-spaces' rows of this file's header. With c_d the
+// down-going mode amplitudes at the top of the layer and c_u the up-going ones at its
+// bottom (so that only X = exp(i kz k0 d), |X| <= 1, appears), the field is
+// [W (c_d + X c_u); V (X c_u - c_d)] at the top and [W (X c_d + c_u); V (c_u - X c_d)] at
+// the bottom. The superstrate's rows (project_up, which annihilate its up-going waves) take
+// the incident wave; the substrate's (project_out with direction -1, which annihilate its
+// down-going, outgoing waves) give zero, since the field there is those waves alone:
+//     [[PW - PV, (PW + PV) X], [(SW - SV) X, SW + SV]] [c_d; c_u] = [project_up(inc); 0],
+// one 4N x 4N LU factorization. It replaces the ETM step's explicit W^-1 and V^-1 (an LU
+// factorization and inversion each) and its two 2N x 2N products and two factorizations:
+// about half of the stack's work for a dense layer (a lamellar one then needs no inverse
+// blocks either: LamellarParts::inverses). r is measured from the field at the
+// top (reflected_amplitudes), t from the field at the bottom: the substrate's s wave has
+// E = s-hat and its p wave h = s-hat, and each's other field is along p-hat, so
+// t_s = s-hat . E and t_p = s-hat . h, exact also where kz = 0 in the substrate.
+void solve_direct(const StackProblem& pr, const Basis& basis, StackSolution& out) {
+    const LayerModes& m = *pr.layers.front();
+    const int n2 = 2 * pr.harmonics.size(), n = n2 / 2;
+    const CVec X = propagation(m, pr.thickness.front());
+    Mat M(2 * n2, 2 * n2);
+    {
+        const Mat W = m.W(), V = m.V();
+        const Mat PW = project_out(basis, out.kz_superstrate, pr.eps_superstrate, 1.0, W, Mat());
+        const Mat PV = project_out(basis, out.kz_superstrate, pr.eps_superstrate, 1.0, Mat(), V);
+        const Mat SW = project_out(basis, out.kz_substrate, pr.eps_substrate, -1.0, W, Mat());
+        const Mat SV = project_out(basis, out.kz_substrate, pr.eps_substrate, -1.0, Mat(), V);
+        for (int j = 0; j < n2; ++j)
+            for (int i = 0; i < n2; ++i) {
+                M(i, j) = PW(i, j) - PV(i, j);
+                M(i, n2 + j) = (PW(i, j) + PV(i, j)) * X[j];
+                M(n2 + i, j) = (SW(i, j) - SV(i, j)) * X[j];
+                M(n2 + i, n2 + j) = SW(i, j) + SV(i, j);
+            }
+    }
+    Mat Finc, Ginc;
+    incident_fields(pr, basis, out.kz_superstrate, Finc, Ginc);
+    const Mat top = project_up(pr, basis, out.kz_superstrate, Finc, Ginc);
+    Mat c(2 * n2, 2);
+    for (int j = 0; j < 2; ++j)
+        for (int i = 0; i < n2; ++i) c(i, j) = top(i, j);
+    c = LU(std::move(M)).solve(c);
+    Mat top_plus(n2, 2), top_minus(n2, 2), bottom_plus(n2, 2), bottom_minus(n2, 2);
+    for (int j = 0; j < 2; ++j)
+        for (int i = 0; i < n2; ++i) {
+            const cplx d = c(i, j), u = c(n2 + i, j);
+            top_plus(i, j) = d + X[i] * u;
+            top_minus(i, j) = X[i] * u - d;
+            bottom_plus(i, j) = X[i] * d + u;
+            bottom_minus(i, j) = u - X[i] * d;
+        }
+    reflected_amplitudes(basis, m.apply_W(top_plus), m.apply_V(top_minus), Finc, Ginc, out.r);
+    const Mat psi = m.apply_W(bottom_plus), phi = m.apply_V(bottom_minus);
+    out.t = Mat(n2, 2);
+    for (int j = 0; j < 2; ++j)
+        for (int i = 0; i < n; ++i) {
+            out.t(i, j) = basis.sx[i] * psi(i, j) + basis.sy[i] * psi(n + i, j);
+            out.t(n + i, j) = basis.sx[i] * phi(i, j) + basis.sy[i] * phi(n + i, j);
+        }
+    out.direct = true;
 }
 
 void solve_smatrix(const StackProblem& pr, const Basis& basis, StackSolution& out) {
@@ -341,6 +383,14 @@ void solve_smatrix(const StackProblem& pr, const Basis& basis, StackSolution& ou
 
 }  // namespace
 
+void etm_walk_down(const std::vector<EtmStep>& steps, Mat& T) {
+    for (std::size_t k = steps.size(); k-- > 0;) {
+        for (int j = 0; j < T.cols; ++j)
+            for (int i = 0; i < T.rows; ++i) T(i, j) *= steps[k].X[i];
+        T = steps[k].a.solve(T);
+    }
+}
+
 CVec half_space_kz(const Harmonics& h, cplx eps) {
     CVec kz(h.size());
     for (int i = 0; i < h.size(); ++i) kz[i] = outgoing_sqrt(eps - h.kx[i] * h.kx[i] - h.ky[i] * h.ky[i]);
@@ -353,7 +403,10 @@ StackSolution solve_stack(const StackProblem& pr, StackMethod method) {
     StackSolution out;
     out.kz_superstrate = half_space_kz(pr.harmonics, pr.eps_superstrate);
     out.kz_substrate = half_space_kz(pr.harmonics, pr.eps_substrate);
-    if (method == StackMethod::EnhancedTransmittance)
+    if (method == StackMethod::EnhancedTransmittance && pr.direct_single_layer && pr.layers.size() == 1 &&
+        pr.layers.front()->dense())
+        solve_direct(pr, basis, out);
+    else if (method == StackMethod::EnhancedTransmittance)
         solve_etm(pr, basis, out);
     else
         solve_smatrix(pr, basis, out);

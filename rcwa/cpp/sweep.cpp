@@ -62,11 +62,13 @@ std::vector<Mat> inverse_laurent(const SweepProblem& pr, const std::vector<Mirro
 // Per-kx0 work shared by the points of a group: the lamellar eigen-solves, seeded by the
 // previous group's (`near`, at a neighbouring kx0) where there is one.
 // `hermitian`: lossless layers may use Hermitian solvers (LamellarParts); single solves only.
+// `inverses`: LamellarParts::inverses (false only where the stack is solved directly).
 SharedEigen shared_eigen(const SweepProblem& pr, const std::vector<Mat>& Z, const Harmonics& h, const SharedEigen* near,
-                         bool hermitian = false) {
+                         bool hermitian = false, bool inverses = true) {
     SharedEigen out(pr.layers.size());
     LamellarParts parts;
     parts.hermitian = hermitian;
+    parts.inverses = inverses;
     for (std::size_t k = 0; k < pr.layers.size(); ++k)
         if (pr.layers[k].kind == LayerKind::Lamellar)
             out[k] = std::make_unique<LamellarEigen>(lamellar_eigen(h.kx, pr.layers[k].matrices[0],
@@ -100,7 +102,7 @@ StackSolution solve_decoupled(const SweepProblem& pr, const StackProblem& sp, In
     const bool te = incidence != Incidence::P, tm = incidence != Incidence::S;
     const int n = sp.harmonics.size();
     std::vector<PolarizedModes> te_layers, tm_layers;
-    int hermitian_solves = 0, real_solves = 0;
+    int hermitian_solves = 0, real_solves = 0, inverse_iteration_solves = 0;
     for (const LayerInput& in : pr.layers) {
         if (in.kind == LayerKind::Uniform) {
             if (te) te_layers.push_back(uniform_polarized(sp.harmonics.kx, in.eps, Polarization::TE));
@@ -112,6 +114,7 @@ StackSolution solve_decoupled(const SweepProblem& pr, const StackProblem& sp, In
             lamellar_eigen(sp.harmonics.kx, in.matrices[0], in.matrices[1], Z, nullptr, LamellarParts{te, tm, false, true});
         hermitian_solves += e.hermitian;
         real_solves += e.real;
+        inverse_iteration_solves += e.inverse_iteration;
         if (te) te_layers.push_back(lamellar_polarized(e, Polarization::TE));
         if (tm) tm_layers.push_back(lamellar_polarized(e, Polarization::TM));
     }
@@ -123,6 +126,7 @@ StackSolution solve_decoupled(const SweepProblem& pr, const StackProblem& sp, In
     out.decoupled = true;
     out.hermitian_solves = hermitian_solves;
     out.real_solves = real_solves;
+    out.inverse_iteration_solves = inverse_iteration_solves;
     const cplx not_solved(std::nan(""), std::nan(""));
     for (int i = 0; i < 2 * n; ++i) {
         if (!te) out.r(i, 0) = out.t(i, 0) = not_solved;
@@ -134,10 +138,12 @@ StackSolution solve_decoupled(const SweepProblem& pr, const StackProblem& sp, In
 }
 
 // `mirrors`: those every layer respects (respected_mirrors), tried first (sectors.hpp).
-// Z: inverse_laurent.
+// Z: inverse_laurent. `direct`: a one-layer stack of a general layer is solved directly
+// (stack.hpp, direct_single_layer).
 StackSolution solve_with(const SweepProblem& pr, std::size_t p, const SharedEigen& eig, const std::vector<Mat>& Z,
-                         const std::vector<Mirror>& mirrors = {}) {
+                         const std::vector<Mirror>& mirrors = {}, bool direct = true) {
     StackProblem sp = stack_problem(pr, p);
+    sp.direct_single_layer = direct;
     if (!mirrors.empty())
         if (auto sectors = solve_sectors(pr, sp, mirrors, Incidence::Both, Z)) return std::move(*sectors);
     std::vector<std::unique_ptr<LayerModes>> modes;
@@ -300,12 +306,18 @@ StackSolution solve_point(const SweepProblem& pr, std::size_t p, Incidence incid
     const std::vector<Mat> Z = inverse_laurent(pr, mirrors);
     if (!mirrors.empty())
         if (auto sectors = solve_sectors(pr, stack_problem(pr, p), mirrors, incidence, Z)) return std::move(*sectors);
-    const SharedEigen eig = shared_eigen(pr, Z, harmonics_at(pr, pr.kx0[p], pr.ky0[p]), nullptr, fast_paths);
-    StackSolution out = solve_with(pr, p, eig, Z);  // no sectors: fast_paths is false, or none applies
+    // A single lamellar layer (1D, conical) is solved directly, without its inverses' blocks
+    // (stack.cpp, solve_direct): 4N x 4N LU instead of the ETM step's and the blocks' work.
+    const bool direct_lamellar = fast_paths && pr.method == StackMethod::EnhancedTransmittance &&
+                                 pr.layers.size() == 1 && pr.layers.front().kind == LayerKind::Lamellar;
+    const SharedEigen eig =
+        shared_eigen(pr, Z, harmonics_at(pr, pr.kx0[p], pr.ky0[p]), nullptr, fast_paths, !direct_lamellar);
+    StackSolution out = solve_with(pr, p, eig, Z, {}, fast_paths);  // no sectors: fast_paths is false, or none applies
     for (const auto& layer : eig)
         if (layer) {
             out.hermitian_solves += layer->hermitian;
             out.real_solves += layer->real;
+            out.inverse_iteration_solves += layer->inverse_iteration;
         }
     return out;
 }
