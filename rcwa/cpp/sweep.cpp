@@ -59,6 +59,18 @@ std::vector<Mat> inverse_laurent(const SweepProblem& pr, const std::vector<Mirro
     return out;
 }
 
+// The general path's inverses where Zs was taken in the mirrors' sectors: each general layer's plain LU inverse
+// again. The blocked inverse equals it only to round-off, which an ill-conditioned metal cell amplifies (1.4e-12 on
+// the amplitudes of square gold pillars at 11 x 11 orders off the mirror planes); the general path then gives the same
+// results with or without fast paths (3e-15). One extra N x N LU per general layer and wavelength.
+std::vector<Mat> plain_inverses(const SweepProblem& pr, const std::vector<Mat>& Zs, const std::vector<Mirror>& mirrors) {
+    std::vector<Mat> out = Zs;
+    if (mirrors.empty()) return out;
+    for (std::size_t k = 0; k < pr.layers.size(); ++k)
+        if (pr.layers[k].kind == LayerKind::General) out[k] = LU(pr.layers[k].matrices[0]).inverse();
+    return out;
+}
+
 // Per-kx0 work shared by the points of a group: the lamellar eigen-solves, seeded by the
 // previous group's (`near`, at a neighbouring kx0) where there is one.
 // `hermitian`: lossless layers may use Hermitian solvers (LamellarParts); single solves only.
@@ -140,12 +152,14 @@ StackSolution solve_decoupled(const SweepProblem& pr, const StackProblem& sp, In
 // `mirrors`: those every layer respects (respected_mirrors), tried first (sectors.hpp).
 // Z: inverse_laurent. `direct`: a one-layer stack of a general layer is solved directly
 // (stack.hpp, direct_single_layer).
+// Zs: the sectors' inverses (inverse_laurent with the mirrors), where they differ from Z.
 StackSolution solve_with(const SweepProblem& pr, std::size_t p, const SharedEigen& eig, const std::vector<Mat>& Z,
-                         const std::vector<Mirror>& mirrors = {}, bool direct = true) {
+                         const std::vector<Mirror>& mirrors = {}, bool direct = true,
+                         const std::vector<Mat>* Zs = nullptr) {
     StackProblem sp = stack_problem(pr, p);
     sp.direct_single_layer = direct;
     if (!mirrors.empty())
-        if (auto sectors = solve_sectors(pr, sp, mirrors, Incidence::Both, Z)) return std::move(*sectors);
+        if (auto sectors = solve_sectors(pr, sp, mirrors, Incidence::Both, Zs ? *Zs : Z)) return std::move(*sectors);
     std::vector<std::unique_ptr<LayerModes>> modes;
     for (std::size_t k = 0; k < pr.layers.size(); ++k) {
         const LayerInput& in = pr.layers[k];
@@ -205,9 +219,9 @@ struct BlockWork {
     std::size_t solves = 0, refined = 0, sectors = 0;
 };
 
-BlockWork solve_block(const SweepProblem& pr, const std::vector<Mat>& Z, const std::vector<Mirror>& mirrors,
-                      const std::vector<std::vector<std::size_t>>& groups, std::size_t first, std::size_t last,
-                      SweepResult& out) {
+BlockWork solve_block(const SweepProblem& pr, const std::vector<Mat>& Z, const std::vector<Mat>& Zs,
+                      const std::vector<Mirror>& mirrors, const std::vector<std::vector<std::size_t>>& groups,
+                      std::size_t first, std::size_t last, SweepResult& out) {
     std::size_t solves = 0, refined = 0, sectors = 0;
     SharedEigen previous;
     for (std::size_t g = first; g < last; ++g) {
@@ -215,7 +229,7 @@ BlockWork solve_block(const SweepProblem& pr, const std::vector<Mat>& Z, const s
         SharedEigen eig = shared_eigen(pr, Z, harmonics_at(pr, pr.kx0[points[0]], pr.ky0[points[0]]),
                                        g > first ? &previous : nullptr);
         for (std::size_t p : points) {
-            const StackSolution s = solve_with(pr, p, eig, Z, mirrors);
+            const StackSolution s = solve_with(pr, p, eig, Z, mirrors, true, &Zs);
             if (s.sectors_total > 0) ++sectors;
             keep_rows(pr, s, out, p);
         }
@@ -303,9 +317,10 @@ StackSolution solve_point(const SweepProblem& pr, std::size_t p, Incidence incid
         if (decoupled_point(pr, sp)) return solve_decoupled(pr, sp, incidence);
         mirrors = respected_mirrors(pr);
     }
-    const std::vector<Mat> Z = inverse_laurent(pr, mirrors);
+    const std::vector<Mat> Zs = inverse_laurent(pr, mirrors);
     if (!mirrors.empty())
-        if (auto sectors = solve_sectors(pr, stack_problem(pr, p), mirrors, incidence, Z)) return std::move(*sectors);
+        if (auto sectors = solve_sectors(pr, stack_problem(pr, p), mirrors, incidence, Zs)) return std::move(*sectors);
+    const std::vector<Mat> Z = plain_inverses(pr, Zs, mirrors);
     // A single lamellar layer (1D, conical) is solved directly, without its inverses' blocks
     // (stack.cpp, solve_direct): 4N x 4N LU instead of the ETM step's and the blocks' work.
     const bool direct_lamellar = fast_paths && pr.method == StackMethod::EnhancedTransmittance &&
@@ -335,7 +350,8 @@ SweepResult sweep(const SweepProblem& pr) {
     out.kz_substrate.resize(np * out.kept);
     const std::vector<std::vector<std::size_t>> groups = groups_by_kx(pr.kx0);
     const std::vector<Mirror> mirrors = respected_mirrors(pr);
-    const std::vector<Mat> Z = inverse_laurent(pr, mirrors);
+    const std::vector<Mat> Zs = inverse_laurent(pr, mirrors);
+    const std::vector<Mat> Z = plain_inverses(pr, Zs, mirrors);
 
     // Blocks of kBlock consecutive kx0: within a block each group's eigen-solve is seeded
     // by the one before, the next block starts afresh. The blocks do not depend on the
@@ -349,7 +365,7 @@ SweepResult sweep(const SweepProblem& pr) {
     auto worker = [&]() {
         try {
             for (std::size_t b = next++; b < blocks; b = next++) {
-                const BlockWork work = solve_block(pr, Z, mirrors, groups, b * kBlock, std::min((b + 1) * kBlock, groups.size()), out);
+                const BlockWork work = solve_block(pr, Z, Zs, mirrors, groups, b * kBlock, std::min((b + 1) * kBlock, groups.size()), out);
                 solves += work.solves;
                 refined += work.refined;
                 sectors += work.sectors;
