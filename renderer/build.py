@@ -363,7 +363,7 @@ def scene_dict(mi, spec: SceneSpec, *, spp: int, integrator: str = "path", mode:
     Renders of many cameras (calibration's re-renders) use whole tables. ``progress``: a
     bar while a table is built."""
     register_plugins()
-    from renderer.dielectric import bsdf_dict
+    from renderer.dielectric import bsdf_dict, mean_index
 
     data = cornell_data()
     refl = data["reflectance"]
@@ -394,9 +394,12 @@ def scene_dict(mi, spec: SceneSpec, *, spp: int, integrator: str = "path", mode:
         built["tables"].append(str(table))
         R = frame_to(cd.normal, cd.rotation_deg)
         mesh = str(annulus_mesh(cd.inner_radius, cd.outer_radius))
+        bwdf: dict[str, object] = {"type": "bwdf", "filename": str(table), "mapping": "radial", "mode": mode,
+                                   "center": [float(c) for c in cd.center]}  # the grooves' centre: radial at every hit
+        if cd.top_surface and not cd.dispersion:  # the top at its mean index is the grating's superstrate
+            bwdf["superstrate_index"] = mean_index(polycarbonate)
         scene[f"cd{i}"] = {"type": "ply", "filename": mesh, "to_world": mi.ScalarTransform4f(transform(cd.center, R).tolist()),
-                           "bsdf": {"type": "bwdf", "filename": str(table), "mapping": "radial", "mode": mode,
-                                    "center": [float(c) for c in cd.center]}}  # the grooves' centre: radial at every hit
+                           "bsdf": bwdf}
         if cd.top_surface:
             top = np.asarray(cd.center) + CD_TOP_THICKNESS_M * np.asarray(cd.normal)
             scene[f"cd{i}_top"] = {"type": "ply", "filename": mesh,

@@ -193,6 +193,16 @@ class GratingBWDF(DeltaLobesBSDF):
            order a non-hero wavelength implies must be for it to be kept (Eqs. 4-5).
            *Exposed* in paper mode.
          - 0.05
+       * - ``superstrate_index``
+         - float >= 1
+         - The superstrate's index for the geometry of the orders, where it differs from
+           the table's n(lambda): a CD's polycarbonate top rendered without dispersion (at
+           its mean index) is the grating's superstrate, so the orders' directions inside
+           it must use the same index, or their directions in air scale by
+           n_top / n(lambda) (0.98 at 410 nm, 1.008 at 685 nm for polycarbonate). The table
+           is still read at its own incident angle, asin(k_t / n(lambda)) for the tangential
+           wave vector k_t. 0: the table's n(lambda).
+         - 0
 
     *Exposed* parameters appear in ``mi.traverse`` under these names and may be changed
     between renders (``parameters_changed`` checks their ranges). ``BSDFContext`` is
@@ -233,6 +243,8 @@ class GratingBWDF(DeltaLobesBSDF):
     _n1_axis: tuple[float, float, int]
     _n1: mi.Float
     _n3: mi.Float
+    superstrate_index: float  # 0: the table's n(lambda)
+    _n1_geometry: mi.Float | None  # the superstrate index of the orders' geometry, where it is not the table's
 
     def __init__(self, props: mi.Properties) -> None:
         # Read and validate everything before the base class registers this instance with
@@ -267,6 +279,10 @@ class GratingBWDF(DeltaLobesBSDF):
         settings = {name: _check_setting(name, float(props.get(name, default)))  # type: ignore[arg-type]
                     for name, default in (("uniform_share", 0.5), ("delta", 0.05), ("grating_angle", 0.0))}
         center = _read_center(props, mapping)
+        superstrate_index = float(props.get("superstrate_index", 0.0))  # type: ignore[arg-type]
+        if superstrate_index != 0.0 and not (math.isfinite(superstrate_index) and superstrate_index >= 1.0):
+            raise ValueError(f"bwdf: 'superstrate_index' must be 0 (the table's) or a real index >= 1, "
+                             f"got {superstrate_index:g}")
         table = open_table(path)  # clear errors for missing, unfinished or damaged tables
         arrays = set(table.meta["arrays"])
         see_through = "T" in arrays
@@ -295,6 +311,8 @@ class GratingBWDF(DeltaLobesBSDF):
             "_n1_axis": (float(grid[0]), float(grid[1] - grid[0]), grid.size),
             "_n1": mi.Float(np.real(structure.superstrate.refractive_index(grid)).astype(np.float32)),
             "_n3": mi.Float(np.real(structure.substrate.refractive_index(grid)).astype(np.float32)),
+            "superstrate_index": superstrate_index,
+            "_n1_geometry": mi.Float(np.full(grid.size, superstrate_index, np.float32)) if superstrate_index else None,
         }
 
     # ---------------------------------------------------------------- parameters
@@ -337,6 +355,8 @@ class GratingBWDF(DeltaLobesBSDF):
             f"orders = {[tuple(int(v) for v in mn) for mn in self.orders]}",
             f"wavelengths_nm = {lo:g}-{hi:g} ({count} values)",
             f"media = {media}",
+            "superstrate_index = " + (f"{self.superstrate_index:g} (the orders' geometry; the table read at its own "
+                                      "angle)" if self.superstrate_index else "0 (the table's n(lambda))"),
         ]
         return "GratingBWDF[\n" + ",\n".join("  " + line for line in lines) + "\n]"
 
@@ -348,6 +368,16 @@ class GratingBWDF(DeltaLobesBSDF):
         i0 = mi.UInt32(dr.minimum(dr.floor(t), count - 2))
         f = t - mi.Float(i0)
         return (1.0 - f) * dr.gather(mi.Float, values, i0) + f * dr.gather(mi.Float, values, i0 + 1)
+
+    def _geometry_n1(self) -> mi.Float:
+        """The superstrate index of the orders' directions (superstrate_index where given)."""
+        return self._n1_geometry if self._n1_geometry is not None else self._n1
+
+    def _table_theta(self, k_t, lam, light_below) -> mi.Float:
+        """The table's incident theta (degrees) for tangential wave vector ``k_t`` (over k0) on the light's side:
+        asin(k_t / n) with the table's own index n(lambda) of that side."""
+        n_table = dr.select(light_below, self._index(self._n3, lam), self._index(self._n1, lam))
+        return dr.asin(dr.clip(k_t / n_table, 0.0, 1.0)) * (180.0 / math.pi)
 
     def _grating_axis(self, si: mi.SurfaceInteraction3f) -> tuple[mi.Float, mi.Float]:
         if self.mapping == "constant":
@@ -388,7 +418,7 @@ class GratingBWDF(DeltaLobesBSDF):
         transport only). ``specular``: the specular order's efficiency at ``lam`` when
         already known.
         """
-        n1, n3 = self._index(self._n1, lam), self._index(self._n3, lam)
+        n1, n3 = self._index(self._geometry_n1(), lam), self._index(self._n3, lam)
         n_cam = dr.select(below, n3, n1)
         out = []
         for channel in channels:
@@ -399,6 +429,9 @@ class GratingBWDF(DeltaLobesBSDF):
             for k, (m, n) in enumerate(self.orders):
                 ux, uy, z, prop, theta, phi = self._incident(u_o, v_o, float(m), float(n), lam, n_cam, n_light,
                                                              -1.0 if transmitted else 1.0)
+                if self._n1_geometry is not None:  # the table's own incident angle for this tangential k
+                    light_below = below if not transmitted else ~below
+                    theta = self._table_theta(n_light * dr.sqrt(ux * ux + uy * uy), lam, light_below)
                 if specular is not None and not transmitted and k == self._specular_index:
                     de = specular
                 else:
@@ -531,6 +564,9 @@ class GratingBWDF(DeltaLobesBSDF):
         above, under = self.lookups["R"], self.lookups.get("R_below")
         lanes = []
         for i in range(WAVELENGTHS_PER_RAY):
+            if self._n1_geometry is not None:  # the table's angle for the mirror direction's tangential k
+                n_cam = dr.select(below, self._index(self._n3, wl[i]), self._index(self._n1_geometry, wl[i]))
+                theta = self._table_theta(n_cam * dr.safe_sqrt(1.0 - cos_o * cos_o), wl[i], below)
             de = above.eval(k, wl[i], theta, phi, active & ~below)
             if under is not None:
                 de = dr.select(below, under.eval(k, wl[i], theta, phi, active & below), de)
@@ -548,7 +584,7 @@ class GratingBWDF(DeltaLobesBSDF):
         weights = []
         for i in range(WAVELENGTHS_PER_RAY):
             lam_i = wl[i]
-            n1, n3 = self._index(self._n1, lam_i), self._index(self._n3, lam_i)
+            n1, n3 = self._index(self._geometry_n1(), lam_i), self._index(self._n3, lam_i)
             n_cam = dr.select(below, n3, n1)
             n_light = dr.select(transmitted, dr.select(below, n1, n3), n_cam)
             nx = implied_order(-n_light * ux, n_cam * u_o, lam_i, self.period[0])

@@ -69,13 +69,11 @@ weighting changes little (0.09-0.10 px either way).
 ``weighting="geometric"`` leaves eta and T out (the lit share of the spectrum alone; the
 edges of a grating of flat efficiency).
 
-A known difference from the renderer: with a non-dispersive top (``dispersion = false``)
-the renderer refracts at the top's mean index but diffracts with the table's n(lambda), so
-its orders leave as if m lambda / Lambda were scaled by n_mean / n(lambda) (0.98 at 410 nm,
-1.008 at 685 nm); this prediction keeps the consistent physics (the top's index drops out of the
-grating equation in air). On cornell_cd that moves the render's radius edges by about
--0.25 px (signed median, measured by emulating it here); the report says when the top is
-not dispersive.
+With a non-dispersive top (``dispersion = false``) the renderer refracts at the top's mean
+index and diffracts under it with the same index (the BWDF's ``superstrate_index``), so
+the orders' directions in air are the dispersive top's, as here; before it did, its orders
+left as if m lambda / Lambda were scaled by n_mean / n(lambda) (0.98 at 410 nm, 1.008 at
+685 nm), which moved cornell_cd's radius edges by about -0.25 px against this prediction.
 
 Pixels are supersampled (``SUPERSAMPLE`` per axis) and averaged, so a prediction is
 pixel-integrated as a render and a photo are.

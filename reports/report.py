@@ -284,10 +284,9 @@ def analyse_cd(spec, fitted: FittedCamera, photo: images.Photo, render: np.ndarr
             name for name, rim in (("the photo", photo_rim), ("the render", render_rim)) if rim is None))
     if not cd.top_dispersive:
         messages.append("CD: the scene's polycarbonate top is not dispersive (the mean index over 360-830 nm): the "
-                        "render's colours may shift by 2-4 nm against a real CD's. The prediction refracts through the "
-                        "same top; the renderer's grating, though, reads the table's orders for the dispersive index, "
-                        "which moves the render's band edges along radii by about -0.25 px against the prediction "
-                        "(cornell_cd, 640 x 480)")
+                        "orders' directions in air are exact (the grating under it uses the same index), but the "
+                        "top's Fresnel transmission and the efficiencies' angles inside it are the mean index's, which "
+                        "may shift the render's colours by 2-4 nm against a real CD's; the prediction uses the same top")
     unsaturated = result["offsets"]["prediction_photo"]["count"]
     if unsaturated < MIN_PREDICTION_EDGES and photo.clipped.any():
         messages.append(f"CD: the prediction is compared with the photo on {unsaturated} band edges only: the photo's bands "

@@ -163,7 +163,8 @@ def test_to_string_names_every_setting(see_through_table):
     for expected in (str(see_through_table), 'mode = "paper"', 'mapping = "constant"', "grating_angle = 12.5 deg",
                      "uniform_share = 0.5 (unused: paper mode)", "delta = 0.1", "[reflection, transmission]",
                      "period_um = [0.8]", "(-2, 0), (-1, 0), (0, 0), (1, 0), (2, 0)", "wavelengths_nm = 440-660",
-                     "superstrate air", "center = [0, 0, 0] (unused: constant mapping)"):
+                     "superstrate air", "center = [0, 0, 0] (unused: constant mapping)",
+                     "superstrate_index = 0 (the table's n(lambda))"):
         assert expected in text, (expected, text)
     params = mi.traverse(bsdf)
     params["delta"] = 0.25
