@@ -6,6 +6,7 @@ smaller ones (fewer frames, same code path) to keep the suite short.
 
 import json
 
+import cv2
 import numpy as np
 import pytest
 import rawpy
@@ -237,12 +238,17 @@ def test_bracket_values_follow_the_curve_across_exposures(dataset):
     assert spread(lambda y: y) > 0.1
 
 
+JPEG_BLOCK_PX = 8  # the DCT block: ringing from an edge stays within the blocks the edge crosses
+
+
 def test_clipped_pixels_are_those_over_the_white_level(dataset):
     """The +2 EV frame clips: raw values sit at the white level exactly where the half-time
     frame (+1 EV) shows more than half the range (5 sigma of shot noise allowed either
     side); nothing exceeds it. In the JPEG, pixels whose three channels are clipped are 255
-    (99 % within 2 levels; JPEG's ringing at the edge of a clipped area may pull a few
-    pixels down, never below 240), and 99 % of the pixels at 255 have a curve value over 250."""
+    (99 % within 2 levels). JPEG's ringing at the edge of a clipped area pulls pixels of the
+    same 8 x 8 block down (to 236 measured next to the CD's coloured bands), so the floor
+    of 250 holds for clipped pixels more than one block from an unclipped one (251
+    measured); and 99 % of the pixels at 255 have a curve value over 250."""
     out, truth = dataset
     white, black = truth["sensor"]["white_level"], truth["sensor"]["black_level"]
     hi, _, _ = _raw(out / "brackets" / "ev+2.dng")
@@ -257,7 +263,9 @@ def test_clipped_pixels_are_those_over_the_white_level(dataset):
     rgb = demosaic(hi, sensor.cfa_pattern)
     jpeg = np.asarray(Image.open(out / "brackets" / "ev+2.jpg")).astype(int)
     all_clipped = np.all(rgb >= white, axis=-1)
-    assert all_clipped.sum() > 20 and np.percentile(jpeg[all_clipped], 1) >= 253 and jpeg[all_clipped].min() >= 240
+    assert all_clipped.sum() > 20 and np.percentile(jpeg[all_clipped], 1) >= 253
+    inside = cv2.distanceTransform(all_clipped.astype(np.uint8), cv2.DIST_L2, 3) > JPEG_BLOCK_PX
+    assert inside.sum() > 20 and jpeg[inside].min() >= 250
     curve = 255 * _response(truth).apply(np.clip((rgb - black) / (white - black), 0, 1))
     assert np.percentile(curve[jpeg == 255], 1) > 250  # the rest: JPEG ringing at clipped edges
 
