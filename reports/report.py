@@ -285,8 +285,8 @@ def analyse_cd(spec, fitted: FittedCamera, photo: images.Photo, render: np.ndarr
     if not cd.top_dispersive:
         messages.append("CD: the scene's polycarbonate top is not dispersive (the mean index over 360-830 nm): the "
                         "orders' directions in air are exact (the grating under it uses the same index), but the "
-                        "top's Fresnel transmission and the efficiencies' angles inside it are the mean index's, which "
-                        "may shift the render's colours by 2-4 nm against a real CD's; the prediction uses the same top")
+                        "top's refraction and Fresnel transmission are the mean index's, which may shift the render's "
+                        "colours by 2-4 nm against a real CD's; the prediction uses the same top")
     unsaturated = result["offsets"]["prediction_photo"]["count"]
     if unsaturated < MIN_PREDICTION_EDGES and photo.clipped.any():
         messages.append(f"CD: the prediction is compared with the photo on {unsaturated} band edges only: the photo's bands "
