@@ -40,7 +40,7 @@ import numpy as np
 from rcwa import symmetry
 from rcwa.structure import Layer, Structure
 from rcwa.sweep import default_threads, sweep_directions
-from workbench.core.cache import entry_lock
+from workbench.core.cache import entry_lock, is_locked
 from workbench.core.errors import UserInputError
 from workbench.core.files import atomic_write_text
 from workbench.core.timing import timed
@@ -314,7 +314,7 @@ def build_table(structure: Structure, settings: TableSettings, out: str | Path, 
     if (nodes.digest() if nodes is not None else "") != settings.planned_nodes_sha256:
         raise ValueError("build_table: pass the NodePlan whose digest the settings hold (rcwa.table.planned)")
     check_materials(structure, settings)
-    _refuse_unless_replaceable(out, key, force)  # before the lock file is written
+    _refuse_before_lock(out, key, force)
     with entry_lock(out, notify=notify):
         return _build_locked(structure, settings, out, key, threads=threads, progress=progress, force=force,
                              executor=executor, nodes=nodes)
@@ -418,6 +418,19 @@ def _foreign_entries(out: Path) -> list[str]:
     """What ``out`` holds that is not part of a table (hidden temporary files of atomic writes aside)."""
     return sorted(p.name for p in out.iterdir()
                   if p.name not in TABLE_FILES and not p.name.startswith(".progress.json."))
+
+
+def _refuse_before_lock(out: Path, key: str, force: bool) -> None:
+    """_refuse_unless_replaceable before waiting for the lock (so a wrong request fails at once), except on another
+    process's build under way: its files are half-written while it holds the lock (a zarr.json without our
+    metadata yet reads as a different table), so they are judged again under the lock (_open_store), once it is
+    done. A build that finished between the two looks is judged on its final files."""
+    try:
+        _refuse_unless_replaceable(out, key, force)
+    except UserInputError:
+        if is_locked(out):
+            return
+        _refuse_unless_replaceable(out, key, force)
 
 
 def _refuse_unless_replaceable(out: Path, key: str, force: bool) -> None:

@@ -31,6 +31,19 @@ digest = hashlib.sha256(b"".join(table.arrays[n].tobytes() for n in sorted(table
 print(json.dumps({"computed": report.chunks_computed, "cached": report.cached, "sha256": digest}))
 """
 
+# Holds a table's lock over a half-written folder, as a builder does while it writes the store, then gives up (its
+# run failed) and leaves the folder empty.
+HOLDER = """
+import pathlib, shutil, sys, time
+from workbench.core.cache import entry_lock
+out = pathlib.Path(sys.argv[1])
+with entry_lock(out):
+    print("held", flush=True)
+    time.sleep(1.5)
+    for child in out.iterdir():
+        shutil.rmtree(child) if child.is_dir() else child.unlink()
+"""
+
 
 def _small(structure, **kw):
     args = dict(wavelengths="450:650:3", theta_step=30.0, phi_step=30.0, orders=21, keep=7)
@@ -52,6 +65,21 @@ def test_two_processes_building_one_table_both_succeed_with_the_same_table(tmp_p
     assert sorted(r["computed"] for r in reports) == [0, 4]  # one built all four chunks, the other none
     assert reports[0]["sha256"] == reports[1]["sha256"]
     assert sum("waiting for another process" in err for _, err in results) == 1  # they did overlap
+
+
+def test_a_half_written_table_under_another_builders_lock_is_waited_for(tmp_path):
+    """While a builder holds the lock, its folder is half-written (zarr's group file before our metadata): another
+    builder must wait and judge the folder once the lock is free, not refuse it as a different table at once (CI
+    saw that race between the two builders above)."""
+    out = tmp_path / "t.zarr"
+    out.mkdir()
+    (out / "zarr.json").write_text(json.dumps({"zarr_format": 3, "node_type": "group", "attributes": {}}))
+    holder = subprocess.Popen([sys.executable, "-c", HOLDER, str(out)], stdout=subprocess.PIPE, text=True)
+    assert holder.stdout is not None and holder.stdout.readline().strip() == "held"
+    s = rcwa.load_structure("cd")
+    report = build_table(s, _small(s), out, progress=False)
+    assert holder.wait(timeout=60) == 0
+    assert report.chunks_computed == len(_small(s).wavelengths_nm) and open_table(out).meta["complete"]
 
 
 @pytest.mark.parametrize("damage", ["flip a byte", "truncate", "delete"])
