@@ -78,8 +78,9 @@ def merge_highlights(photo: Photo, frames: list[Photo], *, strict: bool = True
     for frame in sorted(frames, key=lambda f: -_brightness(f)):
         try:
             _check_compatible(photo, frame)
-            shift = _check_same_view(photo, frame, _exif_ratio(photo, frame))
-            record = _merge_one(merged, clipped, frame, _exif_ratio(photo, frame))
+            exif_ratio = _exif_ratio(photo, frame)
+            shift = _check_same_view(photo, frame, exif_ratio)
+            record = _merge_one(merged, clipped, frame, exif_ratio)
         except UserInputError as error:
             if strict:
                 raise

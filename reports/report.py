@@ -406,19 +406,27 @@ def _photo(inputs: Inputs, messages: list[str]) -> tuple[images.Photo, images.Ph
     photo = images.read_photo(inputs.photo, response)
     if not inputs.brackets:
         return photo, photo
-    frames = []
+    from calibration.decode import is_raw
+
+    frames, left_out = [], {}
     for path in inputs.brackets:
+        if not inputs.brackets_strict and is_raw(path) != is_raw(inputs.photo):  # a RAW+JPEG folder: not decoded
+            left_out[str(path)] = "raw, unlike the photo" if is_raw(path) else "not raw, unlike the photo"
+            continue
         try:
             frames.append(images.read_photo(path, response, what="--bracket"))
-        except UserInputError:
+        except UserInputError as error:
             if inputs.brackets_strict:
                 raise
+            left_out[str(path)] = error.reason
     merged, used, _ = merge_highlights(photo, frames, strict=inputs.brackets_strict)
+    merged.decoding = (merged.decoding or {}) | {
+        "bracket_left_out": ((merged.decoding or {}).get("bracket_left_out") or {}) | left_out}
     if used:
         messages.append(f"the photo's clipped pixels ({int(photo.clipped.sum())}) were filled from "
                         f"{len(used)} darker bracket frame(s); {int(merged.clipped.sum())} stay clipped. Photo and "
                         "render are compared through the photo's own saturation (fringe_offset_px) and, unclipped, "
-                        "by the filled photo's half-maximum edges (photo_render_unclipped), which the prediction "
+                        "by the filled photo's half-maximum edges (fringe_offset_unclipped_px), which the prediction "
                         "and the hues use too")
         return merged, photo
     recorded = dataclasses.replace(photo, decoding=merged.decoding)  # which frames were left out, and why
