@@ -345,7 +345,10 @@ def floor_jobs(structure, case: dict) -> tuple[dict[str, list], dict[str, tuple[
     n_sup = np.sqrt(prep.eps_sup.real)
     kx = n_sup * np.sin(theta) * np.cos(phi) + prep.dkx
     ky = n_sup * np.sin(theta) * np.sin(phi) + prep.dky
-    patterned = [layer.matrices for layer in prep.layers if layer.matrices]
+    # A lamellar layer by Li's inverse rule carries [[1/eps]]; its Exx is the inverse (formed
+    # here outside the timed jobs, as the core forms it outside its eigen-solves).
+    patterned = [(layer.matrices[0], np.linalg.inv(layer.matrices[1])) if layer.inverse_rule else layer.matrices
+                 for layer in prep.layers if layer.matrices]
     if len(case["structure"]["period"]) == 2:
         jobs: dict[str, list] = {"full": []}
         for E, exx, exy, eyx, eyy in patterned:

@@ -47,13 +47,19 @@ class Incidence(enum.Enum):
 
 class LayerInput:
     """
-    One layer as the core receives it: its kind, its thickness times k0, the permittivity of a uniform layer, and the N x N Fourier matrices of a patterned one (lamellar: E, Exx; general: E, Exx, Exy, Eyx, Eyy). Checked on construction (ValueError naming the field).
+    One layer as the core receives it: its kind, its thickness times k0, the permittivity of a uniform layer, and the N x N Fourier matrices of a patterned one (lamellar: E, Exx, or E, [[1/eps]] with inverse_rule; general: E, Exx, Exy, Eyx, Eyy). Checked on construction (ValueError naming the field).
     """
 
-    def __init__(self, kind: LayerKind, k0_thickness: float, permittivity: complex = ..., matrices: Sequence[Annotated[NDArray[numpy.complex128], dict(shape=(None, None), device='cpu', writable=False)]] = []) -> None: ...
+    def __init__(self, kind: LayerKind, k0_thickness: float, permittivity: complex = ..., matrices: Sequence[Annotated[NDArray[numpy.complex128], dict(shape=(None, None), device='cpu', writable=False)]] = [], inverse_rule: bool = False) -> None: ...
 
     @property
     def kind(self) -> LayerKind: ...
+
+    @property
+    def inverse_rule(self) -> bool:
+        """
+        A lamellar layer given as E and [[1/eps]] (Li's inverse rule): Exx = [[1/eps]]^-1 is formed in the core where a TM family needs it.
+        """
 
     @property
     def k0_thickness(self) -> float:

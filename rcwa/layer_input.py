@@ -22,7 +22,8 @@ from rcwa import _core
 LayerKind = _core.LayerKind
 
 # The Fourier matrices each kind carries, in the core's order (rcwa/cpp/modes.hpp): the
-# Laurent matrix [[eps]] and the in-plane effective permittivity tensor of the rule.
+# Laurent matrix [[eps]] and the in-plane effective permittivity tensor of the rule (for a
+# lamellar layer with inverse_rule, [[1/eps]] in place of Exx).
 MATRIX_NAMES: dict[_core.LayerKind, tuple[str, ...]] = {
     LayerKind.UNIFORM: (),
     LayerKind.LAMELLAR: ("E", "Exx"),
@@ -48,17 +49,22 @@ class LayerInput:
     k0_thickness: thickness times ``k0 = 2 pi / lambda`` (radians), finite and >= 0.
     permittivity: relative permittivity of a uniform layer (unused otherwise).
     matrices: the kind's N x N complex128 Fourier matrices (rcwa.factorization).
+    inverse_rule: a LAMELLAR layer given as ``E`` and ``[[1/eps]]`` (Li's inverse rule),
+        whose ``Exx = [[1/eps]]^-1`` the core forms only where a TM family needs it.
     """
 
     kind: _core.LayerKind
     k0_thickness: float
     permittivity: complex = 0j
     matrices: tuple[np.ndarray, ...] = ()
+    inverse_rule: bool = False
     core: _core.LayerInput = field(init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
         _check_kind(self.kind)
         kind = self.kind
+        if not isinstance(self.inverse_rule, bool) or (self.inverse_rule and kind != LayerKind.LAMELLAR):
+            raise _fail("inverse_rule", "False, or True for a lamellar layer", self.inverse_rule)
         if isinstance(self.k0_thickness, bool) or not isinstance(self.k0_thickness, (int, float, np.floating)) \
                 or not (math.isfinite(self.k0_thickness) and self.k0_thickness >= 0):
             raise _fail("k0_thickness", "a finite number >= 0", self.k0_thickness)
@@ -72,7 +78,7 @@ class LayerInput:
             _check_matrix(f"matrices[{i}] ({name})", matrix, matrices[0])
         object.__setattr__(self, "matrices", matrices)
         object.__setattr__(self, "core", _core.LayerInput(kind, float(self.k0_thickness), complex(self.permittivity),
-                                                          list(matrices)))
+                                                          list(matrices), self.inverse_rule))
 
     @property
     def size(self) -> int:

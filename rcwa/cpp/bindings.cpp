@@ -179,19 +179,24 @@ void bind_layers(nb::module_& m) {
     nb::class_<rcwa::LayerInput>(m, "LayerInput",
                                  "One layer as the core receives it: its kind, its thickness times k0, the "
                                  "permittivity of a uniform layer, and the N x N Fourier matrices of a patterned "
-                                 "one (lamellar: E, Exx; general: E, Exx, Exy, Eyx, Eyy). Checked on construction "
-                                 "(ValueError naming the field).")
+                                 "one (lamellar: E, Exx, or E, [[1/eps]] with inverse_rule; general: E, Exx, Exy, "
+                                 "Eyx, Eyy). Checked on construction (ValueError naming the field).")
         .def(
             "__init__",
             [](rcwa::LayerInput* self, rcwa::LayerKind kind, double k0_thickness, cplx permittivity,
-               const std::vector<CArray2>& matrices) {
+               const std::vector<CArray2>& matrices, bool inverse_rule) {
                 std::vector<Mat> mats;
                 mats.reserve(matrices.size());
                 for (const auto& a : matrices) mats.push_back(to_mat(a));
-                new (self) rcwa::LayerInput(rcwa::make_layer(kind, k0_thickness, permittivity, std::move(mats)));
+                new (self) rcwa::LayerInput(
+                    rcwa::make_layer(kind, k0_thickness, permittivity, std::move(mats), inverse_rule));
             },
-            "kind"_a, "k0_thickness"_a, "permittivity"_a = cplx(0.0, 0.0), "matrices"_a = std::vector<CArray2>())
+            "kind"_a, "k0_thickness"_a, "permittivity"_a = cplx(0.0, 0.0), "matrices"_a = std::vector<CArray2>(),
+            "inverse_rule"_a = false)
         .def_ro("kind", &rcwa::LayerInput::kind)
+        .def_ro("inverse_rule", &rcwa::LayerInput::inverse_rule,
+                "A lamellar layer given as E and [[1/eps]] (Li's inverse rule): Exx = [[1/eps]]^-1 is formed in the "
+                "core where a TM family needs it.")
         .def_ro("k0_thickness", &rcwa::LayerInput::thickness, "Thickness times k0 (radians of vacuum phase).")
         .def_ro("permittivity", &rcwa::LayerInput::eps, "Relative permittivity of a uniform layer.")
         .def_prop_ro("size", &rcwa::LayerInput::size, "N: the matrices are N x N (0 for a uniform layer).")

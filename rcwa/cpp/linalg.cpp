@@ -57,19 +57,23 @@ Mat LU::solve(const Mat& B) const {
 }
 
 Mat LU::solve_right(const Mat& B) const {
-    // X A = B  <=>  A^T X^T = B^T.
+    // X A = B with A = P L U (zgetrf): X P L U = B, so Y = X P solves Y L U = B by two
+    // triangular solves from the right (ztrsm; zgetrs on the transposed system, with two
+    // transposing copies, took 118 us against 99 at n = 61), and X = Y P^T undoes the row
+    // interchanges as column interchanges, last first.
     const int n = lu_.rows;
-    Mat Bt(B.cols, B.rows);
-    for (int j = 0; j < B.cols; ++j)
-        for (int i = 0; i < B.rows; ++i) Bt(j, i) = B(i, j);
-    int nrhs = B.rows, info = 0, nn = n;
-    if (n == 0 || nrhs == 0) return B;
-    info = scipy_LAPACKE_zgetrs_work(LAPACK_COL_MAJOR, 'T', nn, nrhs, lu_.ptr(), nn, ipiv_.data(),
-                                     Bt.ptr(), nn);
-    if (info != 0) throw std::runtime_error("LU::solve_right: zgetrs failed");
-    Mat X(B.rows, B.cols);
-    for (int j = 0; j < B.cols; ++j)
-        for (int i = 0; i < B.rows; ++i) X(i, j) = Bt(j, i);
+    if (B.cols != n) throw std::invalid_argument("LU::solve_right: shape mismatch");
+    Mat X = B;
+    if (n == 0 || B.rows == 0) return X;
+    const cplx one(1.0, 0.0);
+    scipy_cblas_ztrsm(CblasColMajor, CblasRight, CblasUpper, CblasNoTrans, CblasNonUnit, X.rows, n, &one, lu_.ptr(), n,
+                      X.ptr(), X.rows);
+    scipy_cblas_ztrsm(CblasColMajor, CblasRight, CblasLower, CblasNoTrans, CblasUnit, X.rows, n, &one, lu_.ptr(), n,
+                      X.ptr(), X.rows);
+    for (int k = n - 1; k >= 0; --k) {
+        const int p = ipiv_[static_cast<std::size_t>(k)] - 1;  // zgetrf's pivots are 1-based
+        if (p != k) std::swap_ranges(&X(0, k), &X(0, k) + X.rows, &X(0, p));
+    }
     return X;
 }
 

@@ -48,6 +48,18 @@ void keep_freed_memory() {
 
 using SharedEigen = std::vector<std::unique_ptr<LamellarEigen>>;
 
+// The problem with every inverse_rule layer's Exx formed (exx_of): for the paths that
+// need both families of every lamellar layer (conical mount, sweeps).
+SweepProblem with_exx(const SweepProblem& pr) {
+    SweepProblem out = pr;
+    for (LayerInput& in : out.layers)
+        if (in.inverse_rule) {
+            in.matrices = SharedMatrices(std::vector<Mat>{in.matrices[0], exx_of(in)});
+            in.inverse_rule = false;
+        }
+    return out;
+}
+
 // Z = E^-1 of every patterned layer: it depends on the wavelength only. Block by block
 // in the sectors of the layers' mirrors where there are some (sectors.hpp).
 std::vector<Mat> inverse_laurent(const SweepProblem& pr, const std::vector<Mirror>& mirrors = {}) {
@@ -122,8 +134,9 @@ StackSolution solve_decoupled(const SweepProblem& pr, const StackProblem& sp, In
             continue;
         }
         const Mat Z = tm ? LU(in.matrices[0]).inverse() : Mat();
+        const Mat Exx = tm ? exx_of(in) : Mat();
         const LamellarEigen e =
-            lamellar_eigen(sp.harmonics.kx, in.matrices[0], in.matrices[1], Z, nullptr, LamellarParts{te, tm, false, true});
+            lamellar_eigen(sp.harmonics.kx, in.matrices[0], Exx, Z, nullptr, LamellarParts{te, tm, false, true});
         hermitian_solves += e.hermitian;
         real_solves += e.real;
         inverse_iteration_solves += e.inverse_iteration;
@@ -263,8 +276,10 @@ const char* kind_name(LayerKind kind) {
     throw std::invalid_argument("unknown layer kind");
 }
 
-LayerInput make_layer(LayerKind kind, double thickness, cplx eps, std::vector<Mat> matrices) {
+LayerInput make_layer(LayerKind kind, double thickness, cplx eps, std::vector<Mat> matrices, bool inverse_rule) {
     const std::string what = std::string(kind_name(kind)) + " layer: ";
+    if (inverse_rule && kind != LayerKind::Lamellar)
+        throw std::invalid_argument(what + "inverse_rule applies to lamellar layers only");
     if (!std::isfinite(thickness) || thickness < 0.0)
         throw std::invalid_argument(what + "k0_thickness must be finite and >= 0, got " + std::to_string(thickness));
     if (!std::isfinite(eps.real()) || !std::isfinite(eps.imag()))
@@ -280,7 +295,12 @@ LayerInput make_layer(LayerKind kind, double thickness, cplx eps, std::vector<Ma
                                         std::to_string(matrices.front().rows) + ", got (" + std::to_string(m.rows) +
                                         ", " + std::to_string(m.cols) + ")");
     }
-    return LayerInput{kind, thickness, eps, std::move(matrices)};
+    return LayerInput{kind, thickness, eps, std::move(matrices), inverse_rule};
+}
+
+Mat exx_of(const LayerInput& layer) {
+    if (layer.kind != LayerKind::Lamellar) throw std::invalid_argument("exx_of: not a lamellar layer");
+    return layer.inverse_rule ? LU(layer.matrices[1]).inverse() : layer.matrices[1];
 }
 
 void check_problem(const SweepProblem& pr) {
@@ -307,16 +327,17 @@ void check_problem(const SweepProblem& pr) {
             throw std::invalid_argument("keep: index " + std::to_string(i) + " outside [0, " + std::to_string(n) + ")");
 }
 
-StackSolution solve_point(const SweepProblem& pr, std::size_t p, Incidence incidence, bool fast_paths) {
-    check_problem(pr);
-    if (p >= pr.kx0.size()) throw std::invalid_argument("point " + std::to_string(p) + " outside the problem's points");
+StackSolution solve_point(const SweepProblem& input, std::size_t p, Incidence incidence, bool fast_paths) {
+    check_problem(input);
+    if (p >= input.kx0.size()) throw std::invalid_argument("point " + std::to_string(p) + " outside the problem's points");
     keep_freed_memory();
-    std::vector<Mirror> mirrors;
     if (fast_paths) {
-        const StackProblem sp = stack_problem(pr, p);
-        if (decoupled_point(pr, sp)) return solve_decoupled(pr, sp, incidence);
-        mirrors = respected_mirrors(pr);
+        const StackProblem sp = stack_problem(input, p);
+        if (decoupled_point(input, sp)) return solve_decoupled(input, sp, incidence);
     }
+    const SweepProblem pr = with_exx(input);
+    std::vector<Mirror> mirrors;
+    if (fast_paths) mirrors = respected_mirrors(pr);
     const std::vector<Mat> Zs = inverse_laurent(pr, mirrors);
     if (!mirrors.empty())
         if (auto sectors = solve_sectors(pr, stack_problem(pr, p), mirrors, incidence, Zs)) return std::move(*sectors);
@@ -337,8 +358,9 @@ StackSolution solve_point(const SweepProblem& pr, std::size_t p, Incidence incid
     return out;
 }
 
-SweepResult sweep(const SweepProblem& pr) {
-    check_problem(pr);
+SweepResult sweep(const SweepProblem& input) {
+    check_problem(input);
+    const SweepProblem pr = with_exx(input);
     keep_freed_memory();
     const std::size_t np = pr.kx0.size();
     SweepResult out;

@@ -306,3 +306,12 @@ def test_committed_stub_is_the_generated_one(tmp_path):
         "rcwa/_core.pyi is stale: regenerate it with "
         "`.venv/bin/python -m nanobind.stubgen -m rcwa._core -o rcwa/_core.pyi` after `make install`"
     )
+
+
+def test_inverse_rule_is_refused_off_lamellar_layers():
+    """inverse_rule says the second lamellar matrix is [[1/eps]]: on another kind it would be
+    meaningless, so both boundaries refuse it, naming the field."""
+    with pytest.raises(ValueError, match=r"LayerInput\.inverse_rule"):
+        LayerInput(LayerKind.GENERAL, 1.0, 0j, (_matrix(3),) * 5, inverse_rule=True)
+    with pytest.raises(ValueError, match="inverse_rule applies to lamellar layers only"):
+        _core.LayerInput(_core.LayerKind.UNIFORM, 1.0, 2.25, [], inverse_rule=True)

@@ -196,3 +196,32 @@ def test_lossless_metal_keeps_the_general_tm_solver(phi):
     assert fast.hermitian_solves == 1
     for got, want in ((fast.reflected, general.reflected), (fast.transmitted, general.transmitted)):
         assert np.max(np.abs(got - want)) <= TOLERANCE_FAST * max(1.0, float(np.max(np.abs(want))))
+
+
+@pytest.mark.parametrize("phi", [0.0, 30.0])
+@pytest.mark.parametrize("eps_stripe", [2.25 + 0j, -9.0 + 1.2j])
+def test_inverse_rule_layer_equals_its_explicit_exx(phi, eps_stripe):
+    """A lamellar layer given as E and [[1/eps]] (inverse_rule: the core forms Exx where TM
+    needs it) gives the amplitudes of the same layer given E and Exx = [[1/eps]]^-1, in
+    classical mount (s, p, both) and conical mount, single solves and a sweep: the two
+    differ only in which LU inverts [[1/eps]], so they agree to round-off (1e-12)."""
+    n = 21
+    E, Exx = _stripe_matrices(1.0, eps_stripe, 0.2, 0.7, n)
+    k0d = 2 * np.pi * 0.2 / 0.6
+    explicit = _core.LayerInput(_core.LayerKind.LAMELLAR, k0d, 0j, [E, Exx])
+    lazy = _core.LayerInput(_core.LayerKind.LAMELLAR, k0d, 0j, [E, np.linalg.inv(Exx)], inverse_rule=True)
+    kx0, ky0 = incident_tangential_k(1.0, math.radians(20.0), math.radians(phi))
+    dkx = -(np.arange(n) - n // 2) * 0.6
+    for incidence in (_core.Incidence.S, _core.Incidence.P, _core.Incidence.BOTH):
+        got, want = (_core.solve_stack(kx0 + dkx, np.full(n, ky0), n // 2, 1.0 + 0j, 2.25 + 0j,
+                                       s_direction(math.radians(phi)), [layer], STACK_METHOD_OF["etm"], incidence)
+                      for layer in (lazy, explicit))
+        for a, b in ((got.reflected, want.reflected), (got.transmitted, want.transmitted)):
+            np.testing.assert_array_equal(np.isnan(a), np.isnan(b))
+            finite = ~np.isnan(b)
+            assert np.max(np.abs(a[finite] - b[finite])) <= TOLERANCE_FAST * max(1.0, float(np.max(np.abs(b[finite]))))
+    sweeps = [_core.sweep(dkx, np.zeros(n), n // 2, 1.0 + 0j, 2.25 + 0j, [layer], np.array([kx0, 0.1]),
+                          np.array([ky0, 0.0]), np.array([0.0, 0.0]), np.array([1.0, 1.0]), list(range(n)))
+              for layer in (lazy, explicit)]
+    got, want = sweeps[0].reflected, sweeps[1].reflected
+    assert np.max(np.abs(got - want)) <= TOLERANCE_FAST * max(1.0, float(np.max(np.abs(want))))
