@@ -347,8 +347,9 @@ def floor_jobs(structure, case: dict) -> tuple[dict[str, list], dict[str, tuple[
     ky = n_sup * np.sin(theta) * np.sin(phi) + prep.dky
     # A lamellar layer by Li's inverse rule carries [[1/eps]]; its Exx is the inverse (formed
     # here outside the timed jobs, as the core forms it outside its eigen-solves).
-    patterned = [(layer.matrices[0], np.linalg.inv(layer.matrices[1])) if layer.inverse_rule else layer.matrices
-                 for layer in prep.layers if layer.matrices]
+    patterned: list[tuple[np.ndarray, ...]] = [
+        (layer.matrices[0], np.linalg.inv(layer.matrices[1])) if layer.inverse_rule else layer.matrices
+        for layer in prep.layers if layer.matrices]
     if len(case["structure"]["period"]) == 2:
         jobs: dict[str, list] = {"full": []}
         for E, exx, exy, eyx, eyy in patterned:
