@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field
+from functools import cached_property
 from typing import Any
 
 import numpy as np
@@ -75,6 +77,14 @@ def _direction(direction: tuple[float, float] | None) -> dict[str, float] | None
 
 @dataclass(frozen=True)
 class SolveResult:
+    """One solve's efficiencies: totals, every retained order's in ``all_orders`` (arrays),
+    and the propagating orders as :class:`OrderResult` objects in ``orders``.
+
+    ``orders`` is built from the solve's arrays on first use (``order_builder``; a
+    :func:`functools.cached_property`): the objects cost about 5 us each, as much as the
+    rest of a small 1D solve's Python, and sweeps, tables and totals never need them.
+    """
+
     structure: str
     wavelength_nm: float
     theta_deg: float
@@ -85,7 +95,7 @@ class SolveResult:
     R_total: float
     T_total: float
     absorption: float
-    orders: list[OrderResult]
+    order_builder: Callable[[], list[OrderResult]] = field(repr=False, compare=False)
     all_orders: dict[str, np.ndarray] = field(repr=False, default_factory=dict)
     # The core's fast paths this solve took (rcwa.solver.solve, fast_paths): empty for the
     # general path; "te_tm_decoupled" (1D, k_y = 0: TE and TM on N x N blocks),
@@ -98,6 +108,11 @@ class SolveResult:
     # rcwa/cpp/stack.cpp, solve_direct), "inverse_iteration" (lossy 1D layers below 75
     # harmonics: eigenvalues by QR, eigenvectors by inverse iteration, rcwa/cpp/linalg.hpp).
     fast_paths: tuple[str, ...] = ()
+
+    @cached_property
+    def orders(self) -> list[OrderResult]:
+        """The propagating orders (on either side), in the solver's harmonic order."""
+        return self.order_builder()
 
     def order(self, m: int, n: int = 0) -> OrderResult:
         for o in self.orders:

@@ -371,10 +371,8 @@ def _layer_input(layer, structure: Structure, eps_of, h: HarmonicIndices, rule: 
 
 def _result(prep: PreparedStructure, theta_deg, phi_deg, pol, kx, ky, r, t, kz_sup, kz_sub,
             fast_paths: tuple[str, ...] = ()) -> SolveResult:
-    n = kx.size
-    eps_sup, eps_sub, h = prep.eps_sup, prep.eps_sub, prep.harmonics
-    R, T, T_into = efficiencies(r, t, kz_sup, kz_sub, kz_sup[prep.zero], eps_sup, eps_sub)
-    lossless_sub = eps_sub.imag == 0.0 and eps_sub.real > 0
+    h = prep.harmonics
+    R, T, T_into = efficiencies(r, t, kz_sup, kz_sub, kz_sup[prep.zero], prep.eps_sup, prep.eps_sub)
     # A column, not a weighted sum, for one polarization: the other may be NaN (not solved).
     if pol.value == "unpolarized":
         half = np.array([0.5, 0.5])
@@ -383,6 +381,27 @@ def _result(prep: PreparedStructure, theta_deg, phi_deg, pol, kx, ky, r, t, kz_s
         column = 0 if pol.value == "s" else 1
         R_pol, T_pol = R[:, column], T[:, column]
 
+    def build_orders() -> list[OrderResult]:
+        return _order_results(prep, kx, ky, r, t, R, T, R_pol, T_pol)
+
+    R_total = float(np.sum(R_pol))
+    T_total = float(np.sum(T_pol))
+    return SolveResult(
+        structure=prep.structure.name, wavelength_nm=prep.wavelength_nm, theta_deg=float(theta_deg), phi_deg=float(phi_deg),
+        pol=pol.value, orders_retained=prep.counts, factorization=prep.rule, R_total=R_total, T_total=T_total,
+        absorption=1.0 - R_total - T_total, order_builder=build_orders,
+        all_orders={"m": h.m, "n": h.n, "R": R, "T": T, "T_into_substrate": T_into, "kz_superstrate": kz_sup,
+                    "kz_substrate": kz_sub},
+        fast_paths=fast_paths,
+    )
+
+
+def _order_results(prep: PreparedStructure, kx: np.ndarray, ky: np.ndarray, r: np.ndarray, t: np.ndarray,
+                   R: np.ndarray, T: np.ndarray, R_pol: np.ndarray, T_pol: np.ndarray) -> list[OrderResult]:
+    """The propagating orders' OrderResult objects (SolveResult.orders, built on first use)."""
+    n = kx.size
+    eps_sup, eps_sub, h = prep.eps_sup, prep.eps_sub, prep.harmonics
+    lossless_sub = eps_sub.imag == 0.0 and eps_sub.real > 0
     kt = np.hypot(kx, ky)
     prop_R = (eps_sup.real - kt**2) > 0
     prop_T = ((eps_sub.real - kt**2) > 0) if lossless_sub else np.zeros(n, dtype=bool)
@@ -411,13 +430,4 @@ def _result(prep: PreparedStructure, theta_deg, phi_deg, pol, kx, ky, r, t, kz_s
                 amplitudes=dict(zip(amp_names, amps[j], strict=True)),
             ))
         )
-    R_total = float(np.sum(R_pol))
-    T_total = float(np.sum(T_pol))
-    return SolveResult(
-        structure=prep.structure.name, wavelength_nm=prep.wavelength_nm, theta_deg=float(theta_deg), phi_deg=float(phi_deg),
-        pol=pol.value, orders_retained=prep.counts, factorization=prep.rule, R_total=R_total, T_total=T_total,
-        absorption=1.0 - R_total - T_total, orders=orders,
-        all_orders={"m": h.m, "n": h.n, "R": R, "T": T, "T_into_substrate": T_into, "kz_superstrate": kz_sup,
-                    "kz_substrate": kz_sub},
-        fast_paths=fast_paths,
-    )
+    return orders

@@ -117,6 +117,21 @@ def test_orders_are_the_propagating_ones():
         r.order(99)  # not retained
 
 
+def test_orders_are_built_once_on_first_use_from_the_solve_arrays():
+    """SolveResult.orders is built on first access (order_builder) and kept: the same list
+    object afterwards, and each order's efficiencies are the all_orders row of its harmonic
+    (the same numbers, so equal to the bookkeeping tolerance)."""
+    r = rcwa.solve(GRATING, **REQUEST)
+    assert "orders" not in r.__dict__  # nothing built by the solve itself
+    first = r.orders
+    assert r.orders is first
+    m = list(r.all_orders["m"])
+    for o in first:
+        i = m.index(o.m)
+        assert o.R_s == pytest.approx(r.all_orders["R"][i, 0], abs=TOLERANCE_BOOKKEEPING)
+        assert o.T_s == pytest.approx(r.all_orders["T"][i, 0], abs=TOLERANCE_BOOKKEEPING)
+
+
 def test_totals_and_absorption():
     r = rcwa.solve(GRATING, **REQUEST)
     assert r.R_total == pytest.approx(sum(o.R for o in r.orders), abs=TOLERANCE_BOOKKEEPING)
