@@ -218,4 +218,70 @@ void solve_polarized(const StackProblem& pr, Polarization pol, const std::vector
     for (int i = 0; i < n; ++i) out.t(row0 + i, column) = T(i, 0);
 }
 
+void solve_polarized_direct(const StackProblem& pr, Polarization pol, const PolarizedModes& layer, StackSolution& out) {
+    // One layer of thickness d between the half-spaces (Moharam, Grann, Pommet & Gaylord
+    // 1995, JOSA A 12, 1068, Eqs. 11-15 (TE) and 30-34 (TM): the tangential fields matched
+    // at both interfaces). In the layer u = W (phi1 c1 + phi2 c2), v = V (-phi1 c1 + phi2 c2),
+    // with phi1 = I at the top and X at the bottom, phi2 = X at the top and I at the bottom
+    // (X = exp(i kz k0 d): both families decay away from where their amplitudes are given,
+    // as in the ETM sweep, whose T is c1 and whose R T is X c2). Unknowns c1, c2:
+    //   top, the superstrate's projection (which annihilates its up-going waves) of the field
+    //   equals that of the incident wave: (PW - PV) c1 + (PW + PV) X c2 = p_inc;
+    //   bottom, only down-going substrate waves (u, v) = (f0, g0) t: the rows g0 u - f0 v
+    //   vanish: (G W + F V) X c1 + (G W - F V) c2 = 0.
+    // Then r from the top field and t from the bottom one.
+    const int n = pr.harmonics.size();
+    const int column = pol == Polarization::TE ? 0 : 1;
+    const int row0 = pol == Polarization::TE ? 0 : n;
+    const std::vector<double> sigma = s_signs(pr);
+    const CVec& kz1 = out.kz_superstrate;
+    const CVec& kz2 = out.kz_substrate;
+    const cplx eps1 = pr.eps_superstrate, eps2 = pr.eps_substrate;
+    CVec f0(n), g0(n);  // the substrate's down-going waves, as in solve_polarized
+    for (int i = 0; i < n; ++i) {
+        f0[i] = pol == Polarization::TE ? cplx(sigma[i]) : -kz2[i] / eps2 * sigma[i];
+        g0[i] = pol == Polarization::TE ? kz2[i] * sigma[i] : cplx(sigma[i]);
+    }
+    const Projection proj = projection(pr, sigma, kz1, pol);
+    const Mat W = layer.W.matrix(), V = layer.V.matrix();
+    CVec X(static_cast<std::size_t>(n));
+    for (int i = 0; i < n; ++i) X[i] = std::exp(cplx(0.0, 1.0) * layer.kz[i] * pr.thickness.front());
+    Mat M(2 * n, 2 * n);
+    for (int j = 0; j < n; ++j)
+        for (int i = 0; i < n; ++i) {
+            const cplx pw = proj.on_u[i] * W(i, j), pv = proj.on_v[i] * V(i, j);
+            const cplx gw = g0[i] * W(i, j), fv = f0[i] * V(i, j);
+            M(i, j) = pw - pv;
+            M(i, n + j) = (pw + pv) * X[j];
+            M(n + i, j) = (gw + fv) * X[j];
+            M(n + i, n + j) = gw - fv;
+        }
+    const int i0 = pr.zero_order;
+    const cplx kz0 = kz1[i0];
+    const cplx u_inc = pol == Polarization::TE ? cplx(sigma[i0]) : -kz0 / eps1 * sigma[i0];
+    const cplx v_inc = pol == Polarization::TE ? kz0 * sigma[i0] : cplx(sigma[i0]);
+    Mat rhs(2 * n, 1);
+    rhs(i0, 0) = proj.on_u[i0] * u_inc + proj.on_v[i0] * v_inc;
+    const Mat c = LU(std::move(M)).solve(rhs);
+    Mat top_sum(n, 1), top_diff(n, 1), bottom_sum(n, 1), bottom_diff(n, 1);
+    for (int j = 0; j < n; ++j) {
+        const cplx c1 = c(j, 0), c2 = c(n + j, 0);
+        top_sum(j, 0) = c1 + X[j] * c2;       // u = W (c1 + X c2) at the top
+        top_diff(j, 0) = X[j] * c2 - c1;      // v = V (X c2 - c1)
+        bottom_sum(j, 0) = X[j] * c1 + c2;    // u = W (X c1 + c2) at the bottom
+        bottom_diff(j, 0) = c2 - X[j] * c1;   // v = V (c2 - X c1)
+    }
+    const Mat u_top = matmul(W, top_sum), v_top = matmul(V, top_diff);
+    const Mat u_bottom = matmul(W, bottom_sum), v_bottom = matmul(V, bottom_diff);
+    for (int i = 0; i < n; ++i) {
+        const cplx field = pol == Polarization::TE ? u_top(i, 0) - (i == i0 ? u_inc : 0.0)
+                                                   : v_top(i, 0) - (i == i0 ? v_inc : 0.0);
+        out.r(row0 + i, column) = sigma[i] * field;
+        // t from both components (least squares over (f0, g0) t = (u, v): exact where the
+        // system is, and defined where one of f0, g0 vanishes, as TM's f0 at a Rayleigh point).
+        out.t(row0 + i, column) = (std::conj(f0[i]) * u_bottom(i, 0) + std::conj(g0[i]) * v_bottom(i, 0)) /
+                                  (std::norm(f0[i]) + std::norm(g0[i]));
+    }
+}
+
 }  // namespace rcwa

@@ -48,4 +48,11 @@ bool decouples(const StackProblem& problem, StackMethod method);
 void solve_polarized(const StackProblem& problem, Polarization pol, const std::vector<PolarizedModes>& layers,
                      StackSolution& out);
 
+// The same for a stack of exactly one layer whose W and V are given (its inverses need not
+// be: LamellarParts::inverses false): the layer's boundary conditions with both half-spaces
+// as one 2N x 2N system (solve_polarized_direct in polarized.cpp), the N-size counterpart of
+// stack.cpp's solve_direct. Equal to solve_polarized to round-off.
+void solve_polarized_direct(const StackProblem& problem, Polarization pol, const PolarizedModes& layer,
+                            StackSolution& out);
+
 }  // namespace rcwa

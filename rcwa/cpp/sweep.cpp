@@ -125,6 +125,8 @@ bool decoupled_point(const SweepProblem& pr, const StackProblem& sp) {
 StackSolution solve_decoupled(const SweepProblem& pr, const StackProblem& sp, Incidence incidence) {
     const bool te = incidence != Incidence::P, tm = incidence != Incidence::S;
     const int n = sp.harmonics.size();
+    // One lamellar layer: solved directly (solve_polarized_direct), without its inverses.
+    const bool direct = pr.layers.size() == 1 && pr.layers.front().kind == LayerKind::Lamellar;
     std::vector<PolarizedModes> te_layers, tm_layers;
     int hermitian_solves = 0, real_solves = 0, inverse_iteration_solves = 0;
     for (const LayerInput& in : pr.layers) {
@@ -136,7 +138,7 @@ StackSolution solve_decoupled(const SweepProblem& pr, const StackProblem& sp, In
         const Mat Z = tm ? LU(in.matrices[0]).inverse() : Mat();
         const Mat Exx = tm ? exx_of(in) : Mat();
         const LamellarEigen e =
-            lamellar_eigen(sp.harmonics.kx, in.matrices[0], Exx, Z, nullptr, LamellarParts{te, tm, false, true});
+            lamellar_eigen(sp.harmonics.kx, in.matrices[0], Exx, Z, nullptr, LamellarParts{te, tm, false, true, !direct});
         hermitian_solves += e.hermitian;
         real_solves += e.real;
         inverse_iteration_solves += e.inverse_iteration;
@@ -156,6 +158,12 @@ StackSolution solve_decoupled(const SweepProblem& pr, const StackProblem& sp, In
     for (int i = 0; i < 2 * n; ++i) {
         if (!te) out.r(i, 0) = out.t(i, 0) = not_solved;
         if (!tm) out.r(i, 1) = out.t(i, 1) = not_solved;
+    }
+    out.direct = direct;
+    if (direct) {
+        if (te) solve_polarized_direct(sp, Polarization::TE, te_layers.front(), out);
+        if (tm) solve_polarized_direct(sp, Polarization::TM, tm_layers.front(), out);
+        return out;
     }
     if (te) solve_polarized(sp, Polarization::TE, te_layers, out);
     if (tm) solve_polarized(sp, Polarization::TM, tm_layers, out);

@@ -110,5 +110,8 @@ def test_more_layers_and_one_dimensional_sweeps_keep_the_etm():
         {"thickness": 0.1, "material": nk(1.0), "shapes": [{"material": nk(2.0), "x": [0.5, 0.6]}]}])
     assert not _core_solve(two_1d, 600.0, 20.0, 30.0, 21, True).direct
     assert _core_solve(STRIPE, 600.0, 20.0, 30.0, 21, True).direct
-    # in classical mount TE and TM decouple instead (tests/rcwa/test_fast_paths.py)
-    assert not _core_solve(STRIPE, 600.0, 20.0, 0.0, 21, True).direct
+    # in classical mount TE and TM decouple, and one layer is solved directly per polarization
+    # (polarized.hpp, solve_polarized_direct; against the general path: tests/rcwa/test_fast_paths.py)
+    classical = _core_solve(STRIPE, 600.0, 20.0, 0.0, 21, True)
+    assert classical.decoupled and classical.direct
+    assert not _core_solve(two_1d, 600.0, 20.0, 0.0, 21, True).direct

@@ -101,7 +101,9 @@ def test_decoupled_efficiencies_equal_the_general_path(name, pol):
     hermitian = ("hermitian_eigensolver",) if HERMITIAN_SOLVES[name] else ()
     real = ("real_arithmetic",) if REAL_SOLVES[name] else ()
     inverse = ("inverse_iteration",) if name in LOSSY else ()
-    assert fast.fast_paths == ("te_tm_decoupled",) + single + hermitian + real + inverse
+    # one patterned layer: solved directly per polarization (polarized.hpp, solve_polarized_direct)
+    direct = ("single_layer_direct",) if len(s.layers) == 1 else ()
+    assert fast.fast_paths == ("te_tm_decoupled",) + single + direct + hermitian + real + inverse
     assert general.fast_paths == ()
     for key in ("R", "T", "T_into_substrate"):
         columns = {"s": [0], "p": [1], "unpolarized": [0, 1]}[pol]
