@@ -77,6 +77,12 @@ class LayerInput:
     def matrices(self) -> list[Annotated[NDArray[numpy.complex128], dict(shape=(None, None))]]:
         """Copies of the Fourier matrices, in the order given."""
 
+    @staticmethod
+    def lamellar(k0_thickness: float, period: float, segments: Sequence[tuple[float, float, complex]], harmonics: int, inverse_rule: bool = True) -> LayerInput:
+        """
+        A lamellar layer from its permittivity profile on [0, period), as (x0, x1, eps) segments: E = [[eps]] and [[1/eps]] (inverse_rule, Li 1996) or Exx = E (Laurent), for `harmonics` orders m = -M..M (profile.hpp).
+        """
+
     def __repr__(self) -> str: ...
 
 class StackSolution:
@@ -109,7 +115,7 @@ class StackSolution:
     @property
     def direct(self) -> bool:
         """
-        Whether a one-layer stack of a general (2D) layer was solved as one 4N x 4N boundary system instead of through W^-1 and V^-1 (stack.cpp, solve_direct).
+        Whether a one-layer stack was solved as one boundary system instead of through W^-1 and V^-1: 4N x 4N (stack.cpp, solve_direct), or 2N x 2N per polarization in classical mount (polarized.cpp, solve_polarized_direct).
         """
 
     @property

@@ -29,7 +29,7 @@ from typing import Callable
 
 import numpy as np
 
-from rcwa import fourier
+from rcwa import _core, fourier
 from rcwa.shapes import Circle, Rect, Stripe, overlapping_pairs, visible_regions
 from rcwa.structure import Layer
 
@@ -97,42 +97,23 @@ def _lamellar(layer: Layer, period: float, eps_of: Callable, m: np.ndarray, rule
 
 def lamellar_toeplitz(layer: Layer, period: float, eps_of: Callable, m: np.ndarray,
                       inverse: bool = True) -> tuple[np.ndarray, np.ndarray | None]:
-    """``[[eps]]`` and, with ``inverse``, ``[[1/eps]]`` of a 1D layer (Li 1996, JOSA A 13, 1870,
-    Eq. 3 for the Toeplitz matrices; Li's inverse rule is ``Exx = [[1/eps]]^-1``, which the
-    solver leaves to the core: rcwa/cpp/sweep.hpp, ``LayerInput::inverse_rule``).
+    """``[[eps]]`` and, with ``inverse``, ``[[1/eps]]`` of a 1D layer for harmonics ``m = -M..M``
+    (Li 1996, JOSA A 13, 1870, Eq. 3 for the Toeplitz matrices; Li's inverse rule is ``Exx =
+    [[1/eps]]^-1``, which the solver leaves to the core: rcwa/cpp/sweep.hpp,
+    ``LayerInput::inverse_rule``). Built by the core from the profile (rcwa/cpp/profile.hpp,
+    the closed-form interval transforms of rcwa.fourier); without ``inverse`` the second
+    matrix is None."""
+    core = _core.LayerInput.lamellar(0.0, period, lamellar_profile(layer, period, eps_of), int(m.size), inverse)
+    E, second = core.matrices
+    return E, (second if inverse else None)
 
-    The profile's segments are transformed together: ``c(g) = sum_s v_s int_s exp(-i q x)
-    dx / period`` (rcwa.fourier.interval_transform's closed form, all segments in one array).
-    Without ``inverse`` the second matrix is None.
-    """
+
+def lamellar_profile(layer: Layer, period: float, eps_of: Callable) -> list[tuple[float, float, complex]]:
+    """A 1D layer's permittivity as ``(x0, x1, eps)`` segments covering ``[0, period)``
+    (rcwa.fourier.paint_intervals: later stripes over earlier ones, wrapped into the cell)."""
     stripes = [s for s in layer.shapes if isinstance(s, Stripe)]
     eps_bg = complex(eps_of(layer.material))
-    eps_s = [complex(eps_of(s.material)) for s in stripes]
-    reach = 2 * int(np.max(np.abs(m)))
-    segments = fourier.paint_intervals(period, eps_bg, [(s.x0, s.x1, e) for s, e in zip(stripes, eps_s, strict=True)])
-    q = 2.0 * np.pi * np.arange(-reach, reach + 1, dtype=float) / period
-    a = np.array([seg[0] for seg in segments])
-    b = np.array([seg[1] for seg in segments])
-    values = np.array([seg[2] for seg in segments], dtype=complex)
-    # (b - a) sinc(q (b - a) / 2) exp(-i q (a + b) / 2), per (g, segment), in real arithmetic
-    # (cos and sin of real arrays: a third of the time of complex exp and np.sinc).
-    arg = np.outer(q, 0.5 * (b - a))
-    envelope = np.divide(np.sin(arg), arg, out=np.ones_like(arg), where=arg != 0.0) * (b - a)
-    phase = np.outer(q, 0.5 * (a + b))
-    cos_part, sin_part = envelope * np.cos(phase), envelope * np.sin(phase)
-    index = _toeplitz_index(tuple(m.tolist()), reach)
-
-    def toeplitz(v: np.ndarray) -> np.ndarray:
-        return ((cos_part @ v - 1j * (sin_part @ v)) / period)[index]
-
-    return toeplitz(values), (toeplitz(1.0 / values) if inverse else None)
-
-
-@lru_cache(maxsize=16)
-def _toeplitz_index(m: tuple[int, ...], reach: int) -> np.ndarray:
-    """Indices into coefficients listed for ``g = -reach..reach`` that give ``C[i, j] = c(m_j - m_i)``."""
-    ms = np.asarray(m)
-    return ms[None, :] - ms[:, None] + reach
+    return fourier.paint_intervals(period, eps_bg, [(s.x0, s.x1, complex(eps_of(s.material))) for s in stripes])
 
 
 def _toeplitz_centred(c: np.ndarray, m: np.ndarray) -> np.ndarray:

@@ -80,6 +80,20 @@ class LayerInput:
         object.__setattr__(self, "core", _core.LayerInput(kind, float(self.k0_thickness), complex(self.permittivity),
                                                           list(matrices), self.inverse_rule))
 
+    @classmethod
+    def lamellar(cls, k0_thickness: float, period: float, segments: list[tuple[float, float, complex]],
+                 harmonics: int, inverse_rule: bool = True) -> LayerInput:
+        """A LAMELLAR layer whose matrices the core builds from its permittivity profile
+        (``(x0, x1, eps)`` segments on ``[0, period)``; rcwa/cpp/profile.hpp): ``E`` and
+        ``[[1/eps]]`` with ``inverse_rule``, else ``Exx = E``. The core checks what it builds
+        (make_layer); ``matrices`` holds copies of its matrices."""
+        core = _core.LayerInput.lamellar(float(k0_thickness), float(period), segments, int(harmonics), inverse_rule)
+        layer = object.__new__(cls)
+        for name, value in (("kind", LayerKind.LAMELLAR), ("k0_thickness", float(k0_thickness)), ("permittivity", 0j),
+                            ("matrices", tuple(core.matrices)), ("inverse_rule", inverse_rule), ("core", core)):
+            object.__setattr__(layer, name, value)
+        return layer
+
     @property
     def size(self) -> int:
         """N, the number of harmonics the matrices are for (0 for a uniform layer)."""

@@ -18,7 +18,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from rcwa import _core, symmetry
-from rcwa.factorization import HarmonicIndices, lamellar_toeplitz, permittivity_matrices, resolve_rule
+from rcwa.factorization import HarmonicIndices, lamellar_profile, permittivity_matrices, resolve_rule
 from rcwa.layer_input import LayerInput, LayerKind
 from rcwa.materials import Material
 from rcwa.result import OrderResult, SolveResult
@@ -358,10 +358,8 @@ def _layer_input(layer, structure: Structure, eps_of, h: HarmonicIndices, rule: 
     if structure.dimension == 1:
         # Li's inverse rule leaves Exx = [[1/eps]]^-1 to the core, which forms it only where a
         # TM family needs it (not for s in classical mount).
-        E, inverse = lamellar_toeplitz(layer, structure.period[0], eps_of, h.m, inverse=rule != "laurent")
-        if inverse is None:
-            return LayerInput(LayerKind.LAMELLAR, k0d, 0j, (E, E))
-        return LayerInput(LayerKind.LAMELLAR, k0d, 0j, (E, inverse), inverse_rule=True)
+        return LayerInput.lamellar(k0d, structure.period[0], lamellar_profile(layer, structure.period[0], eps_of),
+                                   h.m.size, inverse_rule=rule != "laurent")
     pm = permittivity_matrices(layer, structure.period, eps_of, h, rule)
     zero = np.zeros_like(pm.E)
     exy = pm.exy if pm.exy is not None else zero

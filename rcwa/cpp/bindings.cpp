@@ -20,6 +20,7 @@
 #include <stdexcept>
 #include <string>
 
+#include "profile.hpp"
 #include "sweep.hpp"
 
 namespace nb = nanobind;
@@ -209,6 +210,19 @@ void bind_layers(nb::module_& m) {
             },
             nb::rv_policy::automatic,  // owned copies, not views of the layer (reference_internal)
             "Copies of the Fourier matrices, in the order given.")
+        .def_static(
+            "lamellar",
+            [](double k0_thickness, double period, const std::vector<std::tuple<double, double, cplx>>& segments,
+               int harmonics, bool inverse_rule) {
+                std::vector<rcwa::ProfileSegment> pieces;
+                pieces.reserve(segments.size());
+                for (const auto& [x0, x1, value] : segments) pieces.push_back({x0, x1, value});
+                return rcwa::lamellar_layer(k0_thickness, period, pieces, harmonics, inverse_rule);
+            },
+            "k0_thickness"_a, "period"_a, "segments"_a, "harmonics"_a, "inverse_rule"_a = true,
+            "A lamellar layer from its permittivity profile on [0, period), as (x0, x1, eps) segments: E = [[eps]] "
+            "and [[1/eps]] (inverse_rule, Li 1996) or Exx = E (Laurent), for `harmonics` orders m = -M..M "
+            "(profile.hpp).")
         .def("__repr__", [](const rcwa::LayerInput& layer) {
             return std::string("LayerInput(") + rcwa::kind_name(layer.kind) +
                    ", k0_thickness=" + std::to_string(layer.thickness) + ", N=" + std::to_string(layer.size()) + ")";
@@ -232,8 +246,9 @@ void bind_results(nb::module_& m) {
                 "Whether TE and TM were solved apart on N x N blocks (1D, every ky = 0: polarized.hpp); a "
                 "polarization not asked for then has NaN amplitudes.")
         .def_ro("direct", &rcwa::StackSolution::direct,
-                "Whether a one-layer stack of a general (2D) layer was solved as one 4N x 4N boundary system "
-                "instead of through W^-1 and V^-1 (stack.cpp, solve_direct).")
+                "Whether a one-layer stack was solved as one boundary system instead of through W^-1 and V^-1: "
+                "4N x 4N (stack.cpp, solve_direct), or 2N x 2N per polarization in classical mount (polarized.cpp, "
+                "solve_polarized_direct).")
         .def_ro("hermitian_solves", &rcwa::StackSolution::hermitian_solves,
                 "Eigen-solves of lossless 1D layers done by Hermitian solvers (zheevd, zhegvd) instead of zgeev.")
         .def_ro("real_solves", &rcwa::StackSolution::real_solves,

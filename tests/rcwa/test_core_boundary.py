@@ -315,3 +315,15 @@ def test_inverse_rule_is_refused_off_lamellar_layers():
         LayerInput(LayerKind.GENERAL, 1.0, 0j, (_matrix(3),) * 5, inverse_rule=True)
     with pytest.raises(ValueError, match="inverse_rule applies to lamellar layers only"):
         _core.LayerInput(_core.LayerKind.UNIFORM, 1.0, 2.25, [], inverse_rule=True)
+
+
+def test_a_lamellar_layer_from_its_profile_is_checked_by_the_core():
+    """The core builds a 1D layer's matrices from its profile (rcwa/cpp/profile.hpp; their
+    values: tests/rcwa/test_factorization.py); an even harmonic count or an empty segment
+    cannot describe one and is refused, naming what is wrong."""
+    layer = _core.LayerInput.lamellar(1.0, 2.0, [(0.0, 0.5, 2.25 + 0j), (0.5, 2.0, 1.0 + 0j)], 5)
+    assert layer.kind == _core.LayerKind.LAMELLAR and layer.size == 5 and layer.inverse_rule
+    with pytest.raises(ValueError, match="harmonics must be odd"):
+        _core.LayerInput.lamellar(1.0, 2.0, [(0.0, 2.0, 1.0 + 0j)], 4)
+    with pytest.raises(ValueError, match="x1 > x0"):
+        _core.LayerInput.lamellar(1.0, 2.0, [(0.5, 0.5, 1.0 + 0j)], 5)
