@@ -103,11 +103,30 @@ std::unique_ptr<LayerModes> uniform_modes(const Harmonics& h, cplx eps) {
 
 DenseModes::DenseModes(Mat W, Mat V, CVec kz) : W_(std::move(W)), V_(std::move(V)) { kz_ = std::move(kz); }
 
+Mat q_matrix(const Harmonics& h, const Mat& Exx, const Mat& Exy, const Mat& Eyx, const Mat& Eyy) {
+    const int n = h.size();
+    Mat Q(2 * n, 2 * n);
+    for (int j = 0; j < n; ++j) {
+        for (int i = 0; i < n; ++i) {
+            Q(i, j) = -Eyx(i, j);
+            Q(n + i, j) = Exx(i, j);
+        }
+        for (int i = 0; i < n; ++i) {
+            Q(i, n + j) = -Eyy(i, j);
+            Q(n + i, n + j) = Exy(i, j);
+        }
+        Q(j, j) -= h.kx[j] * h.ky[j];
+        Q(j, n + j) += h.kx[j] * h.kx[j];
+        Q(n + j, j) -= h.ky[j] * h.ky[j];
+        Q(n + j, n + j) += h.ky[j] * h.kx[j];
+    }
+    return Q;
+}
+
 void pq_matrices(const Harmonics& h, const Mat& Z, const Mat& Exx, const Mat& Exy, const Mat& Eyx, const Mat& Eyy,
                  Mat& P, Mat& Q) {
     const int n = h.size();
     P = Mat(2 * n, 2 * n);
-    Q = Mat(2 * n, 2 * n);
     for (int j = 0; j < n; ++j) {
         for (int i = 0; i < n; ++i) {
             const cplx z = Z(i, j);
@@ -115,18 +134,11 @@ void pq_matrices(const Harmonics& h, const Mat& Z, const Mat& Exx, const Mat& Ex
             P(i, n + j) = -h.kx[i] * z * h.kx[j];
             P(n + i, j) = h.ky[i] * z * h.ky[j];
             P(n + i, n + j) = -h.ky[i] * z * h.kx[j];
-            Q(i, j) = -Eyx(i, j);
-            Q(i, n + j) = -Eyy(i, j);
-            Q(n + i, j) = Exx(i, j);
-            Q(n + i, n + j) = Exy(i, j);
         }
         P(j, n + j) += 1.0;
         P(n + j, j) -= 1.0;
-        Q(j, j) -= h.kx[j] * h.ky[j];
-        Q(j, n + j) += h.kx[j] * h.kx[j];
-        Q(n + j, j) -= h.ky[j] * h.ky[j];
-        Q(n + j, n + j) += h.ky[j] * h.kx[j];
     }
+    Q = q_matrix(h, Exx, Exy, Eyx, Eyy);
 }
 
 Mat pq_product(const Harmonics& h, const Mat& Z, const Mat& Q) {
@@ -150,8 +162,7 @@ Mat pq_product(const Harmonics& h, const Mat& Z, const Mat& Q) {
 std::unique_ptr<LayerModes> general_modes(const Harmonics& h, const Mat& Z, const Mat& Exx,
                                           const Mat& Exy, const Mat& Eyx, const Mat& Eyy) {
     const int n = h.size();
-    Mat P, Q;
-    pq_matrices(h, Z, Exx, Exy, Eyx, Eyy, P, Q);
+    const Mat Q = q_matrix(h, Exx, Exy, Eyx, Eyy);
     Eigen e = eig(pq_product(h, Z, Q));
     CVec kz(2 * static_cast<std::size_t>(n));
     for (int i = 0; i < 2 * n; ++i) kz[i] = layer_kz(e.values[i]);
