@@ -159,6 +159,40 @@ Mat pq_product(const Harmonics& h, const Mat& Z, const Mat& Q) {
     return PQ;
 }
 
+namespace {
+
+bool is_zero(const Mat& A) {
+    for (const cplx& v : A.data)
+        if (v != 0.0) return false;
+    return true;
+}
+
+// Q W for Q of a layer whose tensor has no off-diagonal blocks (Exy = Eyx = 0: Laurent's
+// rule, and Li's in 2D, which the rectangle-only cells use): with W = [Wx; Wy],
+// Q W = [-Eyy Wy + diag(-kx ky) Wx + diag(kx^2) Wy; Exx Wx - diag(ky^2) Wx + diag(ky kx) Wy],
+// two N x N by N x 2N products instead of one 2N x 2N square one: half the work, equal to
+// matmul(Q, W) to round-off.
+Mat q_times_diagonal_tensor(const Harmonics& h, const Mat& Exx, const Mat& Eyy, const Mat& W) {
+    const int n = h.size(), cols = W.cols;
+    Mat Wx(n, cols), Wy(n, cols);
+    for (int j = 0; j < cols; ++j)
+        for (int i = 0; i < n; ++i) {
+            Wx(i, j) = W(i, j);
+            Wy(i, j) = W(n + i, j);
+        }
+    const Mat top = matmul(Eyy, Wy), bottom = matmul(Exx, Wx);
+    Mat QW(2 * n, cols);
+    for (int j = 0; j < cols; ++j)
+        for (int i = 0; i < n; ++i) {
+            const double kx = h.kx[i], ky = h.ky[i];
+            QW(i, j) = -top(i, j) - kx * ky * Wx(i, j) + kx * kx * Wy(i, j);
+            QW(n + i, j) = bottom(i, j) - ky * ky * Wx(i, j) + ky * kx * Wy(i, j);
+        }
+    return QW;
+}
+
+}  // namespace
+
 std::unique_ptr<LayerModes> general_modes(const Harmonics& h, const Mat& Z, const Mat& Exx,
                                           const Mat& Exy, const Mat& Eyx, const Mat& Eyy) {
     const int n = h.size();
@@ -166,7 +200,7 @@ std::unique_ptr<LayerModes> general_modes(const Harmonics& h, const Mat& Z, cons
     Eigen e = eig(pq_product(h, Z, Q));
     CVec kz(2 * static_cast<std::size_t>(n));
     for (int i = 0; i < 2 * n; ++i) kz[i] = layer_kz(e.values[i]);
-    Mat V = matmul(Q, e.vectors);
+    Mat V = is_zero(Exy) && is_zero(Eyx) ? q_times_diagonal_tensor(h, Exx, Eyy, e.vectors) : matmul(Q, e.vectors);
     for (int j = 0; j < 2 * n; ++j) {
         const cplx inv_kz = 1.0 / kz[j];  // one division a column, not one an entry
         for (int i = 0; i < 2 * n; ++i) V(i, j) *= inv_kz;

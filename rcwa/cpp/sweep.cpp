@@ -315,7 +315,7 @@ StackSolution solve_point(const SweepProblem& pr, std::size_t p, Incidence incid
     if (fast_paths) {
         const StackProblem sp = stack_problem(pr, p);
         if (decoupled_point(pr, sp)) return solve_decoupled(pr, sp, incidence);
-        mirrors = respected_mirrors(pr);
+        mirrors = respected_mirrors(pr, sp);
     }
     const std::vector<Mat> Zs = inverse_laurent(pr, mirrors);
     if (!mirrors.empty())
