@@ -139,7 +139,7 @@ def cell_coefficients(
     v_bg = complex(value_of(layer.material))
     c = np.where((qx == 0) & (qy == 0), v_bg, 0.0).astype(complex)
     shapes = list(layer.shapes_2d)
-    if not overlapping_pairs(shapes, period):
+    if len(shapes) < 2 or not overlapping_pairs(shapes, period):  # one shape overlaps nothing (no shapely outline)
         for s in shapes:
             c += (complex(value_of(s.material)) - v_bg) * s.transform(qx, qy) / area
         return c
@@ -150,9 +150,12 @@ def cell_coefficients(
 
 
 def _convolution(c: np.ndarray, gx0: int, gy0: int, h: HarmonicIndices) -> np.ndarray:
-    dm = h.m[None, :] - h.m[:, None]
-    dn = h.n[None, :] - h.n[:, None]
-    return c[dm + gx0, dn + gy0]
+    """``C[i, j] = c[m_j - m_i + gx0, n_j - n_i + gy0]``, gathered through one flat index
+    (the row-major position of (m, n) in ``c`` is linear in both): a tenth of the time of the
+    two-array fancy index at 15 x 15 orders, the same values."""
+    width = c.shape[1]
+    flat = h.m * width + h.n
+    return c.ravel().take(flat[None, :] - flat[:, None] + (gx0 * width + gy0))
 
 
 def _crossed(layer: Layer, period, eps_of: Callable, h: HarmonicIndices, rule: str) -> PermittivityMatrices:
@@ -199,9 +202,7 @@ def _li_slabbed(layer: Layer, period, eps_of: Callable, h: HarmonicIndices, axis
     g_across = np.arange(-2 * int(np.max(np.abs(idx_across))), 2 * int(np.max(np.abs(idx_across))) + 1)
     edges = _slab_edges(layer, across, 1 - axis)
     eps_bg = complex(eps_of(layer.material))
-    # total[i, j, g]: coefficient g (across) of the slab-wise inverse-rule matrix entry (i, j).
-    total = np.zeros((m_along.size, m_along.size, g_across.size), dtype=complex)
-    q_across = 2 * np.pi * g_across / across
+    slabs = []  # (a, b, the cut's segments along) of every slab
     for a, b in zip(edges[:-1], edges[1:], strict=True):
         if b - a <= 1e-15:
             continue
@@ -211,12 +212,41 @@ def _li_slabbed(layer: Layer, period, eps_of: Callable, h: HarmonicIndices, axis
             for shift in (-across, 0.0, across):
                 for x0, x1 in s.chords(cut + shift, 1 - axis):
                     intervals.append((x0, x1, 1.0 / complex(eps_of(s.material))))
-        segments = fourier.paint_intervals(along, 1.0 / eps_bg, _clip_intervals(intervals, along))
-        inv = np.linalg.inv(_toeplitz_centred(fourier.profile_coefficients(segments, along, ga), m_along))
-        total += inv[:, :, None] * fourier.interval_transform(q_across, a, b)[None, None, :] / across
-    i = idx_along - m_along[0]
-    d_across = idx_across[None, :] - idx_across[:, None] + g_across.size // 2
-    return total[i[:, None], i[None, :], d_across]
+        slabs.append((a, b, tuple(fourier.paint_intervals(along, 1.0 / eps_bg, _clip_intervals(intervals, along)))))
+    # Slabs with the same cut (the background's on both sides of a block) share one inverse.
+    cuts = list(dict.fromkeys(segments for _, _, segments in slabs))
+    pieces = [piece for segments in cuts for piece in segments]
+    along_t = _interval_transforms(2.0 * np.pi * np.asarray(ga, dtype=float) / along, pieces)
+    across_t = _interval_transforms(2 * np.pi * g_across / across, slabs)
+    inverses: dict[tuple, np.ndarray] = {}
+    row = 0
+    for segments in cuts:
+        # fourier.profile_coefficients, its sum in the same order
+        coefficients = np.zeros(ga.shape, dtype=complex)
+        for (_, _, value), transform in zip(segments, along_t[row:row + len(segments)], strict=True):
+            coefficients += value * transform
+        row += len(segments)
+        inverses[segments] = np.linalg.inv(_toeplitz_centred(coefficients / along, m_along))
+    # total[i, j, g]: coefficient g (across) of the slab-wise inverse-rule matrix entry (i, j).
+    total = np.zeros((m_along.size, m_along.size, g_across.size), dtype=complex)
+    for (_, _, segments), transform in zip(slabs, across_t, strict=True):
+        total += inverses[segments][:, :, None] * transform[None, None, :] / across
+    # total[i_r, i_c, n_c - n_r + G // 2] (i: index along, n: order across, G: g_across.size),
+    # through one flat index (row-major: (i_r M + i_c) G + d), split into its row's and its
+    # column's parts: the same values as the three-array fancy index, several times faster.
+    i, size_g = idx_along - m_along[0], g_across.size
+    rows = i * (m_along.size * size_g) - idx_across
+    cols = i * size_g + idx_across + size_g // 2
+    return total.ravel().take(rows[:, None] + cols[None, :])
+
+
+def _interval_transforms(q: np.ndarray, intervals) -> np.ndarray:
+    """fourier.interval_transform of every ``(a, b, ...)`` in ``intervals`` at once (one row
+    each), element by element the same arithmetic."""
+    a = np.array([iv[0] for iv in intervals], dtype=float)[:, None]
+    b = np.array([iv[1] for iv in intervals], dtype=float)[:, None]
+    half = 0.5 * (b - a)
+    return (b - a) * np.exp(-1j * q[None, :] * 0.5 * (a + b)) * np.sinc(q[None, :] * half / np.pi)
 
 
 def _clip_intervals(intervals, length: float):

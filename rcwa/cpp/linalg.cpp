@@ -31,6 +31,13 @@ void gemm(const Mat& A, const Mat& B, Mat& C, cplx alpha, cplx beta, char transA
                       C.rows > 0 ? C.rows : 1);
 }
 
+void gemm_block(int m, int n, int k, cplx alpha, const cplx* A, int lda, const cplx* B, int ldb, cplx beta, cplx* C,
+                int ldc) {
+    if (m == 0 || n == 0) return;
+    scipy_cblas_zgemm(CblasColMajor, CblasNoTrans, CblasNoTrans, m, n, k, &alpha, A, std::max(1, lda), B,
+                      std::max(1, ldb), &beta, C, std::max(1, ldc));
+}
+
 Mat matmul(const Mat& A, const Mat& B) {
     Mat C(A.rows, B.cols);
     gemm(A, B, C);

@@ -34,6 +34,10 @@ struct Mat {
 void gemm(const Mat& A, const Mat& B, Mat& C, cplx alpha = 1.0, cplx beta = 0.0,
           char transA = 'N', char transB = 'N');
 Mat matmul(const Mat& A, const Mat& B);
+// C = alpha * A * B + beta * C on column-major blocks given by their first entry and leading
+// dimension (m x k times k x n), such as the halves of a 2N x 2N matrix, without copying them.
+void gemm_block(int m, int n, int k, cplx alpha, const cplx* A, int lda, const cplx* B, int ldb, cplx beta, cplx* C,
+                int ldc);
 
 // LU factorization of a square matrix, kept for repeated solves.
 class LU {

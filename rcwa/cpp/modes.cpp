@@ -103,11 +103,30 @@ std::unique_ptr<LayerModes> uniform_modes(const Harmonics& h, cplx eps) {
 
 DenseModes::DenseModes(Mat W, Mat V, CVec kz) : W_(std::move(W)), V_(std::move(V)) { kz_ = std::move(kz); }
 
+Mat q_matrix(const Harmonics& h, const Mat& Exx, const Mat& Exy, const Mat& Eyx, const Mat& Eyy) {
+    const int n = h.size();
+    Mat Q(2 * n, 2 * n);
+    for (int j = 0; j < n; ++j) {
+        for (int i = 0; i < n; ++i) {
+            Q(i, j) = -Eyx(i, j);
+            Q(n + i, j) = Exx(i, j);
+        }
+        for (int i = 0; i < n; ++i) {
+            Q(i, n + j) = -Eyy(i, j);
+            Q(n + i, n + j) = Exy(i, j);
+        }
+        Q(j, j) -= h.kx[j] * h.ky[j];
+        Q(j, n + j) += h.kx[j] * h.kx[j];
+        Q(n + j, j) -= h.ky[j] * h.ky[j];
+        Q(n + j, n + j) += h.ky[j] * h.kx[j];
+    }
+    return Q;
+}
+
 void pq_matrices(const Harmonics& h, const Mat& Z, const Mat& Exx, const Mat& Exy, const Mat& Eyx, const Mat& Eyy,
                  Mat& P, Mat& Q) {
     const int n = h.size();
     P = Mat(2 * n, 2 * n);
-    Q = Mat(2 * n, 2 * n);
     for (int j = 0; j < n; ++j) {
         for (int i = 0; i < n; ++i) {
             const cplx z = Z(i, j);
@@ -115,18 +134,11 @@ void pq_matrices(const Harmonics& h, const Mat& Z, const Mat& Exx, const Mat& Ex
             P(i, n + j) = -h.kx[i] * z * h.kx[j];
             P(n + i, j) = h.ky[i] * z * h.ky[j];
             P(n + i, n + j) = -h.ky[i] * z * h.kx[j];
-            Q(i, j) = -Eyx(i, j);
-            Q(i, n + j) = -Eyy(i, j);
-            Q(n + i, j) = Exx(i, j);
-            Q(n + i, n + j) = Exy(i, j);
         }
         P(j, n + j) += 1.0;
         P(n + j, j) -= 1.0;
-        Q(j, j) -= h.kx[j] * h.ky[j];
-        Q(j, n + j) += h.kx[j] * h.kx[j];
-        Q(n + j, j) -= h.ky[j] * h.ky[j];
-        Q(n + j, n + j) += h.ky[j] * h.kx[j];
     }
+    Q = q_matrix(h, Exx, Exy, Eyx, Eyy);
 }
 
 Mat pq_product(const Harmonics& h, const Mat& Z, const Mat& Q) {
@@ -137,29 +149,64 @@ Mat pq_product(const Harmonics& h, const Mat& Z, const Mat& Q) {
     Mat S(n, 2 * n);
     for (int j = 0; j < 2 * n; ++j)
         for (int i = 0; i < n; ++i) S(i, j) = h.ky[i] * Q(i, j) - h.kx[i] * Q(n + i, j);
-    const Mat T = matmul(Z, S);
     Mat PQ(2 * n, 2 * n);
+    gemm_block(n, 2 * n, n, 1.0, Z.ptr(), n, S.ptr(), n, 0.0, PQ.ptr(), 2 * n);  // T = Z S in PQ's top half
     for (int j = 0; j < 2 * n; ++j)
         for (int i = 0; i < n; ++i) {
-            PQ(i, j) = h.kx[i] * T(i, j) + Q(n + i, j);
-            PQ(n + i, j) = h.ky[i] * T(i, j) - Q(i, j);
+            const cplx t = PQ(i, j);
+            PQ(i, j) = h.kx[i] * t + Q(n + i, j);
+            PQ(n + i, j) = h.ky[i] * t - Q(i, j);
         }
     return PQ;
 }
 
+namespace {
+
+bool is_zero(const Mat& A) {
+    for (const cplx& v : A.data)
+        if (v != 0.0) return false;
+    return true;
+}
+
+// V = Q W diag(kz)^-1 (modes.hpp). Where the tensor has no off-diagonal blocks (Exy = Eyx =
+// 0: Laurent's rule, and Li's in 2D, which the rectangle-only cells use), with W = [Wx; Wy],
+// Q W = [-Eyy Wy + diag(-kx ky) Wx + diag(kx^2) Wy; Exx Wx - diag(ky^2) Wx + diag(ky kx) Wy]:
+// two N x N by N x 2N products on W's halves in place instead of one 2N x 2N square one,
+// half the work, equal to matmul(Q, W) to round-off.
+Mat mode_V(const Harmonics& h, const Mat& Q, const Mat& Exx, const Mat& Exy, const Mat& Eyx, const Mat& Eyy,
+           const Mat& W, const CVec& kz) {
+    const int n = h.size(), n2 = 2 * n, cols = W.cols;
+    CVec inv_kz(kz.size());
+    for (std::size_t j = 0; j < kz.size(); ++j) inv_kz[j] = 1.0 / kz[j];  // one division a column, not one an entry
+    if (!is_zero(Exy) || !is_zero(Eyx)) {
+        Mat V = matmul(Q, W);
+        for (int j = 0; j < cols; ++j)
+            for (int i = 0; i < n2; ++i) V(i, j) *= inv_kz[j];
+        return V;
+    }
+    Mat V(n2, cols);
+    gemm_block(n, cols, n, -1.0, Eyy.ptr(), n, W.ptr() + n, n2, 0.0, V.ptr(), n2);
+    gemm_block(n, cols, n, 1.0, Exx.ptr(), n, W.ptr(), n2, 0.0, V.ptr() + n, n2);
+    for (int j = 0; j < cols; ++j)
+        for (int i = 0; i < n; ++i) {
+            const double kx = h.kx[i], ky = h.ky[i];
+            const cplx wx = W(i, j), wy = W(n + i, j);
+            V(i, j) = (V(i, j) - kx * ky * wx + kx * kx * wy) * inv_kz[j];
+            V(n + i, j) = (V(n + i, j) - ky * ky * wx + ky * kx * wy) * inv_kz[j];
+        }
+    return V;
+}
+
+}  // namespace
+
 std::unique_ptr<LayerModes> general_modes(const Harmonics& h, const Mat& Z, const Mat& Exx,
                                           const Mat& Exy, const Mat& Eyx, const Mat& Eyy) {
     const int n = h.size();
-    Mat P, Q;
-    pq_matrices(h, Z, Exx, Exy, Eyx, Eyy, P, Q);
+    const Mat Q = q_matrix(h, Exx, Exy, Eyx, Eyy);
     Eigen e = eig(pq_product(h, Z, Q));
     CVec kz(2 * static_cast<std::size_t>(n));
     for (int i = 0; i < 2 * n; ++i) kz[i] = layer_kz(e.values[i]);
-    Mat V = matmul(Q, e.vectors);
-    for (int j = 0; j < 2 * n; ++j) {
-        const cplx inv_kz = 1.0 / kz[j];  // one division a column, not one an entry
-        for (int i = 0; i < 2 * n; ++i) V(i, j) *= inv_kz;
-    }
+    Mat V = mode_V(h, Q, Exx, Exy, Eyx, Eyy, e.vectors, kz);
     return std::make_unique<DenseModes>(std::move(e.vectors), std::move(V), std::move(kz));
 }
 

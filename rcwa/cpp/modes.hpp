@@ -60,6 +60,10 @@ class LayerModes {
     // rather than through W^-1 and V^-1: dense W and V at hand (DenseModes), or a lamellar
     // layer whose inverses were not computed (LamellarParts::inverses).
     virtual bool dense() const { return false; }
+    // W and V themselves where the layer stores them (DenseModes), without a copy; nullptr
+    // where they would have to be assembled (call W(), V() then).
+    virtual const Mat* stored_W() const { return nullptr; }
+    virtual const Mat* stored_V() const { return nullptr; }
 
   protected:
     Mat identity() const { return Mat::identity(static_cast<int>(kz_.size())); }
@@ -124,6 +128,9 @@ LamellarEigen lamellar_eigen(const std::vector<double>& kx, const Mat& E, const 
 std::unique_ptr<LayerModes> lamellar_modes(const std::vector<double>& kx, const LamellarEigen& eig,
                                            double ky);
 
+// Q of the header comment (2N x 2N) for a general layer (general_modes needs no P:
+// pq_product).
+Mat q_matrix(const Harmonics& h, const Mat& Exx, const Mat& Exy, const Mat& Eyx, const Mat& Eyy);
 // P and Q of the header comment (2N x 2N) for a general layer; Z = [[eps]]^-1 is given
 // (it depends on the wavelength only, so a sweep takes it once: sweep.cpp).
 void pq_matrices(const Harmonics& h, const Mat& Z, const Mat& Exx, const Mat& Exy, const Mat& Eyx, const Mat& Eyy,
@@ -150,6 +157,8 @@ class DenseModes : public LayerModes {
     Mat W() const override { return W_; }
     Mat V() const override { return V_; }
     bool dense() const override { return true; }
+    const Mat* stored_W() const override { return &W_; }
+    const Mat* stored_V() const override { return &V_; }
 
   private:
     static const LU& lu(std::optional<LU>& slot, const Mat& A) {

@@ -301,6 +301,17 @@ std::vector<Mirror> respected_mirrors(const SweepProblem& pr) {
     return out;
 }
 
+std::vector<Mirror> respected_mirrors(const SweepProblem& pr, const StackProblem& sp) {
+    StackProblem internal = sp;  // the sectors' basis (solve_sectors): s-hat = y where kt = 0
+    internal.s_x = 0.0;
+    internal.s_y = 1.0;
+    const Basis basis = polarization_basis(internal);
+    std::vector<Mirror> out;
+    for (const Mirror& m : pr.mirrors)
+        if (mirror_actions(m, sp, basis) && layers_respect(pr, m)) out.push_back(m);
+    return out;
+}
+
 Mat laurent_inverse(const Mat& E, const std::vector<Mirror>& mirrors) {
     const int n = E.rows;
     if (mirrors.empty()) return LU(E).inverse();

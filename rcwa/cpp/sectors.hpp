@@ -58,6 +58,10 @@ constexpr double kSymmetryTolerance = 1e-11;
 // The mirrors of problem.mirrors that every layer respects: uniform layers, and general
 // ones whose matrices commute with the mirror (above). Checked once per problem.
 std::vector<Mirror> respected_mirrors(const SweepProblem& problem);
+// Those of them that one point (its harmonics) respects too, checked first (O(N) each, the
+// layers' O(N^2)): a single solve off every mirror plane then takes neither the layers'
+// check nor [[eps]]^-1 block by block (laurent_inverse), which only solve_sectors uses.
+std::vector<Mirror> respected_mirrors(const SweepProblem& problem, const StackProblem& point);
 
 // Z = E^-1 for the Laurent matrix E of a layer that commutes with every scalar mirror
 // action of `mirrors` (from respected_mirrors; for scalar fields, whatever the incidence):

@@ -291,40 +291,104 @@ void solve_etm(const StackProblem& pr, const Basis& basis, StackSolution& out) {
 // the bottom. The superstrate's rows (project_up, which annihilate its up-going waves) take
 // the incident wave; the substrate's (project_out with direction -1, which annihilate its
 // down-going, outgoing waves) give zero, since the field there is those waves alone:
-//     [[PW - PV, (PW + PV) X], [(SW - SV) X, SW + SV]] [c_d; c_u] = [project_up(inc); 0],
+//     [[L, R X], [R' X, L']] [c_d; c_u] = [project_up(inc); 0],
+// L = project_up(W, -V), R = project_up(W, V), L' = project_out(-1)(W, V), R' = its (W, -V):
 // one 4N x 4N LU factorization. It replaces the ETM step's explicit W^-1 and V^-1 (an LU
-// factorization and inversion each) and its two 2N x 2N products and two factorizations:
-// about half of the stack's work for a dense layer (a lamellar one then needs no inverse
-// blocks either: LamellarParts::inverses). r is measured from the field at the
-// top (reflected_amplitudes), t from the field at the bottom: the substrate's s wave has
-// E = s-hat and its p wave h = s-hat, and each's other field is along p-hat, so
-// t_s = s-hat . E and t_p = s-hat . h, exact also where kz = 0 in the substrate.
+// factorization and inversion each) and its two 2N x 2N products and two factorizations
+// (a lamellar layer then needs no inverse blocks either: LamellarParts::inverses).
+// Where the substrate is the superstrate's medium (a free-standing layer: L' = L, R' = R),
+// the stack is symmetric under z -> d - z, and the even and odd combinations e = c_d + c_u,
+// o = c_d - c_u decouple: (L + R X) e = (L - R X) o = project_up(inc), two 2N x 2N LU
+// factorizations, a quarter of the 4N one's work. All blocks are assembled in one pass over
+// W and V from the s and p components of each mode's fields (boundary_blocks). r is
+// measured from the field at the top (reflected_amplitudes), t from the field at the
+// bottom: the substrate's s wave has E = s-hat and its p wave h = s-hat, and each's other
+// field is along p-hat, so t_s = s-hat . E and t_p = s-hat . h, exact also where kz = 0
+// in the substrate.
+// Per mode j and order i, with Es, Ep the s and p components of W's column, hs, hp those of
+// V's, a = kz Es, e = kz / eps hs in a half-space: project_up(W, -+V) = [a -+ hp; Ep +- e]
+// and project_out(-1)(W, +-V) = [a' -+ hp; Ep +- e'].
+template <class Write>
+void boundary_blocks(const Basis& basis, const Mat& W, const Mat& V, const CVec& kz1, cplx eps1, const CVec& kz2,
+                     cplx eps2, const Write& write) {
+    const int n = W.rows / 2;
+    CVec e1(static_cast<std::size_t>(n)), e2(static_cast<std::size_t>(n));
+    for (int i = 0; i < n; ++i) {
+        e1[i] = kz1[i] / eps1;
+        e2[i] = kz2[i] / eps2;
+    }
+    for (int j = 0; j < W.cols; ++j) {
+        const cplx* w = &W(0, j);
+        const cplx* v = &V(0, j);
+        for (int i = 0; i < n; ++i) {
+            const cplx Es = basis.sx[i] * w[i] + basis.sy[i] * w[n + i];
+            const cplx Ep = basis.px[i] * w[i] + basis.py[i] * w[n + i];
+            const cplx hs = basis.sx[i] * v[i] + basis.sy[i] * v[n + i];
+            const cplx hp = basis.px[i] * v[i] + basis.py[i] * v[n + i];
+            write(i, j, kz1[i] * Es, kz2[i] * Es, Ep, hp, e1[i] * hs, e2[i] * hs);
+        }
+    }
+}
+
+// The mode amplitudes [c_d; c_u] (4N x cols) for the superstrate's projected incident
+// waves `top` (2N x cols), by the 4N x 4N system or, where eps_substrate ==
+// eps_superstrate, its even and odd halves (solve_direct).
+Mat direct_amplitudes(const StackProblem& pr, const Basis& basis, const Mat& W, const Mat& V, const CVec& X,
+                      const StackSolution& out, const Mat& top) {
+    const int n2 = W.rows, n = n2 / 2, cols = top.cols;
+    Mat c(2 * n2, cols);
+    if (pr.eps_substrate == pr.eps_superstrate) {
+        Mat even(n2, n2), odd(n2, n2);
+        boundary_blocks(basis, W, V, out.kz_superstrate, pr.eps_superstrate, out.kz_substrate, pr.eps_substrate,
+                        [&](int i, int j, cplx a, cplx, cplx Ep, cplx hp, cplx e, cplx) {
+                            const cplx x = X[j], p = 1.0 + x, m = 1.0 - x;
+                            even(i, j) = a * p - hp * m;
+                            even(n + i, j) = Ep * p + e * m;
+                            odd(i, j) = a * m - hp * p;
+                            odd(n + i, j) = Ep * m + e * p;
+                        });
+        const Mat ce = LU(std::move(even)).solve(top), co = LU(std::move(odd)).solve(top);
+        for (int k = 0; k < cols; ++k)
+            for (int i = 0; i < n2; ++i) {
+                c(i, k) = 0.5 * (ce(i, k) + co(i, k));
+                c(n2 + i, k) = 0.5 * (ce(i, k) - co(i, k));
+            }
+        return c;
+    }
+    Mat M(2 * n2, 2 * n2);
+    boundary_blocks(basis, W, V, out.kz_superstrate, pr.eps_superstrate, out.kz_substrate, pr.eps_substrate,
+                    [&](int i, int j, cplx a1, cplx a2, cplx Ep, cplx hp, cplx e1, cplx e2) {
+                        const cplx x = X[j];
+                        M(i, j) = a1 - hp;
+                        M(n + i, j) = Ep + e1;
+                        M(i, n2 + j) = (a1 + hp) * x;
+                        M(n + i, n2 + j) = (Ep - e1) * x;
+                        M(n2 + i, j) = (a2 + hp) * x;
+                        M(n2 + n + i, j) = (Ep - e2) * x;
+                        M(n2 + i, n2 + j) = a2 - hp;
+                        M(n2 + n + i, n2 + j) = Ep + e2;
+                    });
+    for (int k = 0; k < cols; ++k)
+        for (int i = 0; i < n2; ++i) c(i, k) = top(i, k);
+    return LU(std::move(M)).solve(c);
+}
+
 void solve_direct(const StackProblem& pr, const Basis& basis, StackSolution& out) {
     const LayerModes& m = *pr.layers.front();
     const int n2 = 2 * pr.harmonics.size(), n = n2 / 2;
     const CVec X = propagation(m, pr.thickness.front());
-    Mat M(2 * n2, 2 * n2);
-    {
-        const Mat W = m.W(), V = m.V();
-        const Mat PW = project_out(basis, out.kz_superstrate, pr.eps_superstrate, 1.0, W, Mat());
-        const Mat PV = project_out(basis, out.kz_superstrate, pr.eps_superstrate, 1.0, Mat(), V);
-        const Mat SW = project_out(basis, out.kz_substrate, pr.eps_substrate, -1.0, W, Mat());
-        const Mat SV = project_out(basis, out.kz_substrate, pr.eps_substrate, -1.0, Mat(), V);
-        for (int j = 0; j < n2; ++j)
-            for (int i = 0; i < n2; ++i) {
-                M(i, j) = PW(i, j) - PV(i, j);
-                M(i, n2 + j) = (PW(i, j) + PV(i, j)) * X[j];
-                M(n2 + i, j) = (SW(i, j) - SV(i, j)) * X[j];
-                M(n2 + i, n2 + j) = SW(i, j) + SV(i, j);
-            }
-    }
     Mat Finc, Ginc;
     incident_fields(pr, basis, out.kz_superstrate, Finc, Ginc);
     const Mat top = project_up(pr, basis, out.kz_superstrate, Finc, Ginc);
-    Mat c(2 * n2, 2);
-    for (int j = 0; j < 2; ++j)
-        for (int i = 0; i < n2; ++i) c(i, j) = top(i, j);
-    c = LU(std::move(M)).solve(c);
+    Mat c;
+    {
+        Mat W_copy, V_copy;  // only for layers that do not store W and V (LayerModes::stored_W)
+        const Mat* W = m.stored_W();
+        const Mat* V = m.stored_V();
+        if (!W) W = &(W_copy = m.W());
+        if (!V) V = &(V_copy = m.V());
+        c = direct_amplitudes(pr, basis, *W, *V, X, out, top);
+    }
     Mat top_plus(n2, 2), top_minus(n2, 2), bottom_plus(n2, 2), bottom_minus(n2, 2);
     for (int j = 0; j < 2; ++j)
         for (int i = 0; i < n2; ++i) {

@@ -17,7 +17,8 @@ struct StackProblem {
     std::vector<const LayerModes*> layers;  // from the superstrate down
     std::vector<double> thickness;          // k0 * d of each layer
     // One dense layer (LayerModes::dense) with the ETM: solve its 4N x 4N boundary system
-    // directly instead (solve_stack; `direct` in the solution).
+    // directly instead, or its even and odd 2N x 2N halves where the substrate is the
+    // superstrate's medium (stack.cpp, solve_direct; `direct` in the solution).
     bool direct_single_layer = false;
 };
 

@@ -35,13 +35,15 @@ Harmonics harmonics_at(const SweepProblem& pr, double kx0, double ky0) {
 // A solve allocates and frees many 2N x 2N matrices (238 kB at N = 61). glibc at first
 // serves blocks above 128 kB by mmap and hands freed heap tops back to the system, so each
 // such matrix cost fresh zeroed pages: page faults took 15-20 % of a sweep's time. Keep
-// blocks below 1 MB on the heap and up to 16 MB of free heap top (process-wide, once).
+// blocks below 32 MB (glibc's largest threshold; 2N x 2N at 15 x 15 orders is 3.2 MB, and
+// a single 2D solve there faulted in 29 MB of fresh pages, 3-6 % of its time) on the heap
+// and up to 64 MB of free heap top (process-wide, once).
 void keep_freed_memory() {
 #if defined(__GLIBC__)
     static std::once_flag once;
     std::call_once(once, [] {
-        mallopt(M_MMAP_THRESHOLD, 1 << 20);
-        mallopt(M_TRIM_THRESHOLD, 16 << 20);
+        mallopt(M_MMAP_THRESHOLD, 32 << 20);
+        mallopt(M_TRIM_THRESHOLD, 64 << 20);
     });
 #endif
 }
@@ -345,7 +347,7 @@ StackSolution solve_point(const SweepProblem& input, std::size_t p, Incidence in
     }
     const SweepProblem pr = with_exx(input);
     std::vector<Mirror> mirrors;
-    if (fast_paths) mirrors = respected_mirrors(pr);
+    if (fast_paths) mirrors = respected_mirrors(pr, stack_problem(pr, p));
     const std::vector<Mat> Zs = inverse_laurent(pr, mirrors);
     if (!mirrors.empty())
         if (auto sectors = solve_sectors(pr, stack_problem(pr, p), mirrors, incidence, Zs)) return std::move(*sectors);
