@@ -194,3 +194,16 @@ def test_a_table_solves_its_mirror_plane_directions_in_sectors(tmp_path):
     sweep = sweep_directions(GOLD2D, 550.0, np.array([30.0]), np.array([90.0]), 3, threads=1, sectors=False)
     stored = table.arrays["R"][0, 1, 2, :, 0]  # theta 30, phi 90, every kept order, unpolarized
     assert np.allclose(stored, sweep.R[0].mean(axis=-1), atol=1e-6)  # float32 storage
+
+
+def test_the_python_gate_passes_every_mirror_plane_and_nothing_else():
+    """rcwa.solve builds the cell's mirrors only where the incidence lies in a plane x = 0 or
+    y = 0 (solver.may_respect_a_mirror); the core's own test is tighter (1e-14). The planes
+    must pass, including phi = +-90 where cos(phi) leaves k_x0 ~ 1e-17, and directions off
+    them must not (they would only cost the mirrors' construction)."""
+    from rcwa.solver import may_respect_a_mirror
+
+    for theta, phi in ((0.0, 0.0), (35.0, 90.0), (35.0, -90.0), (20.0, 0.0), (20.0, 180.0), (20.0, 270.0)):
+        assert may_respect_a_mirror(*incident_tangential_k(1.0, math.radians(theta), math.radians(phi)))
+    for theta, phi in ((20.0, 30.0), (1e-3, 45.0), (60.0, 89.9)):
+        assert not may_respect_a_mirror(*incident_tangential_k(1.0, math.radians(theta), math.radians(phi)))
