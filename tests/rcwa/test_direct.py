@@ -2,7 +2,9 @@
 
 With one patterned layer between the half-spaces (a 2D layer, or a 1D one off the
 classical mount) a single solve takes the layer's boundary conditions as one 4N x 4N
-system (rcwa/cpp/stack.cpp, solve_direct) instead of the enhanced transmittance step's
+system (rcwa/cpp/stack.cpp, solve_direct; two 2N x 2N halves where the substrate is the
+superstrate's medium: tests/rcwa/test_direct_symmetric.py; in classical mount one 2N x 2N
+system per polarization: polarized.cpp) instead of the enhanced transmittance step's
 W^-1 and V^-1 (a lamellar layer's inverse blocks are then not computed). In exact
 arithmetic it is the same solution, so the two agree to round-off: 1e-12 (issue 17's
 bound; measured <= 4e-15 on the 2D cases, 1.7e-13 on the lossy 1D one, whose fast path
