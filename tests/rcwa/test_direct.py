@@ -64,6 +64,28 @@ CASES = {
     "1D lossless, symmetric about no point, conical": (TWO_STRIPES, 600.0, 25.0, 40.0, 31),
     "1D at a Rayleigh point of the superstrate, conical": (STRIPE, 600.0, RAYLEIGH_THETA, 30.0, 31),
 }
+# Free-standing layers (the substrate is the superstrate's medium): solved in even and odd
+# halves (tests/rcwa/test_direct_symmetric.py says how, and checks what only they need).
+FREE_STANDING = structure([1.0, 0.8], nk(1.0), nk(1.0), [
+    {"thickness": 0.25, "material": nk(1.0), "shapes": [
+        {"material": nk(2.2, 0.05), "rect": {"center": [0.3, 0.3], "size": [0.4, 0.2]}},
+        {"material": nk(1.8), "rect": {"center": [0.7, 0.6], "size": [0.2, 0.3]}}]}])
+# 2 nm of gold blocks: X = exp(i kz k0 d) near 1, so I - X nearly cancels in the odd half.
+THIN_GOLD = structure([1.0, 1.0], nk(1.0), nk(1.0), [
+    {"thickness": 0.002, "material": nk(1.0), "shapes": [
+        {"material": "gold", "rect": {"center": [0.3, 0.4], "size": [0.4, 0.3]}}]}])
+# 1D off the classical mount (a lamellar layer solved directly), immersed in n = 1.3.
+STRIPE_IMMERSED = structure([1.0], nk(1.3), nk(1.3), [
+    {"thickness": 0.3, "material": nk(1.0), "shapes": [{"material": nk(2.0, 0.2), "x": [0.1, 0.4]}]}])
+HALVES_CASES = {
+    "gold2d at grazing-ish incidence (halves)": (GOLD2D, 550.0, 45.0, 10.0, 7),
+    "free-standing blocks, oblique (halves)": (FREE_STANDING, 650.0, 25.0, 40.0, 7),
+    # at 1000 nm and normal incidence orders (+-1, 0) graze the air on both sides (kz = 0)
+    "free-standing blocks, Rayleigh point of both half-spaces (halves)": (FREE_STANDING, 1000.0, 0.0, 0.0, 5),
+    "thin gold blocks (halves)": (THIN_GOLD, 600.0, 30.0, 20.0, 7),
+    "1D lossy stripe immersed, conical (halves)": (STRIPE_IMMERSED, 600.0, 25.0, 40.0, 31),
+}
+CASES.update(HALVES_CASES)  # gold2d off its mirror planes, above, is free-standing too
 AMPLITUDES = ("r_s_from_s", "r_p_from_s", "r_s_from_p", "r_p_from_p",
               "t_s_from_s", "t_p_from_s", "t_s_from_p", "t_p_from_p")
 
@@ -88,9 +110,10 @@ def test_direct_amplitudes_equal_the_etm(name):
         assert np.max(np.abs(got - want)) <= TOLERANCE_DIRECT * max(1.0, float(np.max(np.abs(want))))
 
 
+@pytest.mark.parametrize("name", ["asymmetric, oblique", "free-standing blocks, oblique (halves)"])
 @pytest.mark.parametrize("pol", ["s", "p", "unpolarized"])
-def test_direct_efficiencies_equal_the_etm(pol):
-    s, wl, theta, phi, orders = CASES["asymmetric, oblique"]
+def test_direct_efficiencies_equal_the_etm(pol, name):
+    s, wl, theta, phi, orders = CASES[name]
     fast = rcwa.solve(s, wl, theta, phi, orders, pol)
     general = rcwa.solve(s, wl, theta, phi, orders, pol, fast_paths=False)
     assert fast.fast_paths == ("single_layer_direct",) and general.fast_paths == ()
