@@ -30,10 +30,11 @@ TOLERANCE_DIRECT = 1e-12  # direct vs ETM (round-off only: the same boundary con
 
 GOLD2D = rcwa.load_structure("gold2d")
 # Symmetric about no point and mirror-free: two different blocks, on glass.
-ASYMMETRIC = structure([1.0, 0.8], nk(1.0), nk(1.5), [
+TWO_BLOCKS = [
     {"thickness": 0.25, "material": nk(1.0), "shapes": [
         {"material": nk(2.2, 0.05), "rect": {"center": [0.3, 0.3], "size": [0.4, 0.2]}},
-        {"material": nk(1.8), "rect": {"center": [0.7, 0.6], "size": [0.2, 0.3]}}]}])
+        {"material": nk(1.8), "rect": {"center": [0.7, 0.6], "size": [0.2, 0.3]}}]}]
+ASYMMETRIC = structure([1.0, 0.8], nk(1.0), nk(1.5), TWO_BLOCKS)
 # A circle (normal-vector rule: Exy, Eyx nonzero) over gold.
 CIRCLE_ON_GOLD = structure([0.9, 0.9], nk(1.0), "gold", [
     {"thickness": 0.1, "material": nk(1.0), "shapes": [{"material": nk(1.6), "circle": {"center": [0.2, 0.4],
@@ -66,10 +67,7 @@ CASES = {
 }
 # Free-standing layers (the substrate is the superstrate's medium): solved in even and odd
 # halves (tests/rcwa/test_direct_symmetric.py says how, and checks what only they need).
-FREE_STANDING = structure([1.0, 0.8], nk(1.0), nk(1.0), [
-    {"thickness": 0.25, "material": nk(1.0), "shapes": [
-        {"material": nk(2.2, 0.05), "rect": {"center": [0.3, 0.3], "size": [0.4, 0.2]}},
-        {"material": nk(1.8), "rect": {"center": [0.7, 0.6], "size": [0.2, 0.3]}}]}])
+FREE_STANDING = structure([1.0, 0.8], nk(1.0), nk(1.0), TWO_BLOCKS)
 # 2 nm of gold blocks: X = exp(i kz k0 d) near 1, so I - X nearly cancels in the odd half.
 THIN_GOLD = structure([1.0, 1.0], nk(1.0), nk(1.0), [
     {"thickness": 0.002, "material": nk(1.0), "shapes": [
