@@ -106,6 +106,11 @@ class StackSolution:
     def kz_substrate(self) -> Annotated[NDArray[numpy.complex128], dict(shape=(None,), writable=False)]:
         """kz / k0 of each harmonic in the substrate, outgoing branch, (N,)."""
 
+    def efficiencies(self, zero_order: int, eps_superstrate: complex, eps_substrate: complex) -> tuple[NDArray[numpy.float64], NDArray[numpy.float64], NDArray[numpy.float64]]:
+        """
+        (R, T, into): each (N, 2), columns s and p incidence: the efficiencies of the harmonics and the power entering the substrate (T is zero over an absorbing one) per unit incident power (efficiency.hpp).
+        """
+
     @property
     def decoupled(self) -> bool:
         """
@@ -168,6 +173,11 @@ class SweepSolution:
     @property
     def kz_substrate(self) -> Annotated[NDArray[numpy.complex128], dict(shape=(None, None), writable=False)]:
         """kz / k0 of the kept harmonics in the substrate, (P, K)."""
+
+    def efficiencies(self, zero_column: int, eps_superstrate: complex, eps_substrate: complex) -> tuple[NDArray[numpy.float64], NDArray[numpy.float64], NDArray[numpy.float64]]:
+        """
+        (R, T, into): each (P, K, 2), as StackSolution.efficiencies per point; zero_column: the incident harmonic's column among the kept ones.
+        """
 
     @property
     def sector_points(self) -> int:

@@ -4,7 +4,7 @@ The method is the Fourier modal method / RCWA (Moharam & Gaylord 1981; stable
 formulation of Moharam, Grann, Pommet & Gaylord 1995, JOSA A 12, 1068 and 1077) with the
 factorization rules of rcwa.factorization, layer eigenmodes and the enhanced transmittance
 matrix stack in C++ (rcwa/cpp). This module converts units, validates the request, builds
-the Fourier matrices and turns amplitudes into efficiencies. Conventions:
+the Fourier matrices and turns the core's amplitudes and efficiencies into a result. Conventions:
 workbench.core.conventions.
 """
 
@@ -169,9 +169,7 @@ def solve(
     mirrors = mirrors_of(prep) if fast_paths and may_respect_a_mirror(kx0, ky0) else []
     sol = _core.solve_stack(kx, ky, prep.zero, prep.eps_sup, prep.eps_sub, s_direction(phi), prep.core_layers,
                             STACK_METHOD_OF[stack], INCIDENCE_OF[pol.value], fast_paths, mirrors)
-    paths = _fast_paths(sol, pol)
-    return _result(prep, theta_deg, phi_deg, pol, kx, ky, sol.reflected, sol.transmitted, sol.kz_superstrate,
-                   sol.kz_substrate, paths)
+    return _result(prep, theta_deg, phi_deg, pol, kx, ky, sol, _fast_paths(sol, pol))
 
 
 # The incident polarizations the core must answer for each requested one.
@@ -225,27 +223,6 @@ def check_stack(stack: str) -> None:
 def s_direction(phi: float) -> tuple[float, float]:
     """s-hat of the plane of incidence at azimuth phi (used where kx = ky = 0)."""
     return -math.sin(phi), math.cos(phi)
-
-
-def efficiencies(r: np.ndarray, t: np.ndarray, kz_sup: np.ndarray, kz_sub: np.ndarray, kz0: np.ndarray,
-                 eps_sup: complex, eps_sub: complex) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Efficiencies from amplitudes, vectorized over leading axes.
-
-    r, t: (..., 2K, 2) outgoing s rows then p rows, for s and p incidence (columns);
-    kz_*: (..., K); kz0: (...,) the incident wave's kz. s waves carry |a|^2 Re(kz), p
-    waves (h-normalized) |b|^2 Re(kz / eps), through a plane z = const; the incident s
-    wave carries kz0 and the p wave kz0 / eps_sup. Returns R, T and the power entering the
-    substrate, each (..., K, 2); T is zero over an absorbing substrate (nothing reaches
-    infinity there).
-    """
-    k = kz_sup.shape[-1]
-    power_in = np.stack([np.real(kz0), np.real(kz0 / eps_sup)], axis=-1)[..., None, :]
-    R = (np.abs(r[..., :k, :]) ** 2 * np.real(kz_sup)[..., None]
-         + np.abs(r[..., k:, :]) ** 2 * np.real(kz_sup / eps_sup)[..., None]) / power_in
-    into = (np.abs(t[..., :k, :]) ** 2 * np.real(kz_sub)[..., None]
-            + np.abs(t[..., k:, :]) ** 2 * np.real(kz_sub / eps_sub)[..., None]) / power_in
-    lossless_sub = eps_sub.imag == 0.0 and eps_sub.real > 0
-    return R, (into if lossless_sub else np.zeros_like(into)), into
 
 
 # ---------------------------------------------------------------- validation
@@ -378,10 +355,12 @@ def _layer_input(layer, structure: Structure, eps_of, h: HarmonicIndices, rule: 
     return LayerInput(LayerKind.GENERAL, k0d, 0j, (pm.E, pm.exx, exy, eyx, pm.eyy))
 
 
-def _result(prep: PreparedStructure, theta_deg, phi_deg, pol, kx, ky, r, t, kz_sup, kz_sub,
+def _result(prep: PreparedStructure, theta_deg, phi_deg, pol, kx, ky, sol: _core.StackSolution,
             fast_paths: tuple[str, ...] = ()) -> SolveResult:
     h = prep.harmonics
-    R, T, T_into = efficiencies(r, t, kz_sup, kz_sub, kz_sup[prep.zero], prep.eps_sup, prep.eps_sub)
+    # Fluxes through z = const per unit incident power (rcwa/cpp/efficiency.hpp).
+    R, T, T_into = sol.efficiencies(prep.zero, prep.eps_sup, prep.eps_sub)
+    r, t, kz_sup, kz_sub = sol.reflected, sol.transmitted, sol.kz_superstrate, sol.kz_substrate
     # A column, not a weighted sum, for one polarization: the other may be NaN (not solved).
     if pol.value == "unpolarized":
         half = np.array([0.5, 0.5])

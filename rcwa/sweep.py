@@ -22,7 +22,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from rcwa import _core
-from rcwa.solver import STACK_METHOD_OF, check_stack, efficiencies, mirrors_of, prepare
+from rcwa.solver import STACK_METHOD_OF, check_stack, mirrors_of, prepare
 from rcwa.structure import Structure
 from workbench.core.conventions import incident_tangential_k
 from workbench.core.errors import UserInputError
@@ -102,10 +102,8 @@ def sweep_directions(
         mirrors_of(prep) if sectors else [],
     )
     # The incident wave's kz is the specular order's, from the core (its outgoing branch,
-    # workbench.core.conventions.kz_branch), as in a single solve.
-    kz0 = sol.kz_superstrate[:, int(np.flatnonzero(idx == prep.zero)[0])]
-    R, T, _ = efficiencies(sol.reflected, sol.transmitted, sol.kz_superstrate, sol.kz_substrate, kz0,
-                           prep.eps_sup, prep.eps_sub)
+    # workbench.core.conventions.kz_branch), as in a single solve (rcwa/cpp/efficiency.hpp).
+    R, T, _ = sol.efficiencies(int(np.flatnonzero(idx == prep.zero)[0]), prep.eps_sup, prep.eps_sub)
     return DirectionSweep(float(wavelength_nm), prep.harmonics.m[idx], prep.harmonics.n[idx], kx0, ky0, R, T,
                           sol.eigen_solves, sol.eigen_refined, sol.sector_points)
 

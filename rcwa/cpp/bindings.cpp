@@ -20,6 +20,7 @@
 #include <stdexcept>
 #include <string>
 
+#include "efficiency.hpp"
 #include "profile.hpp"
 #include "sweep.hpp"
 
@@ -73,6 +74,19 @@ CArray2Out copy_to_numpy(const Mat& m) {
         for (int j = 0; j < m.cols; ++j) data[static_cast<std::size_t>(i) * m.cols + j] = m(i, j);
     nb::capsule owner(data, [](void* p) noexcept { delete[] static_cast<cplx*>(p); });
     return CArray2Out(data, {static_cast<std::size_t>(m.rows), static_cast<std::size_t>(m.cols)}, owner);
+}
+
+// Owned (P, K, 2) or (K, 2) float64 arrays of an Efficiencies' R, T and into.
+using RArrayOut = nb::ndarray<nb::numpy, double>;
+RArrayOut owned(std::vector<double> values, std::vector<std::size_t> shape) {
+    auto* data = new std::vector<double>(std::move(values));
+    nb::capsule owner(data, [](void* p) noexcept { delete static_cast<std::vector<double>*>(p); });
+    return RArrayOut(data->data(), shape.size(), shape.data(), owner);
+}
+std::tuple<RArrayOut, RArrayOut, RArrayOut> efficiency_arrays(rcwa::Efficiencies e, bool single) {
+    std::vector<std::size_t> shape{e.kept, 2};
+    if (!single) shape.insert(shape.begin(), e.points);
+    return {owned(std::move(e.R), shape), owned(std::move(e.T), shape), owned(std::move(e.into), shape)};
 }
 
 // Views without an owner: returned from a property (rv_policy::reference_internal), the
@@ -242,6 +256,14 @@ void bind_results(nb::module_& m) {
                      "kz / k0 of each harmonic in the superstrate, outgoing branch, (N,).")
         .def_prop_ro("kz_substrate", [](const rcwa::StackSolution& s) { return view(s.kz_substrate); },
                      "kz / k0 of each harmonic in the substrate, outgoing branch, (N,).")
+        .def(
+            "efficiencies",
+            [](const rcwa::StackSolution& s, int zero_order, cplx eps_sup, cplx eps_sub) {
+                return efficiency_arrays(rcwa::efficiencies(s, zero_order, eps_sup, eps_sub), true);
+            },
+            "zero_order"_a, "eps_superstrate"_a, "eps_substrate"_a,
+            "(R, T, into): each (N, 2), columns s and p incidence: the efficiencies of the harmonics and the power "
+            "entering the substrate (T is zero over an absorbing one) per unit incident power (efficiency.hpp).")
         .def_ro("decoupled", &rcwa::StackSolution::decoupled,
                 "Whether TE and TM were solved apart on N x N blocks (1D, every ky = 0: polarized.hpp); a "
                 "polarization not asked for then has NaN amplitudes.")
@@ -278,6 +300,14 @@ void bind_results(nb::module_& m) {
         .def_prop_ro("kz_substrate", [](const rcwa::SweepResult& s) {
             return CView2(s.kz_substrate.data(), {s.points, s.kept}, nb::handle());
         }, "kz / k0 of the kept harmonics in the substrate, (P, K).")
+        .def(
+            "efficiencies",
+            [](const rcwa::SweepResult& s, int zero_column, cplx eps_sup, cplx eps_sub) {
+                return efficiency_arrays(rcwa::efficiencies(s, zero_column, eps_sup, eps_sub), false);
+            },
+            "zero_column"_a, "eps_superstrate"_a, "eps_substrate"_a,
+            "(R, T, into): each (P, K, 2), as StackSolution.efficiencies per point; zero_column: the incident "
+            "harmonic's column among the kept ones.")
         .def_ro("sector_points", &rcwa::SweepResult::sector_points,
                 "Points solved in mirror-symmetry sectors (sectors.hpp): those at kx0 = 0 or ky0 = 0 of a mirror.")
         .def_ro("eigen_solves", &rcwa::SweepResult::eigen_solves,

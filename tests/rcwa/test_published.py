@@ -318,7 +318,7 @@ def _efficiencies_of_state(res, a_s: complex, a_p: complex) -> tuple[dict, dict]
 
     Amplitudes as in rcwa.result.OrderResult: s waves by E along s-hat, p waves by
     h = Z0 H along s-hat; power through z = const is |s|^2 Re(kz) + |p|^2 Re(kz / eps)
-    (rcwa.solver.efficiencies), the incident power (|a_s|^2 + |a_p|^2) kz0 in air.
+    (rcwa/cpp/efficiency.hpp), the incident power (|a_s|^2 + |a_p|^2) kz0 in air.
     """
     eps_sub = GS_N_SUBSTRATE**2
     kz_sup, kz_sub = res.all_orders["kz_superstrate"], res.all_orders["kz_substrate"]

@@ -167,7 +167,7 @@ def test_unpolarized_is_the_mean_of_s_and_p(s, orders):
 
 
 def test_efficiencies_are_the_fluxes_of_the_amplitudes():
-    """rcwa.solver.efficiencies: an s wave (E along s-hat) carries |a|^2 Re(kz), a p wave
+    """The core's efficiencies (rcwa/cpp/efficiency.hpp): an s wave (E along s-hat) carries |a|^2 Re(kz), a p wave
     (h = Z0 H along s-hat) |b|^2 Re(kz / eps), through z = const; the incident s wave kz0."""
     s = lamellar(period=1.2, depth=0.35, n_ridge=nk(2.0, 0.05), sup=nk(1.3), sub=nk(1.5))
     r = rcwa.solve(s, 550.0, 25.0, 40.0, 21, "s")
