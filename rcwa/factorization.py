@@ -241,12 +241,10 @@ def _li_slabbed(layer: Layer, period, eps_of: Callable, h: HarmonicIndices, axis
 
 
 def _interval_transforms(q: np.ndarray, intervals) -> np.ndarray:
-    """fourier.interval_transform of every ``(a, b, ...)`` in ``intervals`` at once (one row
-    each), element by element the same arithmetic."""
+    """fourier.interval_transform of every ``(a, b, ...)`` in ``intervals`` at once (one row each)."""
     a = np.array([iv[0] for iv in intervals], dtype=float)[:, None]
     b = np.array([iv[1] for iv in intervals], dtype=float)[:, None]
-    half = 0.5 * (b - a)
-    return (b - a) * np.exp(-1j * q[None, :] * 0.5 * (a + b)) * np.sinc(q[None, :] * half / np.pi)
+    return fourier.interval_transform(q, a, b)
 
 
 def _clip_intervals(intervals, length: float):

@@ -67,8 +67,9 @@ def paint_intervals(
     return segments
 
 
-def interval_transform(q: np.ndarray, a: float, b: float) -> np.ndarray:
-    """``int_a^b exp(-i q x) dx``, exact, with the q = 0 limit ``b - a``."""
+def interval_transform(q: np.ndarray, a: float | np.ndarray, b: float | np.ndarray) -> np.ndarray:
+    """``int_a^b exp(-i q x) dx``, exact, with the q = 0 limit ``b - a``; ``q``, ``a`` and ``b``
+    broadcast (several intervals at once: ``a``, ``b`` of shape (k, 1) against ``q`` of shape (g,))."""
     q = np.asarray(q, dtype=float)
     half = 0.5 * (b - a)
     return (b - a) * np.exp(-1j * q * 0.5 * (a + b)) * np.sinc(q * half / np.pi)

@@ -62,6 +62,29 @@ Projection projection(const StackProblem& pr, const std::vector<double>& sigma, 
     return p;
 }
 
+// The substrate's down-going waves (stack.cpp, outgoing_columns), diagonal: TE E = s-hat,
+// hx = kz sigma; TM h = s-hat, Ex = -kz/eps sigma. u = f t, v = g t per harmonic.
+void substrate_waves(const StackProblem& pr, const std::vector<double>& sigma, const CVec& kz2, Polarization pol,
+                     CVec& f, CVec& g) {
+    const std::size_t n = sigma.size();
+    f.resize(n);
+    g.resize(n);
+    for (std::size_t i = 0; i < n; ++i) {
+        f[i] = pol == Polarization::TE ? cplx(sigma[i]) : -kz2[i] / pr.eps_substrate * sigma[i];
+        g[i] = pol == Polarization::TE ? kz2[i] * sigma[i] : cplx(sigma[i]);
+    }
+}
+
+// The incident wave's (u, v) at its harmonic (stack.cpp, close_top): TE E = s-hat,
+// hx = kz0 sigma; TM h = s-hat, Ex = -kz0/eps sigma.
+std::pair<cplx, cplx> incident_wave(const StackProblem& pr, const std::vector<double>& sigma, const CVec& kz1,
+                                    Polarization pol) {
+    const int i0 = pr.zero_order;
+    const cplx kz0 = kz1[i0];
+    if (pol == Polarization::TE) return {cplx(sigma[i0]), kz0 * sigma[i0]};
+    return {-kz0 / pr.eps_superstrate * sigma[i0], cplx(sigma[i0])};
+}
+
 }  // namespace
 
 Mat Operator::apply(const Mat& B) const { return diag.empty() ? matmul(dense, B) : scale_rows(B, diag); }
@@ -153,20 +176,9 @@ void solve_polarized(const StackProblem& pr, Polarization pol, const std::vector
     const std::vector<double> sigma = s_signs(pr);
     const CVec& kz1 = out.kz_superstrate;
     const CVec& kz2 = out.kz_substrate;
-    const cplx eps1 = pr.eps_superstrate, eps2 = pr.eps_substrate;
 
-    // The substrate's down-going waves (stack.cpp, outgoing_columns): TE E = s-hat,
-    // hx = kz sigma; TM h = s-hat, Ex = -kz/eps sigma. Diagonal.
-    CVec f0(n), g0(n);
-    for (int i = 0; i < n; ++i) {
-        if (pol == Polarization::TE) {
-            f0[i] = sigma[i];
-            g0[i] = kz2[i] * sigma[i];
-        } else {
-            f0[i] = -kz2[i] / eps2 * sigma[i];
-            g0[i] = sigma[i];
-        }
-    }
+    CVec f0, g0;
+    substrate_waves(pr, sigma, kz2, pol, f0, g0);
     // The bottom layer meets the substrate's diagonal columns (times_diagonal).
     const std::size_t bottom = layers.size() - 1;
     auto inverses = [&](std::size_t k, const Mat& f, const Mat& g) {
@@ -193,12 +205,8 @@ void solve_polarized(const StackProblem& pr, Polarization pol, const std::vector
         sum.data[q] = PW.data[q] + PV.data[q];
     }
     gemm(sum, R, projected, 1.0, 1.0);
-    // The incident wave (stack.cpp, close_top): TE E = s-hat, hx = kz0 sigma; TM h = s-hat,
-    // Ex = -kz0/eps sigma.
     const int i0 = pr.zero_order;
-    const cplx kz0 = kz1[i0];
-    const cplx u_inc = pol == Polarization::TE ? cplx(sigma[i0]) : -kz0 / eps1 * sigma[i0];
-    const cplx v_inc = pol == Polarization::TE ? kz0 * sigma[i0] : cplx(sigma[i0]);
+    const auto [u_inc, v_inc] = incident_wave(pr, sigma, kz1, pol);
     Mat T(n, 1);
     T(i0, 0) = proj.on_u[i0] * u_inc + proj.on_v[i0] * v_inc;
     T = LU(std::move(projected)).solve(T);
@@ -236,12 +244,8 @@ void solve_polarized_direct(const StackProblem& pr, Polarization pol, const Pola
     const std::vector<double> sigma = s_signs(pr);
     const CVec& kz1 = out.kz_superstrate;
     const CVec& kz2 = out.kz_substrate;
-    const cplx eps1 = pr.eps_superstrate, eps2 = pr.eps_substrate;
-    CVec f0(n), g0(n);  // the substrate's down-going waves, as in solve_polarized
-    for (int i = 0; i < n; ++i) {
-        f0[i] = pol == Polarization::TE ? cplx(sigma[i]) : -kz2[i] / eps2 * sigma[i];
-        g0[i] = pol == Polarization::TE ? kz2[i] * sigma[i] : cplx(sigma[i]);
-    }
+    CVec f0, g0;
+    substrate_waves(pr, sigma, kz2, pol, f0, g0);
     const Projection proj = projection(pr, sigma, kz1, pol);
     const Mat W = layer.W.matrix(), V = layer.V.matrix();
     CVec X(static_cast<std::size_t>(n));
@@ -257,9 +261,7 @@ void solve_polarized_direct(const StackProblem& pr, Polarization pol, const Pola
             M(n + i, n + j) = gw - fv;
         }
     const int i0 = pr.zero_order;
-    const cplx kz0 = kz1[i0];
-    const cplx u_inc = pol == Polarization::TE ? cplx(sigma[i0]) : -kz0 / eps1 * sigma[i0];
-    const cplx v_inc = pol == Polarization::TE ? kz0 * sigma[i0] : cplx(sigma[i0]);
+    const auto [u_inc, v_inc] = incident_wave(pr, sigma, kz1, pol);
     Mat rhs(2 * n, 1);
     rhs(i0, 0) = proj.on_u[i0] * u_inc + proj.on_v[i0] * v_inc;
     const Mat c = LU(std::move(M)).solve(rhs);
