@@ -49,7 +49,7 @@ import numpy as np
 
 from workbench.core.errors import UserInputError
 from workbench.core.files import atomic_write, atomic_write_text
-from workbench.core.version import __version__
+from workbench.core.version import versions as installed_versions
 
 RAW_EXTENSIONS = frozenset({
     ".dng", ".nef", ".nrw", ".cr2", ".cr3", ".crw", ".arw", ".srf", ".sr2", ".raf", ".orf", ".rw2", ".pef",
@@ -349,12 +349,12 @@ def _exif_pillow(path: Path) -> dict[str, Any]:
 
 
 def versions() -> dict[str, str]:
-    """Versions of what a decode depends on (recorded in every output)."""
-    import OpenImageIO as oiio
+    """Versions of what a decode depends on (recorded in every output), with the LibRaw
+    inside rawpy."""
     import rawpy
 
-    return {"workbench": __version__, "rawpy": rawpy.__version__, "libraw": ".".join(map(str, rawpy.libraw_version)),
-            "OpenImageIO": oiio.__version__, "numpy": np.__version__, "opencv": cv2.__version__}
+    return {**installed_versions("rawpy", "OpenImageIO", "numpy", "opencv"),
+            "libraw": ".".join(map(str, rawpy.libraw_version))}
 
 
 def write_exr(path: str | Path, decoded: DecodedImage) -> Path:

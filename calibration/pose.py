@@ -50,7 +50,6 @@ from __future__ import annotations
 import dataclasses
 import json
 import math
-import platform
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -65,6 +64,7 @@ from calibration.scene_model import FeatureSamples, SceneModel, sample_features,
 from renderer.camera import CameraModel
 from workbench.core.errors import UserInputError
 from workbench.core.files import atomic_write_text
+from workbench.core.version import versions as installed_versions
 
 POSE_FORMAT = "workbench-calibrate-pose"
 MIN_EDGE_POINTS = 40          # fewer measured edge points than this: the photo does not show the scene
@@ -709,15 +709,9 @@ def fit_renderer(spec, camera: CameraModel, spp: int):
     return FitRenderer(seen, resolution=(camera.width, camera.height), spp=spp)
 
 
-def versions() -> dict:
-    import mitsuba
-    import nlopt
-    import scipy
-
-    from workbench.core.version import __version__
-
-    return {"workbench": __version__, "python": platform.python_version(), "numpy": np.__version__,
-            "scipy": scipy.__version__, "opencv": cv2.__version__, "nlopt": nlopt.__version__, "mitsuba": mitsuba.__version__}
+def versions() -> dict[str, str]:
+    """Versions of what a pose fit depends on (recorded in every output)."""
+    return installed_versions("numpy", "scipy", "opencv", "nlopt", "mitsuba")
 
 
 def result_json(result: PoseResult) -> dict:

@@ -63,7 +63,6 @@ from __future__ import annotations
 
 import json
 import math
-import platform
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
@@ -76,7 +75,7 @@ from scipy.interpolate import PchipInterpolator
 from calibration.decode import is_raw, read_exif
 from workbench.core.errors import UserInputError
 from workbench.core.files import atomic_write_text
-from workbench.core.version import __version__
+from workbench.core.version import versions
 
 IMAGE_SUFFIXES = frozenset({".jpg", ".jpeg", ".png", ".tif", ".tiff"})
 
@@ -670,15 +669,6 @@ def raw_linearity(paths: Sequence[str | Path], times_s: Sequence[float] | None =
 # The command
 # ---------------------------------------------------------------------------------------
 
-def _versions() -> dict:
-    import nlopt
-    import PIL
-    import rawpy
-
-    return {"workbench": __version__, "python": platform.python_version(), "numpy": np.__version__,
-            "opencv": cv2.__version__, "nlopt": nlopt.__version__, "rawpy": rawpy.__version__, "pillow": PIL.__version__}
-
-
 def calibrate_response(paths: Sequence[str | Path], out: str | Path | None = None, *,
                        times_s: Sequence[float] | None = None, knots: int = DEFAULT_KNOTS,
                        compare: Sequence[str] = ("debevec", "robertson"), progress: bool = False) -> dict:
@@ -697,7 +687,7 @@ def calibrate_response(paths: Sequence[str | Path], out: str | Path | None = Non
     else:
         result = _curve_result(checked, times_s, knots, compare, progress)
     result["timings"]["total_s"] = time.perf_counter() - start
-    result["versions"] = _versions()
+    result["versions"] = versions("numpy", "opencv", "nlopt", "rawpy", "pillow")
     if out is not None:
         atomic_write_text(out, json.dumps(result, indent=1) + "\n")
     return result

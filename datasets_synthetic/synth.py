@@ -60,7 +60,6 @@ import hashlib
 import json
 import math
 import os
-import platform
 import re
 import shutil
 import sys
@@ -554,14 +553,11 @@ def _write_run_record(out: Path, scene: str, seed: int, preset: str, settings: d
     """run.json: settings, timings, versions, and every file the run wrote (size, SHA-256),
     which is what ``--force`` may replace.
     """
-    import mitsuba
-
-    from workbench.core.version import __version__ as workbench_version
+    from workbench.core.version import versions
 
     record = {"format": MARKER, "command": "workbench synth", "scene": scene, "seed": seed, "preset": preset,
               "settings": settings, "timings": timings, "resumed_renders": resumed_renders,
-              "versions": {"workbench": workbench_version, "mitsuba": mitsuba.__version__, "numpy": np.__version__,
-                           "python": platform.python_version()},
+              "versions": versions("mitsuba", "drjit", "numpy"),
               "files": _dataset_files(out)}
     atomic_write_text(out / "run.json", json.dumps(record, indent=2, default=list))
 

@@ -172,7 +172,7 @@ def run_study(structure: Structure, out: str | Path, cfg: StudyConfig = StudyCon
 
     from tqdm import tqdm
 
-    from workbench.core.version import __version__ as workbench_version
+    from workbench.core.version import versions
 
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
@@ -183,8 +183,7 @@ def run_study(structure: Structure, out: str | Path, cfg: StudyConfig = StudyCon
     presets = recommend(truncation, interpolation, cfg)
     data = {"structure": structure.name, "config": asdict(cfg), "truncation": truncation,
             "interpolation": interpolation, "presets": presets,
-            "run": {"workbench_version": workbench_version, "numpy": np.__version__, "python": platform.python_version(),
-                    "machine": platform.machine(), "seconds": time.perf_counter() - start,
+            "run": {"versions": versions("numpy", "scipy"), "machine": platform.machine(), "seconds": time.perf_counter() - start,
                     "structure_sha256": structure.content_hash}}
     atomic_write_text(out / "study_rcwa.json", json.dumps(data, indent=2))
     for name, rows in (("truncation", truncation), ("interpolation", interpolation), ("presets", presets)):

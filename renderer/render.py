@@ -14,7 +14,6 @@ import hashlib
 import json
 import math
 import os
-import platform
 import time
 from dataclasses import replace
 from pathlib import Path
@@ -28,6 +27,7 @@ from workbench.core.files import atomic_write as _atomic
 from workbench.core.files import atomic_write_text, file_sha256
 from workbench.core.timing import timed
 from workbench.core.version import __version__ as workbench_version
+from workbench.core.version import versions
 
 PRESETS: dict[str, dict[str, Any]] = {"draft": {"spp": 256, "pass_spp": 64},
                                       "paper": {"spp": 2045, "pass_spp": 128, "resolution": (978, 734)}}
@@ -129,8 +129,7 @@ def render(scene: str | Path, out: str | Path, *, preset: str = "draft", spp: in
         "seed": seed, "variant": variant, "planned_tables": plan, "tables": built["tables"],
         "seconds_total": time.perf_counter() - started,
         "seconds_per_pass": pass_seconds, "resumed_passes": done,
-        "versions": {"workbench": workbench_version, "mitsuba": mi.__version__, "python": platform.python_version(),
-                     "numpy": np.__version__},
+        "versions": versions("mitsuba", "drjit", "numpy"),
         "units": "linear camera RGB (integral of radiance x camera sensitivity, times exposure)",
         "camera": {"width": spec.camera.model.width, "height": spec.camera.model.height, "fx": spec.camera.model.fx,
                    "fy": spec.camera.model.fy, "cx": spec.camera.model.cx, "cy": spec.camera.model.cy,

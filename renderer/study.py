@@ -17,7 +17,6 @@ renderer.accuracy, so every sample is spent where the comparison is made):
 from __future__ import annotations
 
 import json
-import platform
 import time
 from dataclasses import asdict, dataclass
 from pathlib import Path
@@ -25,6 +24,7 @@ from pathlib import Path
 import numpy as np
 
 from workbench.core.files import atomic_write_csv, atomic_write_text
+from workbench.core.version import versions
 
 
 @dataclass(frozen=True)
@@ -99,22 +99,12 @@ def run_render_study(scene: str | Path, out: str | Path, cfg: RenderStudyConfig 
     bar.close()
     data = {"variant": variant, "scene": spec.name, "config": asdict(cfg), "crop": crop, "element_pixels": int(mask.sum()),
             "error_vs_time": curve, "delta_bias": bias, "energy": energy, "reference_spp": cfg.reference_spp,
-            "versions": _versions(mi), "timings": {"total_s": time.perf_counter() - started}}
+            "versions": versions("mitsuba", "drjit", "numpy"), "timings": {"total_s": time.perf_counter() - started}}
     atomic_write_text(out / "study_render.json", json.dumps(data, indent=2))
     for name, rows in (("render_error_vs_time", curve), ("render_delta_bias", bias), ("render_energy", energy)):
         atomic_write_csv(out / f"{name}.csv", rows)
     _plot(curve, bias, out)
     return data
-
-
-def _versions(mi) -> dict[str, str]:
-    """What produced the study (recorded beside its settings and timings)."""
-    from importlib import metadata
-
-    from workbench.core.version import __version__
-
-    return {"workbench": __version__, "mitsuba": mi.__version__, "drjit": metadata.version("drjit"),
-            "numpy": np.__version__, "python": platform.python_version()}
 
 
 def _furnace_energies(mi, out: Path, samples: int) -> list[dict]:

@@ -43,7 +43,6 @@ from __future__ import annotations
 import hashlib
 import json
 import os
-import platform
 import shutil
 import time
 from collections.abc import Callable, Iterator
@@ -55,6 +54,7 @@ from typing import Any
 from workbench.core.errors import UserInputError
 from workbench.core.files import atomic_write_text, file_sha256
 from workbench.core.version import __version__ as workbench_version
+from workbench.core.version import versions
 
 RUN_FORMAT = "workbench-verify"
 STAGES = ("plan", "tables", "calibration", "render", "report")
@@ -63,7 +63,7 @@ PRESETS: dict[str, dict[str, Any]] = {"draft": {"tables": "draft", "spp": 256}, 
 PAPER_RESOLUTION = (978, 734)  # the paper's frame (renderer.render's paper preset)
 KEY_FILE = ".stage-key"  # in a finished stage's folder: the key it was made for
 DONE_FILE = ".stage-done"  # in a staging folder whose work finished (moved into place next)
-VERSIONED = ("numpy", "scipy", "mitsuba", "drjit", "opencv-contrib-python-headless", "rawpy", "nlopt", "zarr")
+VERSIONED = ("numpy", "scipy", "mitsuba", "drjit", "opencv", "rawpy", "nlopt", "zarr")
 OWN_NAMES = (*STAGES, ".staging", "scene.toml", "run.json")  # what a run writes in RUN; --force removes only these
 # The scene's image aspect may differ from the photos' by its resolution's rounding: one pixel
 # of 245 (cornell_cd: 326 x 245 for a 25 x 18.8 mm sensor) is 0.4 %; a different camera is off by far more.
@@ -214,22 +214,9 @@ def run_scene_text(spec, table_preset: str) -> str:
 # ---------------------------------------------------------------- the run's folder
 
 
-def versions() -> dict[str, str]:
-    """The workbench's, Python's and the main libraries' versions (those installed)."""
-    from importlib import metadata
-
-    found = {"workbench": workbench_version, "python": platform.python_version()}
-    for name in VERSIONED:
-        try:
-            found[name] = metadata.version(name)
-        except metadata.PackageNotFoundError:
-            continue
-    return found
-
-
 def _new_record(identity: dict[str, str], settings: VerifySettings) -> dict[str, Any]:
     return {"format": RUN_FORMAT, "identity": identity, "status": "running", "settings": settings.to_json(),
-            "versions": versions(),
+            "versions": versions(*VERSIONED),
             "started": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()), "stages": {}}
 
 
@@ -276,7 +263,7 @@ def open_run(root: Path, identity: dict[str, str], settings: VerifySettings, for
         _remove_own(root)
         return _new_record(identity, settings)
     record.update(status="running", settings=settings.to_json())
-    record["versions"] = versions()
+    record["versions"] = versions(*VERSIONED)
     return record
 
 
