@@ -227,3 +227,18 @@ def test_a_folded_table_reads_as_the_unfolded_one_at_every_node(tables, which):
             for name in ("R", "T"):
                 np.testing.assert_allclose(full.arrays[name][:, :, k, q], table.arrays[name][:, :, node, stored],
                                            rtol=0, atol=TOLERANCE_NODES, err_msg=f"{name} ({m}, {n}) at phi {phi}")
+
+
+def test_rcwa_info_shows_the_diagonal_and_the_note_of_an_unused_one(tables, tmp_path):
+    from rcwa.table import build_table
+    from workbench.catalog import format_table_info, table_info
+
+    assert "symmetry      mirror x and y and diagonal x <-> y; azimuths stored 0-45 deg" in format_table_info(
+        table_info(tables.folded.path))
+    assert "symmetry      mirror x and y; azimuths stored 0-90 deg\n" in format_table_info(table_info(tables.old.path))
+    s = rcwa.load_structure("gold2d")
+    rectangular = settings_for(s, "draft", wavelengths="550", theta_step=90.0, phi_step=90.0, orders=(3, 1), keep=(3, 1))
+    build_table(s, rectangular, tmp_path / "r.zarr", progress=False, threads=1)
+    text = format_table_info(table_info(tmp_path / "r.zarr"))
+    assert "azimuths stored 0-90 deg (the cell's diagonal mirror x <-> y is not used: orders 3x1, kept orders 3x1 not " \
+           "square)" in text
