@@ -21,7 +21,12 @@ never anything else. A build holds the table's file lock (workbench.core.cache),
 second process asking for the same table waits and then reuses it.
 
 Azimuths: mirror symmetries of the cell (rcwa.symmetry) shrink the azimuth range that is
-computed; ``Table.fold_azimuth`` maps any azimuth into it (with the order flips).
+computed (0-90 deg with the x and y mirrors; 0-45 deg when a square cell with a square
+truncation also has the diagonal mirror x <-> y); ``Table.fold_azimuth`` maps any azimuth
+into it (with the order flips and the swap, rcwa.symmetry.fold_azimuths). The stored
+azimuths reach the range's end: where the step does not divide the range, the last node
+lies one step past it, so bilinear interpolation up to the end never clamps. Metadata of
+tables written before the diagonal mirror existed lack ``mirror_diagonal``: read as False.
 """
 
 from __future__ import annotations
@@ -142,10 +147,14 @@ def parse_wavelengths(text: str) -> tuple[float, ...]:
         ) from None
 
 
-def angle_grid(step: float, start: float, stop: float, name: str) -> tuple[float, ...]:
+def angle_grid(step: float, start: float, stop: float, name: str, *, cover: bool = False) -> tuple[float, ...]:
+    """``start``, ``start + step``, ... up to ``stop`` (inclusive, to 1e-9 steps); with
+    ``cover``, where the step does not divide the range, one node past ``stop`` (an
+    azimuth grid must reach its range's end, which the fold maps onto itself)."""
     if not (isinstance(step, (int, float)) and math.isfinite(step) and step > 0):
         raise UserInputError("the angular step must be positive", field=name, expected="a step > 0 degrees", got=step)
-    count = int(math.floor((stop - start) / step + 1e-9)) + 1
+    steps = (stop - start) / step
+    count = int(math.ceil(steps - 1e-9) if cover else math.floor(steps + 1e-9)) + 1
     values = start + step * np.arange(count)
     return tuple(float(v) for v in values)
 
@@ -174,14 +183,24 @@ def settings_for(structure: Structure, preset: str = "paper", *, theta_step: flo
     if any(k > c for k, c in zip(kept, counts, strict=True)):
         raise UserInputError("cannot keep more orders than are retained", field="--keep-orders",
                              expected=f"at most {list(counts)}", got=list(kept))
-    sym = symmetry.detect(structure) if use_symmetry else symmetry.MirrorSymmetry(False, False)
+    sym = table_symmetry(structure, counts, kept, use_symmetry)
     lo, hi = sym.azimuth_range()
     t_lo, t_hi = _range(theta_range, (0.0, 90.0), "--theta-range")
     p_lo, p_hi = _range(phi_range, (lo, hi), "--phi-range")
     theta = angle_grid(theta_step if theta_step is not None else p["theta_step"], t_lo, t_hi, "--theta-step")
-    full_turn = 1e-9 if p_hi - p_lo == 360 else 0.0  # 360 deg is 0 deg again
-    phi = angle_grid(phi_step if phi_step is not None else p["phi_step"], p_lo, p_hi - full_turn, "--phi-step")
+    full_turn = p_hi - p_lo == 360  # 360 deg is 0 deg again
+    phi = angle_grid(phi_step if phi_step is not None else p["phi_step"], p_lo, p_hi - (1e-9 if full_turn else 0.0),
+                     "--phi-step", cover=not full_turn)
     return TableSettings(wl, theta, phi, counts, kept, pol, reflection_only, both_sides, factorization, use_symmetry)
+
+
+def table_symmetry(structure: Structure, orders: tuple[int, ...], keep: tuple[int, ...],
+                   use_symmetry: bool = True) -> symmetry.MirrorSymmetry:
+    """The mirrors a table of these retained / kept orders uses (rcwa.symmetry.detect;
+    none without ``use_symmetry``). Every writer and planner of a table asks here."""
+    if not use_symmetry:
+        return symmetry.MirrorSymmetry(False, False)
+    return symmetry.detect(structure, orders, keep)
 
 
 def _range(value: tuple[float, float] | None, bounds: tuple[float, float], name: str) -> tuple[float, float]:
@@ -331,7 +350,7 @@ def _build_locked(structure: Structure, settings: TableSettings, out: Path, key:
     store = _open_store(out, structure, settings, key, force, notes, nodes)
     done = _read_progress(out)
     repaired = _drop_damaged_chunks(out, store, settings, done, notes)
-    sym = symmetry.detect(structure) if settings.use_symmetry else symmetry.MirrorSymmetry(False, False)
+    sym = table_symmetry(structure, settings.orders, settings.keep, settings.use_symmetry)
     report = BuildReport(out, key, len(settings.wavelengths_nm), 0, len(done), 0.0, symmetry=sym.describe(),
                          notes=notes,
                          chunks_repaired=repaired)
@@ -471,7 +490,7 @@ def _open_store(out: Path, structure: Structure, settings: TableSettings, key: s
             notes.append("replaced the different table that was there (--force)")
         shutil.rmtree(out)
     group = zarr.open_group(str(out), mode="w")
-    sym = symmetry.detect(structure) if settings.use_symmetry else symmetry.MirrorSymmetry(False, False)
+    sym = table_symmetry(structure, settings.orders, settings.keep, settings.use_symmetry)
     shape = (len(settings.wavelengths_nm), len(settings.theta_deg), len(settings.phi_deg), int(np.prod(settings.keep)),
              len(pol_names(settings.pol)))
     names = ["R"] + ([] if settings.reflection_only or not _transmits(structure, settings) else ["T"])
@@ -488,7 +507,9 @@ def _open_store(out: Path, structure: Structure, settings: TableSettings, key: s
         "structure_sha256": structure.content_hash, "settings": settings.to_json(), "arrays": names,
         "axes": ["wavelength_nm", "theta_deg", "phi_deg", "order", "pol"], "pol_names": pol_names(settings.pol),
         "orders_m": [int(m) for m in kept_m], "orders_n": [int(n) for n in kept_n],
-        "symmetry": {"mirror_x": sym.x, "mirror_y": sym.y, "phi_range_deg": list(sym.azimuth_range())},
+        "symmetry": {"mirror_x": sym.x, "mirror_y": sym.y, "mirror_diagonal": sym.diagonal,
+                     "phi_range_deg": list(sym.azimuth_range()), "description": sym.describe(),
+                     "note": sym.note},
         "grazing_theta_deg": GRAZING_THETA_DEG,
         "factorization": resolve_rule(settings.factorization, structure.dimension, structure.layers),
         "solver_version": workbench_version, "complete": False,
@@ -609,20 +630,25 @@ class Table:
     def orders(self) -> list[tuple[int, int]]:
         return list(zip(self.meta["orders_m"], self.meta["orders_n"], strict=True))
 
-    def fold_azimuth(self, phi_deg: float) -> tuple[float, bool, bool]:
-        """Map an azimuth into the stored range: (phi, flip m, flip n) (rcwa.symmetry)."""
+    @property
+    def mirrors(self) -> tuple[bool, bool, bool]:
+        """(x, y, diagonal) mirrors the table's azimuths are folded by; tables written
+        before the diagonal existed have no ``mirror_diagonal``: False."""
         sym = self.meta["symmetry"]
-        phi = phi_deg % 360.0
-        flip_m = flip_n = False
-        if sym["mirror_y"] and phi > 180.0:
-            phi, flip_n = 360.0 - phi, True
-        if sym["mirror_x"] and sym["mirror_y"] and phi > 90.0:
-            phi, flip_m = 180.0 - phi, True
-        if sym["mirror_x"] and not sym["mirror_y"] and 90.0 < phi < 270.0:
-            phi, flip_m = 180.0 - phi, True
-        if sym["mirror_x"] and not sym["mirror_y"] and phi >= 270.0:
-            phi -= 360.0
-        return phi, flip_m, flip_n
+        return bool(sym["mirror_x"]), bool(sym["mirror_y"]), bool(sym.get("mirror_diagonal", False))
+
+    def fold_azimuth(self, phi_deg: float) -> tuple[float, bool, bool, bool]:
+        """Map an azimuth into the stored range: (phi, flip m, flip n, swap m and n); order
+        (m, n) is stored as rcwa.symmetry.stored_order(m, n, flip m, flip n, swap)
+        (rcwa.symmetry.fold_azimuths)."""
+        phi, flip_m, flip_n, swap = symmetry.fold_azimuths(float(phi_deg), *self.mirrors)
+        return float(phi), bool(flip_m), bool(flip_n), bool(swap)
+
+    def stored_index(self, m: int, n: int, flip_m: bool, flip_n: bool, swap: bool) -> int:
+        """Index (into the order axis) of the stored order that holds order (m, n) at a
+        folded azimuth (fold_azimuth's flips and swap)."""
+        sm, sn = symmetry.stored_order(m, n, flip_m, flip_n, swap)
+        return self.orders.index((int(sm), int(sn)))
 
 
 def open_table(path: str | Path) -> Table:

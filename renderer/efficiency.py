@@ -5,8 +5,10 @@ convention: the tangential wave vector of the incident wave, i.e. pointing *away
 the light (workbench.core.conventions). Interpolation is linear in wavelength and bilinear in
 (theta, phi), the paper's choice (Lange et al. 2021, Sec. 2.2); the accuracy study
 (rcwa.study) measured it. Azimuths are folded into the stored range by the cell's mirror
-symmetries, with the order flips that go with them (rcwa.table.Table.fold_azimuth does
-the same on the CPU). Wavelengths outside the table give zero (the camera is checked to
+symmetries, with the order flips (and, for a cell with the diagonal mirror x <-> y, the
+swap (m, n) -> (n, m)) that go with them: the rule of rcwa.symmetry.fold_azimuths, which
+rcwa.table.Table.fold_azimuth applies on the CPU (tests/renderer/test_efficiency_diagonal.py
+compares this copy with it). Wavelengths outside the table give zero (the camera is checked to
 be blind there before rendering).
 """
 
@@ -43,6 +45,12 @@ class EfficiencyLookup:
     orders_n: np.ndarray
     mirror_x: bool
     mirror_y: bool
+    mirror_diagonal: bool = False  # x <-> y: stored azimuths 0-45 deg, orders swapped beyond
+
+    def __post_init__(self) -> None:
+        if self.mirror_diagonal and (self.orders_m.size != self.orders_n.size or
+                                     np.unique(self.orders_m).size != np.unique(self.orders_n).size):
+            raise ValueError("a table folded by the diagonal mirror needs square kept orders")
 
     @classmethod
     def from_table(cls, table: Table, array: str = "R") -> "EfficiencyLookup":
@@ -50,14 +58,14 @@ class EfficiencyLookup:
         if "unpolarized" not in names:
             raise ValueError(f"{table.path}: the renderer needs unpolarized efficiencies (table has {names})")
         values = table.arrays[array][..., names.index("unpolarized")]  # (W, Th, Ph, K)
-        sym = table.meta["symmetry"]
+        mirror_x, mirror_y, mirror_diagonal = table.mirrors
         return cls(
             data=mi.Float(np.ascontiguousarray(values, dtype=np.float32).ravel()),
             wl=_uniform_axis(table.wavelengths_nm, "wavelength"),
             theta=_uniform_axis(table.theta_deg, "theta"),
             phi=_uniform_axis(table.phi_deg, "phi"),
             orders_m=np.asarray(table.meta["orders_m"]), orders_n=np.asarray(table.meta["orders_n"]),
-            mirror_x=bool(sym["mirror_x"]), mirror_y=bool(sym["mirror_y"]),
+            mirror_x=mirror_x, mirror_y=mirror_y, mirror_diagonal=mirror_diagonal,
         )
 
     @property
@@ -70,11 +78,13 @@ class EfficiencyLookup:
             raise KeyError(f"order ({m}, {n}) is not in the table")
         return int(hits[0])
 
-    def fold(self, phi_deg: mi.Float) -> tuple[mi.Float, mi.Bool, mi.Bool]:
-        """Azimuth folded into the stored range, and whether m and n flip (rcwa.symmetry)."""
+    def fold(self, phi_deg: mi.Float) -> tuple[mi.Float, mi.Bool, mi.Bool, mi.Bool]:
+        """Azimuth folded into the stored range, and whether m and n flip and then swap
+        (rcwa.symmetry.fold_azimuths: y, then x, then the diagonal)."""
         phi = phi_deg - 360.0 * dr.floor(phi_deg / 360.0)
         flip_m = dr.zeros(mi.Bool, dr.width(phi))
         flip_n = dr.zeros(mi.Bool, dr.width(phi))
+        swap = dr.zeros(mi.Bool, dr.width(phi))
         if self.mirror_y:
             upper = phi > 180.0
             phi = dr.select(upper, 360.0 - phi, phi)
@@ -83,26 +93,33 @@ class EfficiencyLookup:
                 back = phi > 90.0
                 phi = dr.select(back, 180.0 - phi, phi)
                 flip_m = back
+                if self.mirror_diagonal:
+                    swap = phi > 45.0
+                    phi = dr.select(swap, 90.0 - phi, phi)
         elif self.mirror_x:
             back = (phi > 90.0) & (phi < 270.0)
             phi = dr.select(back, 180.0 - phi, dr.select(phi >= 270.0, phi - 360.0, phi))
             flip_m = back
-        return phi, flip_m, flip_n
+        return phi, flip_m, flip_n, swap
 
-    def _flipped_index(self, k: mi.UInt32, flip_m: mi.Bool, flip_n: mi.Bool) -> mi.UInt32:
-        # Kept orders are m-major and symmetric about 0 in each direction.
+    def _flipped_index(self, k: mi.UInt32, flip_m: mi.Bool, flip_n: mi.Bool, swap: mi.Bool) -> mi.UInt32:
+        """The stored index of kept order ``k`` after the fold: (m, n) -> (+-m, +-n) by the
+        flips, then -> (n, m) by the swap (rcwa.symmetry.stored_order). Kept orders are
+        m-major and symmetric about 0 in each direction, so -m is index count - 1 - i_m, and
+        with square kept orders (the diagonal's condition) the swap exchanges i_m and i_n."""
         n_count = int(np.unique(self.orders_n).size)
         m_count = self.order_count // n_count
         i_m, i_n = k // n_count, k % n_count
         i_m = dr.select(flip_m, m_count - 1 - i_m, i_m)
         i_n = dr.select(flip_n, n_count - 1 - i_n, i_n)
+        i_m, i_n = dr.select(swap, i_n, i_m), dr.select(swap, i_m, i_n)
         return mi.UInt32(i_m * n_count + i_n)
 
     def eval(self, k: mi.UInt32, wavelength_nm: mi.Float, theta_deg: mi.Float, phi_deg: mi.Float,
              active: mi.Bool | bool = True) -> mi.Float:
         """Efficiency of kept order ``k`` (index into orders_m/n) at the given incidence."""
-        phi, flip_m, flip_n = self.fold(phi_deg)
-        k = self._flipped_index(k, flip_m, flip_n)
+        phi, flip_m, flip_n, swap = self.fold(phi_deg)
+        k = self._flipped_index(k, flip_m, flip_n, swap)
         (w0, wf, w_in) = self._axis(wavelength_nm, self.wl, clamp=False)
         (t0, tf, _) = self._axis(theta_deg, self.theta)
         (p0, pf, _) = self._axis(phi, self.phi)

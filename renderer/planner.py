@@ -197,17 +197,13 @@ def _glass_visible(spec: SceneSpec, origin: np.ndarray, rays: np.ndarray) -> lis
 # ---------------------------------------------------------------- the domain
 
 
-def fold_azimuths(phi_deg: np.ndarray, mirror_x: bool, mirror_y: bool) -> np.ndarray:
-    """Azimuths folded into a table's stored range (the vectorised rule of rcwa.table.Table.fold_azimuth)."""
-    phi = np.mod(phi_deg, 360.0)
-    if mirror_y:
-        phi = np.where(phi > 180.0, 360.0 - phi, phi)
-    if mirror_x and mirror_y:
-        phi = np.where(phi > 90.0, 180.0 - phi, phi)
-    if mirror_x and not mirror_y:
-        phi = np.where((phi > 90.0) & (phi < 270.0), 180.0 - phi, phi)
-        phi = np.where(phi >= 270.0, phi - 360.0, phi)
-    return phi
+def fold_azimuths(phi_deg: np.ndarray, mirror_x: bool, mirror_y: bool, diagonal: bool = False) -> np.ndarray:
+    """Azimuths folded into a table's stored range (rcwa.symmetry.fold_azimuths, the rule
+    rcwa.table.Table.fold_azimuth applies); the nodes a lookup reads do not depend on the
+    order flips or the swap."""
+    from rcwa import symmetry
+
+    return symmetry.fold_azimuths(phi_deg, mirror_x, mirror_y, diagonal)[0]
 
 
 def _mark(mask: np.ndarray, grid_theta: np.ndarray, grid_phi: np.ndarray, theta: np.ndarray, phi: np.ndarray) -> None:
@@ -286,13 +282,12 @@ def _cost_sample(structure, settings, fill_orders: tuple[int, ...]) -> tuple[flo
 def plan_element(spec: SceneSpec, hit: dict[str, Any], origin: np.ndarray, camera_range: tuple[float, float],
                  *, measure_cost: bool = True) -> ElementPlan:
     import rcwa
-    from rcwa import symmetry
-    from rcwa.table import _kept_indices, _transmits
+    from rcwa.table import _kept_indices, _transmits, table_symmetry
 
     element = hit["element"]
     structure = rcwa.load_structure(element.structure)
     settings = _table_settings(element, structure, hit["key"], spec.source)
-    sym = symmetry.detect(structure) if settings.use_symmetry else symmetry.MirrorSymmetry(False, False)
+    sym = table_symmetry(structure, settings.orders, settings.keep, settings.use_symmetry)
     see_through = _transmits(structure, settings) and not settings.reflection_only
     grid_theta, grid_phi = np.asarray(settings.theta_deg), np.asarray(settings.phi_deg)
     ms, ns = _kept_indices(settings.keep)
@@ -328,7 +323,8 @@ def plan_element(spec: SceneSpec, hit: dict[str, Any], origin: np.ndarray, camer
                     if not ok.any():
                         continue
                     needed_orders.add((m, n))
-                    _mark(masks[table_name][chunk], grid_theta, grid_phi, theta[ok], fold_azimuths(phi[ok], sym.x, sym.y))
+                    folded = fold_azimuths(phi[ok], sym.x, sym.y, sym.diagonal)
+                    _mark(masks[table_name][chunk], grid_theta, grid_phi, theta[ok], folded)
                     src = source_rays(theta[ok], phi[ok], axis[on_side][ok], ey[on_side][ok], normal,
                                        above=(side_name == "above") != transmitted)
                     direct += int(np.count_nonzero(hits_light(points[on_side][ok], src, spec)))
@@ -363,7 +359,8 @@ def plan_element(spec: SceneSpec, hit: dict[str, Any], origin: np.ndarray, camer
     return ElementPlan(
         key=hit["key"], structure=structure.name, visible_pixels=int(len(points)),
         camera_side=_side_name(side), see_through=bool(see_through), tables=used, orders_needed=sorted(needed_orders),
-        orders_kept=kept, wavelength_range_nm=(float(lo), float(hi)), symmetry=sym.describe(),
+        orders_kept=kept, wavelength_range_nm=(float(lo), float(hi)),
+        symmetry=f"{sym.describe()}, azimuths stored {sym.azimuth_range()[0]:g}-{sym.azimuth_range()[1]:g} deg",
         grid_theta_deg=[float(x) for x in grid_theta], grid_phi_deg=[float(x) for x in grid_phi],
         directions_needed=int(union.sum()), directions_total=nodes_whole, theta_range_deg=theta_range,
         phi_range_deg=phi_range, direct_light_share=direct / total if total else 0.0,

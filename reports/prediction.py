@@ -187,17 +187,11 @@ class Efficiency:
 
     def fold(self, phi_deg: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Azimuths mapped into the stored range and whether the order flips (m -> -m);
-        rcwa.table.Table.fold_azimuth on arrays (a 1D grating's orders have n = 0)."""
-        phi = np.mod(phi_deg, 360.0)
-        flip = np.zeros(np.shape(phi), bool)
-        if self.mirror_y:
-            phi = np.where(phi > 180.0, 360.0 - phi, phi)
-            if self.mirror_x:
-                flip = phi > 90.0
-                phi = np.where(flip, 180.0 - phi, phi)
-        elif self.mirror_x:
-            flip = (phi > 90.0) & (phi < 270.0)
-            phi = np.where(flip, 180.0 - phi, np.where(phi >= 270.0, phi - 360.0, phi))
+        rcwa.symmetry.fold_azimuths, the rule of rcwa.table.Table.fold_azimuth (a 1D grating's
+        orders have n = 0, and a 1D cell never has the diagonal mirror)."""
+        from rcwa import symmetry
+
+        phi, flip, _, _ = symmetry.fold_azimuths(phi_deg, self.mirror_x, self.mirror_y)
         return phi, flip
 
     def __call__(self, m: int, wavelengths_nm: np.ndarray, sin_air: np.ndarray, phi_deg: np.ndarray) -> np.ndarray:

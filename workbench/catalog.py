@@ -142,7 +142,10 @@ def _axis(values: list[float]) -> dict:
 def format_table_info(info: dict) -> str:
     t, p, w = info["theta_deg"], info["phi_deg"], info["wavelengths_nm"]
     sym = info["symmetry"]
-    mirrors = [a for a, on in (("x", sym["mirror_x"]), ("y", sym["mirror_y"])) if on]
+    # tables written before the diagonal mirror existed have no mirror_diagonal: not folded by it
+    mirrors = [a for a, on in (("x", sym["mirror_x"]), ("y", sym["mirror_y"]),
+                               ("diagonal x <-> y", sym.get("mirror_diagonal", False))) if on]
+    note = sym.get("note", "")  # why a mirror of the cell is not used (a truncation that breaks it)
     lines = [
         f"{info['path']}: efficiency table of {info['structure']} ({info['structure_source']})",
         f"  arrays        {', '.join(info['arrays'])} (wavelength x theta x phi x kept order x polarization: "
@@ -153,7 +156,7 @@ def format_table_info(info: dict) -> str:
         f"  orders        {'x'.join(map(str, info['orders_retained']))} retained, "
         f"{'x'.join(map(str, info['orders_kept']))} kept; factorization {info['factorization']}",
         f"  symmetry      mirror {' and '.join(mirrors) or 'none'}; azimuths stored "
-        f"{sym['phi_range_deg'][0]:g}-{sym['phi_range_deg'][1]:g} deg",
+        f"{sym['phi_range_deg'][0]:g}-{sym['phi_range_deg'][1]:g} deg{f' ({note})' if note else ''}",
         f"  size          {info['bytes_on_disk'] / 1e6:.2f} MB on disk; solver {info['solver_version']}",
         f"  integrity     {info['integrity']} ({info['check_seconds']:.2f} s to check)",
     ]

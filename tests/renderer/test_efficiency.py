@@ -27,7 +27,7 @@ def test_lookup_matches_scipy_and_folds_azimuths(mitsuba_variant, cd_table):
     k = rng.integers(0, look.order_count, n)
     got = np.array(look.eval(mi.UInt32(k), mi.Float(wl), mi.Float(theta), mi.Float(phi)))
     for i in range(n):
-        folded, flip_m, flip_n = cd_table.fold_azimuth(phi[i])
+        folded, flip_m, flip_n, _ = cd_table.fold_azimuth(phi[i])  # 1D: never a swap
         m, nn = cd_table.orders[k[i]]
         q = cd_table.orders.index((-m if flip_m else m, -nn if flip_n else nn))
         expected = interp([wl[i], theta[i], folded])[0][q]

@@ -8,7 +8,7 @@ import dataclasses
 import numpy as np
 import pytest
 
-from rcwa.table import Table
+from rcwa.table import PRESETS, Table, angle_grid
 from renderer.planner import fold_azimuths, incident_directions, plan_scene
 from renderer.scene import load_scene
 from workbench.core.conventions import order_kx
@@ -75,12 +75,19 @@ def test_glass_out_of_view_needs_no_dispersion() -> None:
 def test_fixed_grooves_need_a_small_part_of_the_table_radial_grooves_most_of_it() -> None:
     """gold2d seen by one camera: each order maps the camera's narrow cone to a small patch
     per wavelength chunk, so at the paper's grid at most a fifth of the nodes is needed.
-    The CD's radial grooves turn the camera's view into every azimuth of the grating frame."""
+    The CD's radial grooves turn the camera's view into every azimuth of the grating frame.
+    Both shares are counted over the azimuths 0-90 deg: gold2d's table is also folded by
+    its diagonal mirror (rcwa.symmetry: 0-45 deg stored, half the nodes), onto which each
+    order's patch folds without shrinking, so its own fraction doubles."""
     gold = load_scene("grating2d_gold")
     gold = _replace_element(gold, "gratings", table={"preset": "paper"})
     (plate,) = plan_scene(gold, measure_cost=False).elements
     assert plate.see_through and set(plate.tables) == {"R", "T_below"}
-    assert 0 < plate.fraction <= ONE_FIFTH
+    assert "diagonal" in plate.symmetry and plate.grid_phi_deg[-1] < 90.0
+    nodes_0_to_90 = plate.directions_total // len(plate.grid_phi_deg) * len(angle_grid(PRESETS["paper"]["phi_step"], 0.0,
+                                                                                        90.0, "phi", cover=True))
+    share = plate.directions_needed / nodes_0_to_90
+    assert 0 < share <= ONE_FIFTH
     cd_scene = _replace_element(load_scene("cornell_cd_view2"), "cds", table={"preset": "paper"})
     (cd,) = plan_scene(cd_scene, measure_cost=False).elements
-    assert cd.fraction > 2 * plate.fraction
+    assert cd.grid_phi_deg[-1] == 90.0 and cd.fraction > 2 * share

@@ -137,7 +137,7 @@ def _expected_lit(spec, eff: prediction.Efficiency, pixel: np.ndarray, m: int) -
         k_in = np.array([k_out[0] - order_kx(0.0, m, cd.period_um * 1000.0, lam), k_out[1]])
         sin_air = float(np.hypot(*k_in))
         theta = math.degrees(math.asin(sin_air / float(np.interp(lam, *eff.superstrate))))
-        phi, flip_m, _ = stored.fold_azimuth(math.degrees(math.atan2(k_in[1], k_in[0])))
+        phi, flip_m, _, _ = stored.fold_azimuth(math.degrees(math.atan2(k_in[1], k_in[0])))
         eta = float(_table_interpolator(eff, -m if flip_m else m)([[lam, theta, phi]])[0])
         fresnel = (prediction.fresnel_transmission(np.array(cos_camera), n_top)
                    * prediction.fresnel_transmission(np.array(math.sqrt(1.0 - sin_air**2)), n_top))
