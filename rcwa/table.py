@@ -50,6 +50,7 @@ from workbench.core.errors import UserInputError
 from workbench.core.files import atomic_write_text
 from workbench.core.timing import timed
 from workbench.core.version import __version__ as workbench_version
+from workbench.core.version import versions
 
 FORMAT_VERSION = 1
 GRAZING_THETA_DEG = 89.999  # theta = 90 (no incident power) is solved at this limit
@@ -512,7 +513,7 @@ def _open_store(out: Path, structure: Structure, settings: TableSettings, key: s
                      "note": sym.note},
         "grazing_theta_deg": GRAZING_THETA_DEG,
         "factorization": resolve_rule(settings.factorization, structure.dimension, structure.layers),
-        "solver_version": workbench_version, "complete": False,
+        "solver_version": workbench_version, "versions": versions("numpy", "scipy", "zarr"), "complete": False,
     }
     if nodes is not None:
         group.create_array(PLANNED_NODES, shape=nodes.mask.shape, dtype="bool", fill_value=False)[...] = nodes.mask
