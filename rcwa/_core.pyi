@@ -142,6 +142,12 @@ class StackSolution:
         """
 
     @property
+    def complex_symmetric_solves(self) -> int:
+        """
+        Eigen-solves of lossy 1D layers symmetric about a point done as complex symmetric problems: tridiagonal form by complex-orthogonal reflectors, QL, inverse iteration, one refinement step, accepted on a residual check (complex_symmetric.hpp) instead of eig_small or zgeev.
+        """
+
+    @property
     def sectors_solved(self) -> int:
         """
         Mirror-symmetry sectors solved (sectors.hpp), of sectors_total; 0 of 0 where none were used. A polarization not asked for then has NaN amplitudes.
@@ -221,6 +227,16 @@ def sweep(dkx: Annotated[NDArray[numpy.float64], dict(shape=(None,), device='cpu
 def eig_from_guess(A: Annotated[NDArray[numpy.complex128], dict(shape=(None, None), device='cpu', writable=False)], guess: Annotated[NDArray[numpy.complex128], dict(shape=(None, None), device='cpu', writable=False)]) -> EigenDecomposition | None:
     """
     Eigen-decomposition of A refined from approximate eigenvectors, or None where it declines.
+    """
+
+def eig_complex_symmetric(A: Annotated[NDArray[numpy.complex128], dict(shape=(None, None), device='cpu', writable=False)]) -> EigenDecomposition | None:
+    """
+    Eigen-decomposition of a complex symmetric A (complex_symmetric.hpp), or None where it breaks down or fails its residual check.
+    """
+
+def eig_small(A: Annotated[NDArray[numpy.complex128], dict(shape=(None, None), device='cpu', writable=False)]) -> EigenDecomposition | None:
+    """
+    Eigen-decomposition by zhseqr and inverse iteration (linalg.hpp, eig_small), or None where it declines.
     """
 
 def set_blas_threads(n: int) -> None:

@@ -155,7 +155,12 @@ def solve(
         instead of through the layer's W^-1 and V^-1. Lossy 1D layers below 75 harmonics
         take their eigenvalues from the QR algorithm alone and their eigenvectors by inverse
         iteration ("inverse_iteration", rcwa/cpp/linalg.hpp eig_small), 20 % faster than
-        zgeev there.
+        zgeev there. Lossy 1D layers symmetric about a point (their matrices complex
+        symmetric once the origin is moved there) are solved before that as complex
+        symmetric problems ("complex_symmetric", rcwa/cpp/complex_symmetric.hpp: tridiagonal
+        form by complex-orthogonal reflectors, QL, inverse iteration, one refinement step
+        against the layer's own matrix), each accepted only on a residual check and
+        otherwise solved as above; about 2x faster than eig_small at 61 harmonics.
         ``SolveResult.fast_paths`` names what was used. False
         forces the general path (to check the fast ones: tests/rcwa/test_fast_paths.py,
         tests/rcwa/test_sectors.py); the two agree to 1e-12.
@@ -212,6 +217,8 @@ def _fast_paths(sol: _core.StackSolution, pol: Polarization) -> tuple[str, ...]:
         paths += ("real_arithmetic",)
     if sol.inverse_iteration_solves:
         paths += ("inverse_iteration",)
+    if sol.complex_symmetric_solves:
+        paths += ("complex_symmetric",)
     return paths
 
 

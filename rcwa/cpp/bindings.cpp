@@ -20,6 +20,7 @@
 #include <stdexcept>
 #include <string>
 
+#include "complex_symmetric.hpp"
 #include "efficiency.hpp"
 #include "profile.hpp"
 #include "sweep.hpp"
@@ -172,6 +173,19 @@ std::optional<rcwa::Eigen> eig_from_guess_py(const CArray2& A, const CArray2& gu
     return rcwa::eig_from_guess(a, g);
 }
 
+// eig_complex_symmetric and eig_small (complex_symmetric.hpp, linalg.hpp), for tests and
+// benchmarks: the decomposition, or None where the method declines.
+std::optional<rcwa::Eigen> eig_complex_symmetric_py(const CArray2& A) {
+    Mat a = to_square_mat(A, "A");
+    nb::gil_scoped_release release;
+    return rcwa::eig_complex_symmetric(std::move(a));
+}
+std::optional<rcwa::Eigen> eig_small_py(const CArray2& A) {
+    Mat a = to_square_mat(A, "A");
+    nb::gil_scoped_release release;
+    return rcwa::eig_small(std::move(a));
+}
+
 void bind_layers(nb::module_& m) {
     nb::enum_<rcwa::LayerKind>(m, "LayerKind", "How a layer's modes are found, and so which matrices it carries.")
         .value("UNIFORM", rcwa::LayerKind::Uniform, "Homogeneous: modes in closed form, no matrices.")
@@ -279,6 +293,10 @@ void bind_results(nb::module_& m) {
         .def_ro("inverse_iteration_solves", &rcwa::StackSolution::inverse_iteration_solves,
                 "Eigen-solves of lossy 1D layers (fewer than 75 harmonics) done by the QR algorithm for the "
                 "eigenvalues and inverse iteration for the eigenvectors (linalg.hpp, eig_small) instead of zgeev.")
+        .def_ro("complex_symmetric_solves", &rcwa::StackSolution::complex_symmetric_solves,
+                "Eigen-solves of lossy 1D layers symmetric about a point done as complex symmetric problems: "
+                "tridiagonal form by complex-orthogonal reflectors, QL, inverse iteration, one refinement step, "
+                "accepted on a residual check (complex_symmetric.hpp) instead of eig_small or zgeev.")
         .def_ro("sectors_solved", &rcwa::StackSolution::sectors_solved,
                 "Mirror-symmetry sectors solved (sectors.hpp), of sectors_total; 0 of 0 where none were used. A "
                 "polarization not asked for then has NaN amplitudes.")
@@ -343,6 +361,11 @@ NB_MODULE(_core, m) {
           "points respecting one of the mirrors (as in solve_stack) are solved in mirror-symmetry sectors.");
     m.def("eig_from_guess", &eig_from_guess_py, "A"_a, "guess"_a,
           "Eigen-decomposition of A refined from approximate eigenvectors, or None where it declines.");
+    m.def("eig_complex_symmetric", &eig_complex_symmetric_py, "A"_a,
+          "Eigen-decomposition of a complex symmetric A (complex_symmetric.hpp), or None where it breaks down or "
+          "fails its residual check.");
+    m.def("eig_small", &eig_small_py, "A"_a,
+          "Eigen-decomposition by zhseqr and inverse iteration (linalg.hpp, eig_small), or None where it declines.");
     m.def("set_blas_threads", &rcwa::set_blas_threads, "n"_a,
           "Number of OpenBLAS threads (1 when the core runs its own threads).");
 }

@@ -20,7 +20,10 @@
 // costs three N x N products and no factorization per direction.
 #include "modes.hpp"
 
+#include <cmath>
 #include <optional>
+
+#include "complex_symmetric.hpp"
 
 namespace rcwa {
 
@@ -42,6 +45,63 @@ Eigen eig_near(Mat A, const Mat* guess, int& refined, bool fast, int& small) {
     return eig(std::move(A));
 }
 
+// Rows scaled by conj(d): V = D^H V' back from the moved frame (nothing for an empty d).
+void moved_back(Mat& V, const CVec& d) {
+    if (d.empty()) return;
+    for (int j = 0; j < V.cols; ++j)
+        for (int i = 0; i < V.rows; ++i) V(i, j) *= std::conj(d[i]);
+}
+
+// One step of two-sided refinement (refinement_step) of MB = Exx Bm's eigenvectors V, Exx and
+// Bm symmetric (the moved frame): MB's left eigenvectors are Exx^-1 V = Bm V diag(mu)^-1
+// (MB^T = Bm Exx), so L = Bm V up to a scaling of columns that the step does not see. Then
+// unit columns and the probed residual ||Exx Bm V x - V mu x|| <= kComplexSymmetricTolerance
+// ||Exx Bm V x||. Returns the refined decomposition and Bm V in `B_VB`, or nothing.
+std::optional<Eigen> tm_refined(const Mat& Exx, const Mat& Bm, Eigen e, Mat& B_VB) {
+    Mat BV = matmul(Bm, e.vectors);
+    auto P = refinement_step(BV, e.vectors, matmul(Exx, BV), e.values);
+    if (!P) return std::nullopt;
+    Mat V = matmul(e.vectors, *P), BV1 = matmul(BV, *P);
+    unit_columns(V, {&BV1});
+    auto apply = [&](const CVec& x) { return matvec(Exx, matvec(Bm, x)); };
+    if (!probed_residual_ok(apply, V, e.values, 0.0, kComplexSymmetricTolerance)) return std::nullopt;
+    e.vectors = std::move(V);
+    B_VB = std::move(BV1);
+    return e;
+}
+
+// TM: MB v = mu v is the pencil Bm v = mu Exx^-1 v of two symmetric matrices (moved by D);
+// with Exx' = G G^T (symmetric_factor), C = G^T Bm' G is symmetric and v' = G y, refined on
+// MB' = Exx' Bm' itself (tm_refined). Returns VB = D^H V' and B_VB = D^H Bm' V' = Bm VB.
+std::optional<Eigen> tm_complex_symmetric(const Mat& Exx, const Mat& Bm, const CVec& d, Mat& B_VB) {
+    const Mat Exx_moved = moved_by_phase(Exx, d), Bm_moved = moved_by_phase(Bm, d);
+    auto G = symmetric_factor(Exx_moved);
+    if (!G) return std::nullopt;
+    Mat C = Bm_moved;
+    triangular_multiply(*G, C, 'R', 'N');
+    triangular_multiply(*G, C, 'L', 'T');
+    for (int j = 0; j < C.cols; ++j)
+        for (int i = j + 1; i < C.rows; ++i) C(i, j) = C(j, i) = 0.5 * (C(i, j) + C(j, i));
+    auto e = eig_complex_symmetric(std::move(C), kComplexSymmetricTolerance, false);
+    if (!e) return std::nullopt;
+    triangular_multiply(*G, e->vectors, 'L', 'N');
+    e = tm_refined(Exx_moved, Bm_moved, std::move(*e), B_VB);
+    if (!e) return std::nullopt;
+    moved_back(e->vectors, d);
+    moved_back(B_VB, d);
+    return e;
+}
+
+// The complex-symmetric fast path (complex_symmetric.hpp) for a layer whose matrices D E D^H,
+// D Exx D^H, D Z D^H are symmetric (`d`: symmetric_by_phase). TE: MA' = D MA D^H, WA = D^H WA'.
+std::optional<Eigen> te_complex_symmetric(const std::vector<double>& kx, const Mat& E, const CVec& d) {
+    Mat MA = moved_by_phase(E, d);
+    for (std::size_t i = 0; i < kx.size(); ++i) MA(static_cast<int>(i), static_cast<int>(i)) -= kx[i] * kx[i];
+    auto e = eig_complex_symmetric(std::move(MA));
+    if (e) moved_back(e->vectors, d);
+    return e;
+}
+
 }  // namespace
 
 LamellarEigen lamellar_eigen(const std::vector<double>& kx, const Mat& E, const Mat& Exx, const Mat& Z,
@@ -54,6 +114,22 @@ LamellarEigen lamellar_eigen(const std::vector<double>& kx, const Mat& E, const 
     // Real arithmetic where moving the origin makes the matrices real (real_by_phase: a
     // layer symmetric about some point; every P2-like stripe is): the same decompositions
     // with dsyevd / dsygvd at about a third of the cost, then D^H back.
+    // The complex-symmetric path (lossy layers in single solves): the phase that makes E,
+    // Exx and Z symmetric, found once where a general eigen-solve is about to run.
+    bool phase_tried = false;
+    std::optional<CVec> phase;
+    auto symmetric_phase = [&]() -> const std::optional<CVec>& {
+        if (!phase_tried && parts.hermitian && !near) {
+            std::vector<const Mat*> mats{&E};
+            if (parts.tm) {
+                mats.push_back(&Exx);
+                mats.push_back(&Z);
+            }
+            phase = symmetric_by_phase(mats, kSymmetricTolerance);
+        }
+        phase_tried = true;
+        return phase;
+    };
     std::optional<RealForm> real;
     if (lossless && (!parts.tm || tm_pencil)) {
         std::vector<const Mat*> mats{&E};
@@ -88,7 +164,12 @@ LamellarEigen lamellar_eigen(const std::vector<double>& kx, const Mat& E, const 
             out.muA = std::move(ea.values);
             ++out.hermitian;
         } else {
-            Eigen ea = eig_near(std::move(MA), near ? &near->WA : nullptr, out.refined, parts.hermitian, out.inverse_iteration);
+            std::optional<Eigen> cs;
+            if (const auto& d = symmetric_phase()) cs = te_complex_symmetric(kx, E, *d);
+            if (cs) ++out.complex_symmetric;
+            Eigen ea = cs ? std::move(*cs)
+                          : eig_near(std::move(MA), near ? &near->WA : nullptr, out.refined, parts.hermitian,
+                                     out.inverse_iteration);
             out.WA = std::move(ea.vectors);
             out.muA = std::move(ea.values);
             if (parts.inverses) out.WA_inv = LU(out.WA).inverse();
@@ -154,10 +235,19 @@ LamellarEigen lamellar_eigen(const std::vector<double>& kx, const Mat& E, const 
             if (parts.inverses) out.B_VB_inv = matmul(mu_inv_WH, Exx);  // (W mu)^-1 = mu^-1 W^H Exx
             ++out.hermitian;
         } else {
-            Eigen eb = eig_near(matmul(Exx, Bm), near ? &near->VB : nullptr, out.refined, parts.hermitian, out.inverse_iteration);
+            std::optional<Eigen> cs;
+            bool tm_cs = false;
+            if (const auto& d = symmetric_phase()) cs = tm_complex_symmetric(Exx, Bm, *d, out.B_VB);
+            if (cs) {
+                tm_cs = true;
+                ++out.complex_symmetric;
+            }
+            Eigen eb = cs ? std::move(*cs)
+                          : eig_near(matmul(Exx, Bm), near ? &near->VB : nullptr, out.refined, parts.hermitian,
+                                     out.inverse_iteration);
             out.VB = std::move(eb.vectors);
             out.muB = std::move(eb.values);
-            out.B_VB = matmul(Bm, out.VB);
+            if (!tm_cs) out.B_VB = matmul(Bm, out.VB);
             if (parts.inverses) {
                 out.VB_inv = LU(out.VB).inverse();
                 out.B_VB_inv = LU(out.B_VB).inverse();

@@ -92,6 +92,7 @@ struct LamellarEigen {
     int hermitian = 0;  // how many were solved as Hermitian problems (0-2; see LamellarParts)
     int real = 0;       // of those, how many in real arithmetic (real_by_phase)
     int inverse_iteration = 0;  // how many general ones were solved by eig_small (linalg.hpp)
+    int complex_symmetric = 0;  // how many general ones were solved as complex symmetric (complex_symmetric.hpp)
     bool inverses = true;       // WA_inv, VB_inv, B_VB_inv, M1, M3 computed (LamellarParts::inverses)
 };
 // Which parts of a LamellarEigen to compute. At ky = 0 the families never couple: the TE
@@ -119,6 +120,10 @@ constexpr double kHermitianTolerance = 1e-14;
 // |Im| of D A D^H (real_by_phase) below which a lossless layer is solved in real arithmetic,
 // relative to A's largest entry: round-off of the Fourier coefficients and of Z = E^-1.
 constexpr double kRealTolerance = 1e-13;
+// Asymmetry |A - A^T| (relative to the largest entry) below which a lossy layer's phase-moved
+// E, Exx, Z are treated as complex symmetric (symmetric_by_phase); each use is then checked
+// on its residual (complex_symmetric.hpp), so this only decides where to try.
+constexpr double kSymmetricTolerance = 1e-11;
 // Z = E^-1 is passed in (it depends on the wavelength only; unused when only the TE
 // family is asked for). `near`: the solution at a nearby kx, whose eigenvectors seed
 // eig_from_guess (linalg.hpp) instead of a full eigen-solve; nullptr, or a guess that does

@@ -37,6 +37,7 @@ struct StackSolution {
     int hermitian_solves = 0;  // eigen-solves done by Hermitian solvers (lossless layers: LamellarParts)
     int real_solves = 0;       // of those, done in real arithmetic (dsyevd / dsygvd: real_by_phase)
     int inverse_iteration_solves = 0;  // general 1D eigen-solves done by eig_small (linalg.hpp)
+    int complex_symmetric_solves = 0;  // general 1D eigen-solves done as complex symmetric (complex_symmetric.hpp)
 };
 
 // kz of every harmonic in a half-space of permittivity eps, outgoing branch (outgoing_sqrt).

@@ -130,7 +130,7 @@ StackSolution solve_decoupled(const SweepProblem& pr, const StackProblem& sp, In
     // One lamellar layer: solved directly (solve_polarized_direct), without its inverses.
     const bool direct = pr.layers.size() == 1 && pr.layers.front().kind == LayerKind::Lamellar;
     std::vector<PolarizedModes> te_layers, tm_layers;
-    int hermitian_solves = 0, real_solves = 0, inverse_iteration_solves = 0;
+    int hermitian_solves = 0, real_solves = 0, inverse_iteration_solves = 0, complex_symmetric_solves = 0;
     for (const LayerInput& in : pr.layers) {
         if (in.kind == LayerKind::Uniform) {
             if (te) te_layers.push_back(uniform_polarized(sp.harmonics.kx, in.eps, Polarization::TE));
@@ -144,6 +144,7 @@ StackSolution solve_decoupled(const SweepProblem& pr, const StackProblem& sp, In
         hermitian_solves += e.hermitian;
         real_solves += e.real;
         inverse_iteration_solves += e.inverse_iteration;
+        complex_symmetric_solves += e.complex_symmetric;
         if (te) te_layers.push_back(lamellar_polarized(e, Polarization::TE));
         if (tm) tm_layers.push_back(lamellar_polarized(e, Polarization::TM));
     }
@@ -156,6 +157,7 @@ StackSolution solve_decoupled(const SweepProblem& pr, const StackProblem& sp, In
     out.hermitian_solves = hermitian_solves;
     out.real_solves = real_solves;
     out.inverse_iteration_solves = inverse_iteration_solves;
+    out.complex_symmetric_solves = complex_symmetric_solves;
     const cplx not_solved(std::nan(""), std::nan(""));
     for (int i = 0; i < 2 * n; ++i) {
         if (!te) out.r(i, 0) = out.t(i, 0) = not_solved;
@@ -364,6 +366,7 @@ StackSolution solve_point(const SweepProblem& input, std::size_t p, Incidence in
             out.hermitian_solves += layer->hermitian;
             out.real_solves += layer->real;
             out.inverse_iteration_solves += layer->inverse_iteration;
+            out.complex_symmetric_solves += layer->complex_symmetric;
         }
     return out;
 }

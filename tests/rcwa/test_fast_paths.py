@@ -62,9 +62,9 @@ HERMITIAN_SOLVES = {"P2 oblique": 2, "P2 normal incidence": 2, "dielectric at a 
 # Of those, the ones in real arithmetic (layers symmetric about a point: rcwa/cpp/linalg.hpp,
 # real_by_phase).
 REAL_SOLVES = {**HERMITIAN_SOLVES, "lossless, symmetric about no point": 0}
-# Cases with a lossy patterned layer: its eigen-solves (below 75 harmonics) take the QR
-# algorithm for the eigenvalues and inverse iteration for the eigenvectors (rcwa/cpp/linalg.hpp,
-# eig_small) instead of zgeev.
+# Cases with a lossy patterned layer: every one here is symmetric about a point, so its
+# eigen-solves are complex symmetric ones (rcwa/cpp/complex_symmetric.hpp; the others, and any
+# that fails its residual check, take eig_small: tests/rcwa/test_complex_symmetric.py).
 LOSSY = {"cd at its Rayleigh point (normal)", "cd oblique, metal", "lossless next to lossy, metal below"}
 
 
@@ -100,7 +100,7 @@ def test_decoupled_efficiencies_equal_the_general_path(name, pol):
     single = ("single_polarization",) if pol != "unpolarized" else ()
     hermitian = ("hermitian_eigensolver",) if HERMITIAN_SOLVES[name] else ()
     real = ("real_arithmetic",) if REAL_SOLVES[name] else ()
-    inverse = ("inverse_iteration",) if name in LOSSY else ()
+    inverse = ("complex_symmetric",) if name in LOSSY else ()
     # one patterned layer: solved directly per polarization (polarized.hpp, solve_polarized_direct)
     direct = ("single_layer_direct",) if len(s.layers) == 1 else ()
     assert fast.fast_paths == ("te_tm_decoupled",) + single + direct + hermitian + real + inverse
