@@ -28,7 +28,7 @@ std::optional<Tridiagonal> tridiagonalize(Mat& A) {
     t.d.resize(static_cast<std::size_t>(n));
     t.e.assign(static_cast<std::size_t>(std::max(n - 1, 0)), 0.0);
     t.tau.assign(static_cast<std::size_t>(std::max(n - 2, 0)), 0.0);
-    CVec p(static_cast<std::size_t>(n));
+    CVec p(static_cast<std::size_t>(n)), vw(2 * static_cast<std::size_t>(n)), wv(2 * static_cast<std::size_t>(n));
     for (int k = 0; k + 2 < n; ++k) {
         const int m = n - k - 1;
         cplx* v = &A(k + 1, k);
@@ -50,7 +50,7 @@ std::optional<Tridiagonal> tridiagonalize(Mat& A) {
             v2 += std::norm(v[i]);
         }
         if (!(v2 <= kComplexSymmetricGrowth * std::abs(vv))) return std::nullopt;  // v^T v ~ 0: breakdown
-        const cplx tau = 2.0 / vv;
+        const cplx tau = 2.0 * std::conj(vv) / std::norm(vv);
         cplx* S = &A(k + 1, k + 1);
         const cplx zero = 0.0, minus_one = -1.0;
         // p = tau S v, w = p - (tau / 2) (p^T v) v, S <- S - v w^T - w v^T.
@@ -58,9 +58,16 @@ std::optional<Tridiagonal> tridiagonalize(Mat& A) {
         cplx pv = 0.0;
         for (int i = 0; i < m; ++i) pv += p[i] * v[i];
         const cplx beta = -0.5 * tau * pv;
-        for (int i = 0; i < m; ++i) p[i] += beta * v[i];
-        scipy_cblas_zgeru(CblasColMajor, m, m, &minus_one, v, 1, p.data(), 1, S, n);
-        scipy_cblas_zgeru(CblasColMajor, m, m, &minus_one, p.data(), 1, v, 1, S, n);
+        for (int i = 0; i < m; ++i) {
+            p[i] += beta * v[i];
+            vw[i] = v[i];
+            vw[m + i] = p[i];
+            wv[2 * i] = p[i];  // [w v]^T, 2 x m
+            wv[2 * i + 1] = v[i];
+        }
+        const cplx one = 1.0;
+        scipy_cblas_zgemm(CblasColMajor, CblasNoTrans, CblasNoTrans, m, m, 2, &minus_one, vw.data(), m, wv.data(), 2,
+                          &one, S, n);
         t.e[k] = alpha;
         t.tau[k] = tau;
     }
@@ -71,6 +78,13 @@ std::optional<Tridiagonal> tridiagonalize(Mat& A) {
 
 // |Re| + |Im| (LAPACK's cabs1): the size tests below, without hypot.
 inline double cabs1(cplx z) { return std::fabs(z.real()) + std::fabs(z.imag()); }
+
+// 1 / z as conj(z) / |z|^2: no scaling against overflow (libgcc's __divdc3 has it, and was a
+// tenth of the time); the entries here lie many decades inside the double range.
+inline cplx recip(cplx z) {
+    const double d = z.real() * z.real() + z.imag() * z.imag();
+    return {z.real() / d, -z.imag() / d};
+}
 
 // The principal square root (Re >= 0) with one real sqrt and hypot-free modulus: the
 // rotations' entries here are far from overflow, and std::sqrt(complex) was most of QL's time.
@@ -99,10 +113,10 @@ bool tridiagonal_eigenvalues(CVec& d, CVec e) {
                 if (cabs1(e[m]) <= 0.5 * kEps * (cabs1(d[m]) + cabs1(d[m + 1]))) break;
             if (m == l) break;
             if (++iterations > 40) return false;
-            cplx g = (d[l + 1] - d[l]) / (2.0 * e[l]);
+            cplx g = (d[l + 1] - d[l]) * recip(2.0 * e[l]);
             cplx r = csqrt(g * g + 1.0);
             if (std::norm(g - r) > std::norm(g + r)) r = -r;
-            g = d[m] - d[l] + e[l] / (g + r);
+            g = d[m] - d[l] + e[l] * recip(g + r);
             cplx s = 1.0, c = 1.0, p = 0.0;
             int i = m - 1;
             bool underflow = false;
@@ -121,7 +135,7 @@ bool tridiagonal_eigenvalues(CVec& d, CVec e) {
                 if (!(size * size <= kComplexSymmetricGrowth * kComplexSymmetricGrowth * std::norm(r2))) return false;
                 r = csqrt(r2);
                 e[i + 1] = r;
-                const cplx inv = 1.0 / r;
+                const cplx inv = recip(r);
                 s = f * inv;
                 c = g * inv;
                 g = d[i + 1] - p;
@@ -155,7 +169,7 @@ struct TridiagonalLU {
         for (int i = 0; i < n; ++i) {
             if (i + 1 == n) {
                 if (cabs1(diag) < tiny) diag = tiny;  // w is an eigenvalue: perturb, as dlagtf
-                inv_u0[i] = 1.0 / diag;
+                inv_u0[i] = recip(diag);
                 u1[i] = u2[i] = 0.0;
                 swapped[i] = 0;
                 break;
@@ -164,7 +178,7 @@ struct TridiagonalLU {
             if (cabs1(diag) >= cabs1(below)) {
                 swapped[i] = 0;
                 if (cabs1(diag) < tiny) diag = tiny;
-                const cplx inv = 1.0 / diag;
+                const cplx inv = recip(diag);
                 inv_u0[i] = inv;
                 u1[i] = upper;
                 u2[i] = 0.0;
@@ -173,7 +187,7 @@ struct TridiagonalLU {
                 upper = next_upper;
             } else {
                 swapped[i] = 1;
-                const cplx inv = 1.0 / below;
+                const cplx inv = recip(below);
                 inv_u0[i] = inv;
                 u1[i] = next_diag;
                 u2[i] = next_upper;
@@ -213,7 +227,9 @@ std::optional<Mat> tridiagonal_vectors(const CVec& d, const CVec& e, const CVec&
     for (int j = 0; j < n; ++j) order[j] = j;
     std::sort(order.begin(), order.end(), [&](int a, int b) { return w[a].real() < w[b].real(); });
     Mat Y(n, n);
-    CVec y(static_cast<std::size_t>(n));
+    CVec y(static_cast<std::size_t>(n)), start(static_cast<std::size_t>(n));
+    for (int i = 0; i < n; ++i)  // a start with every component present (a fixed pseudo-random sequence)
+        start[i] = cplx(1.0 + 0.5 * std::sin(1.7 * i), 0.25 * std::cos(2.3 * i));
     TridiagonalLU lu(n);
     std::vector<int> neighbours;
     for (int jj = 0; jj < n; ++jj) {
@@ -222,8 +238,7 @@ std::optional<Mat> tridiagonal_vectors(const CVec& d, const CVec& e, const CVec&
         neighbours.clear();
         for (int kk = jj - 1; kk >= 0 && w[j].real() - w[order[kk]].real() <= close; --kk)
             if (cabs1(w[order[kk]] - w[j]) <= close) neighbours.push_back(order[kk]);
-        // A start with every component present (a fixed pseudo-random sequence).
-        for (int i = 0; i < n; ++i) y[i] = cplx(1.0 + 0.5 * std::sin(1.7 * i + 0.3 * j), 0.25 * std::cos(2.3 * i));
+        y = start;
         for (int step = 0; step < 2; ++step) {
             lu.solve(y);
             for (int k : neighbours) {  // bilinear Gram-Schmidt against close eigenvalues' vectors
@@ -325,7 +340,7 @@ std::optional<Mat> refinement_step(const Mat& L, const Mat& V, const Mat& MV, CV
     auto S = [&](int i, int j) { return KS(i, n + j); };
     for (int j = 0; j < n; ++j) {
         if (!(cabs1(S(j, j)) > 0.0)) return std::nullopt;
-        values[j] = K(j, j) / S(j, j);
+        values[j] = K(j, j) * recip(S(j, j));
     }
     Mat P(n, n);
     for (int j = 0; j < n; ++j) {
@@ -335,7 +350,7 @@ std::optional<Mat> refinement_step(const Mat& L, const Mat& V, const Mat& MV, CV
             const cplx num = K(i, j) - values[j] * S(i, j);
             const cplx gap = (values[j] - values[i]) * S(i, i);
             if (!(cabs1(num) <= 1e-2 * cabs1(gap))) return std::nullopt;  // a pair it cannot separate
-            P(i, j) = num / gap;
+            P(i, j) = num * recip(gap);
         }
     }
     return P;
