@@ -114,12 +114,12 @@ LamellarEigen lamellar_eigen(const std::vector<double>& kx, const Mat& E, const 
     // Real arithmetic where moving the origin makes the matrices real (real_by_phase: a
     // layer symmetric about some point; every P2-like stripe is): the same decompositions
     // with dsyevd / dsygvd at about a third of the cost, then D^H back.
-    // The complex-symmetric path (lossy layers in single solves): the phase that makes E,
+    // The complex-symmetric path (LamellarParts::complex_symmetric): the phase that makes E,
     // Exx and Z symmetric, found once where a general eigen-solve is about to run.
     bool phase_tried = false;
     std::optional<CVec> phase;
     auto symmetric_phase = [&]() -> const std::optional<CVec>& {
-        if (!phase_tried && parts.hermitian && !near) {
+        if (!phase_tried && parts.complex_symmetric) {
             std::vector<const Mat*> mats{&E};
             if (parts.tm) {
                 mats.push_back(&Exx);

@@ -115,6 +115,11 @@ struct LamellarParts {
     // Without them the layer's modes can only be solved directly (stack.cpp, solve_direct:
     // a one-layer stack in a single solve), and LayerModes::dense says so.
     bool inverses = true;
+    // Lossy (or not Hermitian-definite) layers whose matrices D E D^H, D Exx D^H, D Z D^H are
+    // complex symmetric for some diagonal unitary D (symmetric_by_phase: a profile symmetric
+    // about a point) are solved by eig_complex_symmetric (TE) and through Exx' = G G^T (TM),
+    // before `near`'s refinement and eig_small / zgeev, which remain for what it declines.
+    bool complex_symmetric = false;
 };
 constexpr double kHermitianTolerance = 1e-14;
 // |Im| of D A D^H (real_by_phase) below which a lossless layer is solved in real arithmetic,
