@@ -22,20 +22,24 @@ constexpr double kComplexSymmetricTolerance = 1e-13;
 constexpr double kComplexSymmetricGrowth = 1e6;
 
 // Eigen-decomposition of a complex symmetric matrix (the lower triangle is reduced; the
-// whole of A is used for the residual check): Householder-like reflectors
-// H = I - 2 v v^T / (v^T v) reduce A to a complex symmetric tridiagonal T = Q^T A Q (Bar-On
-// & Ryaboy 1997, "Fast diagonalization of large and dense complex symmetric matrices", SIAM
-// J. Sci. Comput. 18); T's eigenvalues by the implicit QL algorithm with complex rotations
-// c^2 + s^2 = 1 (Cullum & Willoughby 1985, Lanczos Algorithms for Large Symmetric Eigenvalue
-// Computations, their CMTQL1: tql1 in complex arithmetic); its eigenvectors by inverse iteration
-// on T (zgttrf/zgttrs, close eigenvalues orthogonalized in the bilinear form), W = Q Y; then
-// one step of first-order refinement against A itself (with K = W^T A W, S = W^T W:
-// w_i <- w_i + sum_j w_j (K_ji - w_i S_ji) / (w_i - w_j), which uses A's symmetry: the left
-// eigenvectors are the right ones transposed). Columns of unit 2-norm, as zgeev's. Nothing
-// on a breakdown (growth above kComplexSymmetricGrowth, no convergence, a close pair the
-// refinement cannot separate) or a residual above `tolerance`. refine = false: the
-// eigenvalues from QL and the vectors from inverse iteration, unrefined and unchecked (the
-// caller refines them against the matrix it needs, as lamellar.cpp's TM pencil).
+// whole of A is used for the refinement and the residual check): reflectors
+// H = I - 2 v v^T / (v^T v) (complex orthogonal, H^T H = I) reduce A to a complex symmetric
+// tridiagonal T = Q^T A Q (Bar-On & Ryaboy 1997, "Fast diagonalization of large and dense
+// complex symmetric matrices", SIAM J. Sci. Comput. 18); T's eigenvalues by the implicit QL
+// algorithm (EISPACK's imtql1: Martin & Wilkinson 1968, Num. Math. 12, 377) in complex
+// arithmetic, its rotations c^2 + s^2 = 1 complex (as Cullum & Willoughby 1985, Lanczos
+// Algorithms for Large Symmetric Eigenvalue Computations, CMTQL1); its eigenvectors by
+// inverse iteration on T (two steps; close eigenvalues' vectors orthogonalized in the
+// bilinear form), W = Q Y. Such reductions lose accuracy where the reflectors and rotations
+// grow (Schabauer et al. 2010, Procedia Computer Science 1, 437, measured it against
+// zggev); here one step of first-order refinement against A itself (refinement_step, with
+// L = W: a symmetric matrix's left eigenvectors are its right ones transposed) restores
+// residuals of ~1e-16 relative on the CD's matrices (zgeev's: ~5e-16). Columns of unit
+// 2-norm, as zgeev's. Nothing on a breakdown (growth above kComplexSymmetricGrowth, no
+// convergence, a close pair the refinement cannot separate) or a probed residual above
+// `tolerance` (probed_residual_ok). refine = false: the eigenvalues from QL and the vectors
+// from inverse iteration (bilinear-normalized), unrefined and unchecked, for a caller that
+// refines them against the matrix it needs (lamellar.cpp's TM pencil).
 std::optional<Eigen> eig_complex_symmetric(Mat A, double tolerance = kComplexSymmetricTolerance, bool refine = true);
 
 // The refinement step above for M V = V diag(w) with left eigenvectors L (L^T M = diag(w)
