@@ -349,6 +349,7 @@ std::optional<Mat> refinement_step(const Mat& L, const Mat& V, const Mat& MV, CV
             if (i == j) continue;
             const cplx num = K(i, j) - values[j] * S(i, j);
             const cplx gap = (values[j] - values[i]) * S(i, i);
+            if (num == cplx(0.0)) continue;  // already orthogonal (also an exactly repeated eigenvalue)
             if (!(cabs1(num) <= 1e-2 * cabs1(gap))) return std::nullopt;  // a pair it cannot separate
             P(i, j) = num * recip(gap);
         }

@@ -120,9 +120,6 @@ LamellarEigen lamellar_eigen(const std::vector<double>& kx, const Mat& E, const 
     out.kx = kx;
     const bool lossless = parts.hermitian && !near && is_hermitian(E, kHermitianTolerance);
     const bool tm_pencil = lossless && parts.tm && is_hermitian(Exx, kHermitianTolerance);
-    // Real arithmetic where moving the origin makes the matrices real (real_by_phase: a
-    // layer symmetric about some point; every P2-like stripe is): the same decompositions
-    // with dsyevd / dsygvd at about a third of the cost, then D^H back.
     // The complex-symmetric path (LamellarParts::complex_symmetric): the phase that makes E,
     // Exx and Z symmetric, found once where a general eigen-solve is about to run.
     bool phase_tried = false;
@@ -139,6 +136,9 @@ LamellarEigen lamellar_eigen(const std::vector<double>& kx, const Mat& E, const 
         phase_tried = true;
         return phase;
     };
+    // Real arithmetic where moving the origin makes the matrices real (real_by_phase: a
+    // layer symmetric about some point; every P2-like stripe is): the same decompositions
+    // with dsyevd / dsygvd at about a third of the cost, then D^H back.
     std::optional<RealForm> real;
     if (lossless && (!parts.tm || tm_pencil)) {
         std::vector<const Mat*> mats{&E};

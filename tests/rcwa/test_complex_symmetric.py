@@ -103,6 +103,21 @@ def test_a_stripe_off_centre_is_moved_by_a_phase():
             assert np.max(np.abs(np.asarray(got)[:, c] - np.asarray(want)[:, c])) <= TOLERANCE_FAST
 
 
+def test_nearly_degenerate_modes_fall_back_and_stay_correct():
+    # A stripe of almost the background's lossy material: at normal incidence the +-m modes
+    # are degenerate to 1e-7, and the complex-symmetric solve declines (its refinement cannot
+    # separate the pairs: complex_symmetric.hpp); eig_small answers instead. Off normal
+    # incidence the pairs split and the fast path is taken.
+    s = structure([1.0], nk(1.0), nk(1.5), [{"thickness": 0.2, "material": nk(1.6, 0.05),
+                                             "shapes": [{"material": nk(1.6000001, 0.05), "x": [0.2, 0.6]}]}])
+    for theta, path in ((0.0, "inverse_iteration"), (10.0, "complex_symmetric")):
+        result = rcwa.solve(s, 600.0, theta, 0.0, 21, "unpolarized")
+        reference = rcwa.solve(s, 600.0, theta, 0.0, 21, "unpolarized", fast_paths=False)
+        assert path in result.fast_paths
+        for key in ("R", "T"):
+            assert np.max(np.abs(result.all_orders[key] - reference.all_orders[key])) <= TOLERANCE_FAST
+
+
 def _cd_te_matrix(n: int, wl: float = 633.0, theta: float = 20.0) -> np.ndarray:
     """The CD's TE matrix E - Kx^2 (symmetric: its stripe is centred at half the period)."""
     period, (x0, x1) = 1.6, (0.5, 1.1)
