@@ -336,6 +336,11 @@ std::optional<Mat> refinement_step(const Mat& L, const Mat& V, const Mat& MV, CV
     std::copy(MV.data.begin(), MV.data.end(), both.data.begin());
     std::copy(V.data.begin(), V.data.end(), both.data.begin() + static_cast<std::ptrdiff_t>(n) * n);
     gemm(L, both, KS, 1.0, 0.0, 'T', 'N');
+    return refinement_from(KS, values);
+}
+
+std::optional<Mat> refinement_from(const Mat& KS, CVec& values) {
+    const int n = KS.rows;
     auto K = [&](int i, int j) { return KS(i, j); };
     auto S = [&](int i, int j) { return KS(i, n + j); };
     for (int j = 0; j < n; ++j) {
@@ -378,7 +383,7 @@ void unit_columns(Mat& V, std::vector<Mat*> alongside) {
 }
 
 bool probed_residual_ok(const std::function<CVec(const CVec&)>& apply_M, const Mat& V, const CVec& values,
-                        double absolute, double relative) {
+                        double absolute, double relative, const std::function<CVec(const CVec&)>& apply_N) {
     const int n = V.rows, m = V.cols;
     const cplx one = 1.0, zero = 0.0;
     CVec x(static_cast<std::size_t>(m)), wx(static_cast<std::size_t>(m)), v(static_cast<std::size_t>(n)),
@@ -393,6 +398,7 @@ bool probed_residual_ok(const std::function<CVec(const CVec&)>& apply_M, const M
         scipy_cblas_zgemv(CblasColMajor, CblasNoTrans, n, m, &one, V.ptr(), n, x.data(), 1, &zero, v.data(), 1);
         scipy_cblas_zgemv(CblasColMajor, CblasNoTrans, n, m, &one, V.ptr(), n, wx.data(), 1, &zero, vw.data(), 1);
         const CVec Mv = apply_M(v);
+        if (apply_N) vw = apply_N(vw);
         double r2 = 0.0, size2 = 0.0;
         for (int i = 0; i < n; ++i) {
             r2 += std::norm(Mv[i] - vw[i]);

@@ -49,15 +49,18 @@ std::optional<Eigen> eig_complex_symmetric(Mat A, double tolerance = kComplexSym
 // Perturbation Theory, Sec. V.2, in the two-sided form). Nothing where a correction exceeds
 // 1e-2 (a close pair).
 std::optional<Mat> refinement_step(const Mat& L, const Mat& V, const Mat& MV, CVec& values);
+// The same from [K S] (n x 2n) given, as for a pencil M v = w N v with M, N symmetric:
+// K = V^T M V, S = V^T N V.
+std::optional<Mat> refinement_from(const Mat& KS, CVec& values);
 // A x.
 CVec matvec(const Mat& A, const CVec& x);
 // Scales V's columns to unit 2-norm, and the same columns of the matrices `alongside`.
 void unit_columns(Mat& V, std::vector<Mat*> alongside = {});
-// The a-posteriori check ||M V x - V diag(w) x|| <= absolute + relative ||M V x|| for two
-// random-sign vectors x (E ||R x||^2 = ||R||_F^2 for R = M V - V diag(w)): O(n^2) instead
-// of another product of n x n matrices.
+// The a-posteriori check ||M V x - N V diag(w) x|| <= absolute + relative ||M V x|| for two
+// random-sign vectors x (E ||R x||^2 = ||R||_F^2 for R = M V - N V diag(w)): O(n^2) instead
+// of another product of n x n matrices. N: the identity where not given (a pencil's B).
 bool probed_residual_ok(const std::function<CVec(const CVec&)>& apply_M, const Mat& V, const CVec& values,
-                        double absolute, double relative);
+                        double absolute, double relative, const std::function<CVec(const CVec&)>& apply_N = {});
 
 // Whether A equals its transpose to `tolerance` relative to its largest entry.
 bool is_complex_symmetric(const Mat& A, double tolerance);

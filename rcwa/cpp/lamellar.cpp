@@ -101,6 +101,50 @@ std::optional<Eigen> tm_complex_symmetric(const Mat& Exx, const Mat& Bm, const C
     return e;
 }
 
+// TM from F = [[1/eps]] (Li's rule) without forming Exx = F^-1: the pencil Bm v = mu F v of
+// two symmetric matrices (moved by D); F' = G G^T, C = G^-1 Bm' G^-T is symmetric and
+// v' = G^-T y. Refined on the pencil itself (refinement_from with K = V^T Bm' V,
+// S = V^T F' V), at most kTmRefinementSteps steps, each followed by the probed residual
+// ||Bm' v - mu F' v|| <= kComplexSymmetricTolerance ||Bm' v||. Returns VB = D^H V' and
+// B_VB = D^H Bm' V' = Bm VB.
+std::optional<Eigen> tm_complex_symmetric_pencil(const Mat& F, const Mat& Bm, const CVec& d, Mat& B_VB) {
+    const Mat F_moved = moved_by_phase(F, d), Bm_moved = moved_by_phase(Bm, d);
+    auto G = symmetric_factor(F_moved);
+    if (!G) return std::nullopt;
+    Mat C = Bm_moved;
+    triangular_solve(*G, C, 'L', 'N');
+    triangular_solve(*G, C, 'R', 'T');
+    for (int j = 0; j < C.cols; ++j)
+        for (int i = j + 1; i < C.rows; ++i) C(i, j) = C(j, i) = 0.5 * (C(i, j) + C(j, i));
+    auto e = eig_complex_symmetric(std::move(C), kComplexSymmetricTolerance, false);
+    if (!e) return std::nullopt;
+    triangular_solve(*G, e->vectors, 'L', 'T');
+    const int n = Bm.rows;
+    auto apply_B = [&](const CVec& x) { return matvec(Bm_moved, x); };
+    auto apply_F = [&](const CVec& x) { return matvec(F_moved, x); };
+    Mat& V = e->vectors;
+    Mat BV = matmul(Bm_moved, V);
+    for (int step = 0; step < kTmRefinementSteps; ++step) {
+        Mat both(n, 2 * n), KS(n, 2 * n);  // [K S] = V^T [Bm' V, F' V]
+        std::copy(BV.data.begin(), BV.data.end(), both.data.begin());
+        gemm_block(n, n, n, 1.0, F_moved.ptr(), n, V.ptr(), n, 0.0, both.ptr() + static_cast<std::ptrdiff_t>(n) * n, n);
+        gemm(V, both, KS, 1.0, 0.0, 'T', 'N');
+        auto P = refinement_from(KS, e->values);
+        if (!P) return std::nullopt;
+        Mat V1 = matmul(V, *P), BV1 = matmul(BV, *P);
+        unit_columns(V1, {&BV1});
+        V = std::move(V1);
+        BV = std::move(BV1);
+        if (probed_residual_ok(apply_B, V, e->values, 0.0, kComplexSymmetricTolerance, apply_F)) {
+            moved_back(V, d);
+            moved_back(BV, d);
+            B_VB = std::move(BV);
+            return e;
+        }
+    }
+    return std::nullopt;
+}
+
 // The complex-symmetric fast path (complex_symmetric.hpp) for a layer whose matrices D E D^H,
 // D Exx D^H, D Z D^H are symmetric (`d`: symmetric_by_phase). TE: MA' = D MA D^H, WA = D^H WA'.
 std::optional<Eigen> te_complex_symmetric(const std::vector<double>& kx, const Mat& E, const CVec& d) {
@@ -113,13 +157,23 @@ std::optional<Eigen> te_complex_symmetric(const std::vector<double>& kx, const M
 
 }  // namespace
 
-LamellarEigen lamellar_eigen(const std::vector<double>& kx, const Mat& E, const Mat& Exx, const Mat& Z,
-                             const LamellarEigen* near, const LamellarParts& parts) {
+LamellarEigen lamellar_eigen(const std::vector<double>& kx, const Mat& E, const Mat& Exx_given, const Mat& Z,
+                             const LamellarEigen* near, const LamellarParts& parts, const Mat* inv_eps) {
     const int n = static_cast<int>(kx.size());
     LamellarEigen out;
     out.kx = kx;
+    // Exx = [[1/eps]]^-1 formed only where a path needs it (an LU inverse, 0.15-0.2 ms at 61
+    // harmonics): given [[1/eps]] instead (inv_eps, Exx_given empty), the complex-symmetric TM
+    // path works with it directly (tm_complex_symmetric_pencil).
+    const bool from_inv_eps = parts.tm && Exx_given.rows == 0 && inv_eps;
+    Mat exx_formed;
+    auto exx = [&]() -> const Mat& {
+        if (!from_inv_eps) return Exx_given;
+        if (exx_formed.rows == 0) exx_formed = LU(*inv_eps).inverse();
+        return exx_formed;
+    };
     const bool lossless = parts.hermitian && !near && is_hermitian(E, kHermitianTolerance);
-    const bool tm_pencil = lossless && parts.tm && is_hermitian(Exx, kHermitianTolerance);
+    const bool tm_pencil = lossless && parts.tm && is_hermitian(exx(), kHermitianTolerance);
     // The complex-symmetric path (LamellarParts::complex_symmetric): the phase that makes E,
     // Exx and Z symmetric, found once where a general eigen-solve is about to run.
     bool phase_tried = false;
@@ -128,7 +182,7 @@ LamellarEigen lamellar_eigen(const std::vector<double>& kx, const Mat& E, const 
         if (!phase_tried && parts.complex_symmetric) {
             std::vector<const Mat*> mats{&E};
             if (parts.tm) {
-                mats.push_back(&Exx);
+                mats.push_back(from_inv_eps ? inv_eps : &Exx_given);  // [[1/eps]] is symmetric where Exx is
                 mats.push_back(&Z);
             }
             phase = symmetric_by_phase(mats, kSymmetricTolerance);
@@ -143,7 +197,7 @@ LamellarEigen lamellar_eigen(const std::vector<double>& kx, const Mat& E, const 
     if (lossless && (!parts.tm || tm_pencil)) {
         std::vector<const Mat*> mats{&E};
         if (parts.tm) {
-            mats.push_back(&Exx);
+            mats.push_back(&exx());
             mats.push_back(&Z);
         }
         real = real_by_phase(mats, kRealTolerance);
@@ -227,12 +281,12 @@ LamellarEigen lamellar_eigen(const std::vector<double>& kx, const Mat& E, const 
             for (int i = 0; i < n; ++i) Bm(i, j) = (i == j ? 1.0 : 0.0) - kx[i] * Z(i, j) * kx[j];
         std::optional<Eigen> pencil;
         if (tm_pencil)
-            pencil = eig_hermitian_definite(matmul(Exx, matmul(Bm, Exx)), Exx);
+            pencil = eig_hermitian_definite(matmul(exx(), matmul(Bm, exx())), exx());
         if (pencil) {
             // v = Exx w with W^H Exx W = I: VB^-1 = W^H; B VB = W mu (from Exx B Exx W = Exx W mu).
             const Mat& W = pencil->vectors;
             out.muB = pencil->values;
-            out.VB = matmul(Exx, W);
+            out.VB = matmul(exx(), W);
             out.VB_inv = adjoint(W);
             out.B_VB = W;
             Mat mu_inv_WH = out.VB_inv;  // mu^-1 W^H
@@ -241,18 +295,20 @@ LamellarEigen lamellar_eigen(const std::vector<double>& kx, const Mat& E, const 
                     out.B_VB(i, j) *= out.muB[j];
                     mu_inv_WH(i, j) /= out.muB[i];
                 }
-            if (parts.inverses) out.B_VB_inv = matmul(mu_inv_WH, Exx);  // (W mu)^-1 = mu^-1 W^H Exx
+            if (parts.inverses) out.B_VB_inv = matmul(mu_inv_WH, exx());  // (W mu)^-1 = mu^-1 W^H Exx
             ++out.hermitian;
         } else {
             std::optional<Eigen> cs;
             bool tm_cs = false;
-            if (const auto& d = symmetric_phase()) cs = tm_complex_symmetric(Exx, Bm, *d, out.B_VB);
+            if (const auto& d = symmetric_phase())
+                cs = from_inv_eps ? tm_complex_symmetric_pencil(*inv_eps, Bm, *d, out.B_VB)
+                                  : tm_complex_symmetric(Exx_given, Bm, *d, out.B_VB);
             if (cs) {
                 tm_cs = true;
                 ++out.complex_symmetric;
             }
             Eigen eb = cs ? std::move(*cs)
-                          : eig_near(matmul(Exx, Bm), near ? &near->VB : nullptr, out.refined, parts.hermitian,
+                          : eig_near(matmul(exx(), Bm), near ? &near->VB : nullptr, out.refined, parts.hermitian,
                                      out.inverse_iteration);
             out.VB = std::move(eb.vectors);
             out.muB = std::move(eb.values);

@@ -132,9 +132,12 @@ constexpr double kSymmetricTolerance = 1e-11;
 // Z = E^-1 is passed in (it depends on the wavelength only; unused when only the TE
 // family is asked for). `near`: the solution at a nearby kx, whose eigenvectors seed
 // eig_from_guess (linalg.hpp) instead of a full eigen-solve; nullptr, or a guess that does
-// not converge, means a full solve.
+// not converge, means a full solve. `inv_eps`: [[1/eps]] of Li's rule, given with an empty
+// Exx so that Exx = [[1/eps]]^-1 is formed only where a path needs it (the complex-symmetric
+// TM path does not).
 LamellarEigen lamellar_eigen(const std::vector<double>& kx, const Mat& E, const Mat& Exx, const Mat& Z,
-                             const LamellarEigen* near = nullptr, const LamellarParts& parts = {});
+                             const LamellarEigen* near = nullptr, const LamellarParts& parts = {},
+                             const Mat* inv_eps = nullptr);
 std::unique_ptr<LayerModes> lamellar_modes(const std::vector<double>& kx, const LamellarEigen& eig,
                                            double ky);
 

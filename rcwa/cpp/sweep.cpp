@@ -139,9 +139,12 @@ StackSolution solve_decoupled(const SweepProblem& pr, const StackProblem& sp, In
             continue;
         }
         const Mat Z = tm ? LU(in.matrices[0]).inverse() : Mat();
-        const Mat Exx = tm ? exx_of(in) : Mat();
-        const LamellarEigen e =
-            lamellar_eigen(sp.harmonics.kx, in.matrices[0], Exx, Z, nullptr, LamellarParts{te, tm, false, true, !direct, true});
+        // Li's rule: [[1/eps]] itself, its inverse Exx formed inside only where needed.
+        const bool inverse_rule = tm && in.inverse_rule;
+        const Mat Exx = tm && !inverse_rule ? exx_of(in) : Mat();
+        const LamellarEigen e = lamellar_eigen(sp.harmonics.kx, in.matrices[0], Exx, Z, nullptr,
+                                               LamellarParts{te, tm, false, true, !direct, true},
+                                               inverse_rule ? &in.matrices[1] : nullptr);
         hermitian_solves += e.hermitian;
         real_solves += e.real;
         inverse_iteration_solves += e.inverse_iteration;
