@@ -179,7 +179,7 @@ LamellarEigen lamellar_eigen(const std::vector<double>& kx, const Mat& E, const 
     bool phase_tried = false;
     std::optional<CVec> phase;
     auto symmetric_phase = [&]() -> const std::optional<CVec>& {
-        if (!phase_tried && parts.complex_symmetric) {
+        if (!phase_tried && parts.complex_symmetric && n < kComplexSymmetricMax) {
             std::vector<const Mat*> mats{&E};
             if (parts.tm) {
                 mats.push_back(from_inv_eps ? inv_eps : &Exx_given);  // [[1/eps]] is symmetric where Exx is

@@ -129,6 +129,12 @@ constexpr double kRealTolerance = 1e-13;
 // E, Exx, Z are treated as complex symmetric (symmetric_by_phase); each use is then checked
 // on its residual (complex_symmetric.hpp), so this only decides where to try.
 constexpr double kSymmetricTolerance = 1e-11;
+// The complex-symmetric path runs below this many harmonics, where the path it replaces
+// (eig_small) is itself not zgeev: issue 17 allows no fast path to move a result by more
+// than 1e-12, and at 121 harmonics it moved the CD's p amplitudes by 1.6e-12 from zgeev's
+// (efficiencies 6e-13), against 1e-14 today; below it, it is closer to zgeev than
+// eig_small (at 61: 1.6e-12 against 1e-11 on the worst point of 400-700 nm x 0-80 deg).
+constexpr int kComplexSymmetricMax = kInverseIterationMax;
 // Z = E^-1 is passed in (it depends on the wavelength only; unused when only the TE
 // family is asked for). `near`: the solution at a nearby kx, whose eigenvectors seed
 // eig_from_guess (linalg.hpp) instead of a full eigen-solve; nullptr, or a guess that does
