@@ -79,6 +79,13 @@ std::optional<Eigen> tm_refined(const Mat& Exx, const Mat& Bm, Eigen e, Mat& B_V
     return std::nullopt;
 }
 
+// C = (C + C^T) / 2: a congruence of a symmetric matrix is symmetric up to round-off, which
+// the complex-symmetric solver must not see.
+void symmetrize(Mat& C) {
+    for (int j = 0; j < C.cols; ++j)
+        for (int i = j + 1; i < C.rows; ++i) C(i, j) = C(j, i) = 0.5 * (C(i, j) + C(j, i));
+}
+
 // TM: MB v = mu v is the pencil Bm v = mu Exx^-1 v of two symmetric matrices (moved by D);
 // with Exx' = G G^T (symmetric_factor), C = G^T Bm' G is symmetric and v' = G y, refined on
 // MB' = Exx' Bm' itself (tm_refined). Returns VB = D^H V' and B_VB = D^H Bm' V' = Bm VB.
@@ -89,8 +96,7 @@ std::optional<Eigen> tm_complex_symmetric(const Mat& Exx, const Mat& Bm, const C
     Mat C = Bm_moved;
     triangular_multiply(*G, C, 'R', 'N');
     triangular_multiply(*G, C, 'L', 'T');
-    for (int j = 0; j < C.cols; ++j)
-        for (int i = j + 1; i < C.rows; ++i) C(i, j) = C(j, i) = 0.5 * (C(i, j) + C(j, i));
+    symmetrize(C);
     auto e = eig_complex_symmetric(std::move(C), kComplexSymmetricTolerance, false);
     if (!e) return std::nullopt;
     triangular_multiply(*G, e->vectors, 'L', 'N');
@@ -114,8 +120,7 @@ std::optional<Eigen> tm_complex_symmetric_pencil(const Mat& F, const Mat& Bm, co
     Mat C = Bm_moved;
     triangular_solve(*G, C, 'L', 'N');
     triangular_solve(*G, C, 'R', 'T');
-    for (int j = 0; j < C.cols; ++j)
-        for (int i = j + 1; i < C.rows; ++i) C(i, j) = C(j, i) = 0.5 * (C(i, j) + C(j, i));
+    symmetrize(C);
     auto e = eig_complex_symmetric(std::move(C), kComplexSymmetricTolerance, false);
     if (!e) return std::nullopt;
     triangular_solve(*G, e->vectors, 'L', 'T');
