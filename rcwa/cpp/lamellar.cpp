@@ -21,6 +21,7 @@
 #include "modes.hpp"
 
 #include <cmath>
+#include <functional>
 #include <optional>
 
 #include "complex_symmetric.hpp"
@@ -52,33 +53,6 @@ void moved_back(Mat& V, const CVec& d) {
         for (int i = 0; i < V.rows; ++i) V(i, j) *= std::conj(d[i]);
 }
 
-// Two-sided refinement (refinement_step) of MB = Exx Bm's eigenvectors V, Exx and Bm
-// symmetric (the moved frame): MB's left eigenvectors are Exx^-1 V = Bm V diag(mu)^-1
-// (MB^T = Bm Exx), so L = Bm V up to a scaling of columns that the step does not see. After
-// each step, unit columns and the probed residual ||Exx Bm V x - V mu x|| <=
-// kComplexSymmetricTolerance ||Exx Bm V x||; a second step where the first falls short (the
-// vectors mapped back through G carry its growth: on the CD at 121 orders one step left
-// 1e-13 to 1e-10 in 8 of 117 directions). Returns the refined decomposition and Bm V in
-// `B_VB`, or nothing.
-constexpr int kTmRefinementSteps = 2;
-std::optional<Eigen> tm_refined(const Mat& Exx, const Mat& Bm, Eigen e, Mat& B_VB) {
-    auto apply = [&](const CVec& x) { return matvec(Exx, matvec(Bm, x)); };
-    Mat BV = matmul(Bm, e.vectors);
-    for (int step = 0; step < kTmRefinementSteps; ++step) {
-        auto P = refinement_step(BV, e.vectors, matmul(Exx, BV), e.values);
-        if (!P) return std::nullopt;
-        Mat V = matmul(e.vectors, *P), BV1 = matmul(BV, *P);
-        unit_columns(V, {&BV1});
-        e.vectors = std::move(V);
-        BV = std::move(BV1);
-        if (probed_residual_ok(apply, e.vectors, e.values, 0.0, kComplexSymmetricTolerance)) {
-            B_VB = std::move(BV);
-            return e;
-        }
-    }
-    return std::nullopt;
-}
-
 // C = (C + C^T) / 2: a congruence of a symmetric matrix is symmetric up to round-off, which
 // the complex-symmetric solver must not see.
 void symmetrize(Mat& C) {
@@ -86,21 +60,73 @@ void symmetrize(Mat& C) {
         for (int i = j + 1; i < C.rows; ++i) C(i, j) = C(j, i) = 0.5 * (C(i, j) + C(j, i));
 }
 
+// The TM pencil Bm v = mu F v of two symmetric matrices (the moved frame) as a symmetric
+// standard problem through a factor G G^T (symmetric_factor), unrefined: of F itself
+// (`G_of_exx` false), C = G^-1 Bm G^-T and v = G^-T y; of Exx = F^-1 (`G_of_exx`),
+// C = G^T Bm G and v = G y.
+std::optional<Eigen> congruent_eigen(const Mat& G, const Mat& Bm, bool G_of_exx) {
+    Mat C = Bm;
+    if (G_of_exx) {
+        triangular_multiply(G, C, 'R', 'N');
+        triangular_multiply(G, C, 'L', 'T');
+    } else {
+        triangular_solve(G, C, 'L', 'N');
+        triangular_solve(G, C, 'R', 'T');
+    }
+    symmetrize(C);
+    auto e = eig_complex_symmetric(std::move(C), kComplexSymmetricTolerance, false);
+    if (!e) return std::nullopt;
+    if (G_of_exx)
+        triangular_multiply(G, e->vectors, 'L', 'N');
+    else
+        triangular_solve(G, e->vectors, 'L', 'T');
+    return e;
+}
+
+// Refinement of TM eigenvectors V (BV = Bm V) by `correction` (V, BV, values -> the
+// first-order correction I + P, updating the values; nothing for a close pair), at most
+// kTmRefinementSteps steps, each followed by unit columns and the probed residual
+// ||M V x - N V mu x|| <= kComplexSymmetricTolerance ||M V x||; a second step where the
+// first falls short (the vectors mapped back through G carry its growth: on the CD at 121
+// orders one step left 1e-13 to 1e-10 in 8 of 117 directions). Returns the refined
+// decomposition and Bm V in `B_VB`, or nothing.
+constexpr int kTmRefinementSteps = 2;
+using Apply = std::function<CVec(const CVec&)>;
+std::optional<Eigen> refined_until_accepted(Eigen e, Mat BV,
+                                            const std::function<std::optional<Mat>(const Mat&, const Mat&, CVec&)>& correction,
+                                            const Apply& apply_M, const Apply& apply_N, Mat& B_VB) {
+    for (int step = 0; step < kTmRefinementSteps; ++step) {
+        auto P = correction(e.vectors, BV, e.values);
+        if (!P) return std::nullopt;
+        Mat V = matmul(e.vectors, *P), BV1 = matmul(BV, *P);
+        unit_columns(V, {&BV1});
+        e.vectors = std::move(V);
+        BV = std::move(BV1);
+        if (probed_residual_ok(apply_M, e.vectors, e.values, 0.0, kComplexSymmetricTolerance, apply_N)) {
+            B_VB = std::move(BV);
+            return e;
+        }
+    }
+    return std::nullopt;
+}
+
 // TM: MB v = mu v is the pencil Bm v = mu Exx^-1 v of two symmetric matrices (moved by D);
-// with Exx' = G G^T (symmetric_factor), C = G^T Bm' G is symmetric and v' = G y, refined on
-// MB' = Exx' Bm' itself (tm_refined). Returns VB = D^H V' and B_VB = D^H Bm' V' = Bm VB.
+// with Exx' = G G^T, C = G^T Bm' G (congruent_eigen), refined on MB' = Exx' Bm' itself
+// (two-sided refinement_step: MB's left eigenvectors are Exx^-1 V = Bm V diag(mu)^-1, as
+// MB^T = Bm Exx, so L = Bm V up to a scaling of columns that the step does not see).
+// Returns VB = D^H V' and B_VB = D^H Bm' V' = Bm VB.
 std::optional<Eigen> tm_complex_symmetric(const Mat& Exx, const Mat& Bm, const CVec& d, Mat& B_VB) {
     const Mat Exx_moved = moved_by_phase(Exx, d), Bm_moved = moved_by_phase(Bm, d);
     auto G = symmetric_factor(Exx_moved);
     if (!G) return std::nullopt;
-    Mat C = Bm_moved;
-    triangular_multiply(*G, C, 'R', 'N');
-    triangular_multiply(*G, C, 'L', 'T');
-    symmetrize(C);
-    auto e = eig_complex_symmetric(std::move(C), kComplexSymmetricTolerance, false);
+    auto e = congruent_eigen(*G, Bm_moved, true);
     if (!e) return std::nullopt;
-    triangular_multiply(*G, e->vectors, 'L', 'N');
-    e = tm_refined(Exx_moved, Bm_moved, std::move(*e), B_VB);
+    auto correction = [&](const Mat& V, const Mat& BV, CVec& values) {
+        return refinement_step(BV, V, matmul(Exx_moved, BV), values);
+    };
+    auto apply = [&](const CVec& x) { return matvec(Exx_moved, matvec(Bm_moved, x)); };
+    Mat BV = matmul(Bm_moved, e->vectors);
+    e = refined_until_accepted(std::move(*e), std::move(BV), correction, apply, {}, B_VB);
     if (!e) return std::nullopt;
     moved_back(e->vectors, d);
     moved_back(B_VB, d);
@@ -108,46 +134,31 @@ std::optional<Eigen> tm_complex_symmetric(const Mat& Exx, const Mat& Bm, const C
 }
 
 // TM from F = [[1/eps]] (Li's rule) without forming Exx = F^-1: the pencil Bm v = mu F v of
-// two symmetric matrices (moved by D); F' = G G^T, C = G^-1 Bm' G^-T is symmetric and
-// v' = G^-T y. Refined on the pencil itself (refinement_from with K = V^T Bm' V,
-// S = V^T F' V), at most kTmRefinementSteps steps, each followed by the probed residual
-// ||Bm' v - mu F' v|| <= kComplexSymmetricTolerance ||Bm' v||. Returns VB = D^H V' and
-// B_VB = D^H Bm' V' = Bm VB.
+// two symmetric matrices (moved by D); F' = G G^T, C = G^-1 Bm' G^-T (congruent_eigen).
+// Refined on the pencil itself (refinement_from with K = V^T Bm' V, S = V^T F' V), accepted
+// on ||Bm' v - mu F' v||. Returns VB = D^H V' and B_VB = D^H Bm' V' = Bm VB.
 std::optional<Eigen> tm_complex_symmetric_pencil(const Mat& F, const Mat& Bm, const CVec& d, Mat& B_VB) {
     const Mat F_moved = moved_by_phase(F, d), Bm_moved = moved_by_phase(Bm, d);
     auto G = symmetric_factor(F_moved);
     if (!G) return std::nullopt;
-    Mat C = Bm_moved;
-    triangular_solve(*G, C, 'L', 'N');
-    triangular_solve(*G, C, 'R', 'T');
-    symmetrize(C);
-    auto e = eig_complex_symmetric(std::move(C), kComplexSymmetricTolerance, false);
+    auto e = congruent_eigen(*G, Bm_moved, false);
     if (!e) return std::nullopt;
-    triangular_solve(*G, e->vectors, 'L', 'T');
     const int n = Bm.rows;
-    auto apply_B = [&](const CVec& x) { return matvec(Bm_moved, x); };
-    auto apply_F = [&](const CVec& x) { return matvec(F_moved, x); };
-    Mat& V = e->vectors;
-    Mat BV = matmul(Bm_moved, V);
-    for (int step = 0; step < kTmRefinementSteps; ++step) {
+    auto correction = [&](const Mat& V, const Mat& BV, CVec& values) {
         Mat both(n, 2 * n), KS(n, 2 * n);  // [K S] = V^T [Bm' V, F' V]
         std::copy(BV.data.begin(), BV.data.end(), both.data.begin());
         gemm_block(n, n, n, 1.0, F_moved.ptr(), n, V.ptr(), n, 0.0, both.ptr() + static_cast<std::ptrdiff_t>(n) * n, n);
         gemm(V, both, KS, 1.0, 0.0, 'T', 'N');
-        auto P = refinement_from(KS, e->values);
-        if (!P) return std::nullopt;
-        Mat V1 = matmul(V, *P), BV1 = matmul(BV, *P);
-        unit_columns(V1, {&BV1});
-        V = std::move(V1);
-        BV = std::move(BV1);
-        if (probed_residual_ok(apply_B, V, e->values, 0.0, kComplexSymmetricTolerance, apply_F)) {
-            moved_back(V, d);
-            moved_back(BV, d);
-            B_VB = std::move(BV);
-            return e;
-        }
-    }
-    return std::nullopt;
+        return refinement_from(KS, values);
+    };
+    auto apply_B = [&](const CVec& x) { return matvec(Bm_moved, x); };
+    auto apply_F = [&](const CVec& x) { return matvec(F_moved, x); };
+    Mat BV = matmul(Bm_moved, e->vectors);
+    e = refined_until_accepted(std::move(*e), std::move(BV), correction, apply_B, apply_F, B_VB);
+    if (!e) return std::nullopt;
+    moved_back(e->vectors, d);
+    moved_back(B_VB, d);
+    return e;
 }
 
 // The complex-symmetric fast path (complex_symmetric.hpp) for a layer whose matrices D E D^H,
