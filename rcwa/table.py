@@ -283,7 +283,7 @@ def compute_chunk(structure: Structure, settings: TableSettings, wavelength_nm: 
             for name, part in (("R", sw.R), ("T", sw.T)):
                 values.setdefault(name, np.empty((th.size,) + part.shape[1:]))[nodes] = part
         for name, whole in values.items():
-            if name == "T" and (settings.reflection_only or not _transmits(s, settings)):
+            if name == "T" and (settings.reflection_only or not transmits(s, settings)):
                 continue
             out[name + suffix] = _select_pol(whole, settings.pol).reshape(th.shape + (whole.shape[1], -1)).astype(np.float32)
     return out, (solves, refined, sectors)
@@ -494,14 +494,14 @@ def _open_store(out: Path, structure: Structure, settings: TableSettings, key: s
     sym = table_symmetry(structure, settings.orders, settings.keep, settings.use_symmetry)
     shape = (len(settings.wavelengths_nm), len(settings.theta_deg), len(settings.phi_deg), int(np.prod(settings.keep)),
              len(pol_names(settings.pol)))
-    names = ["R"] + ([] if settings.reflection_only or not _transmits(structure, settings) else ["T"])
+    names = ["R"] + ([] if settings.reflection_only or not transmits(structure, settings) else ["T"])
     if settings.both_sides:
         names += [n + "_below" for n in names]
     for name in names:
         group.create_array(name, shape=shape, chunks=(1,) + shape[1:], dtype="float32", fill_value=np.nan)
     from rcwa.factorization import resolve_rule
 
-    kept_m, kept_n = _kept_indices(settings.keep)
+    kept_m, kept_n = kept_indices(settings.keep)
     meta = {
         "format": "workbench-efficiency-table", "format_version": FORMAT_VERSION, "key": key,
         "structure_name": structure.name, "structure_source": structure.source, "structure_text": structure.text,
@@ -538,13 +538,13 @@ def _open_arrays(out: Path, meta: dict):
     return group if intact else None
 
 
-def _transmits(structure: Structure, settings: TableSettings) -> bool:
+def transmits(structure: Structure, settings: TableSettings) -> bool:
     """Whether any light reaches infinity below (a lossless substrate at some wavelength)."""
     eps = np.asarray(structure.substrate.epsilon(np.asarray(settings.wavelengths_nm)))
     return bool(np.any((eps.imag == 0) & (eps.real > 0)))
 
 
-def _kept_indices(keep: tuple[int, ...]) -> tuple[np.ndarray, np.ndarray]:
+def kept_indices(keep: tuple[int, ...]) -> tuple[np.ndarray, np.ndarray]:
     """Kept orders in the order the sweep returns them (m-major, as the solver's harmonics)."""
     ms = np.arange(keep[0]) - keep[0] // 2
     if len(keep) == 1:
@@ -704,3 +704,7 @@ def _repair_advice(path: Path, meta: dict) -> str:
     structure = meta.get("structure_name", source) if source.startswith("<built-in") else source
     return (f"run `workbench rcwa table {structure} --out {path}` with the options that built it (or the render that "
             "uses it) again")
+
+
+_transmits = transmits  # until renderer.planner imports the public names (issue 24)
+_kept_indices = kept_indices
