@@ -2,7 +2,7 @@
 #   make demo    install, then run the main job on the built-in defaults: a synthetic dataset, verify, the report
 #   make verify DATASET=folder SCENE=scene [RUN=out/verify]   photos to report in one resumable run
 #   make paper   verify with the paper's settings (paper tables, 2045 spp, the paper's 978 x 734 frame)
-#   make check   lint (ruff) and types (mypy), configured in pyproject.toml
+#   make check   lint (ruff), types (mypy), configured in pyproject.toml, and the layering (tests/check_layering.py)
 #   make test    the whole test suite (about 10 minutes on 2 cores; `make test-fast` skips the slow marker)
 #   make bench   benchmarks: the solver against open-source peers (separate env .venv-bench), tables, renders, calibration, reports, the planner
 
@@ -62,6 +62,7 @@ paper: install
 check: install
 	$(BIN)/ruff check .
 	$(BIN)/mypy
+	$(BIN)/python -m tests.check_layering
 
 test: install
 	$(BIN)/python -m pytest -q

@@ -9,16 +9,18 @@
   ``bench_*`` module and do not import ``benchmarks``, which is not shipped.
 
 Imports are read with ``ast`` from every module, including imports inside functions, so a
-late ``from workbench.cli import main`` is caught as well as a top-level one.
+late ``from workbench.cli import main`` is caught as well as a top-level one (the scanner
+of ``tests/check_layering.py``, which ``make check`` runs for cycles and private imports).
 """
 
 from __future__ import annotations
 
-import ast
 import tomllib
 from pathlib import Path
 
 import pytest
+
+from tests import check_layering
 
 ROOT = Path(__file__).resolve().parents[1]
 PROJECT_PACKAGES = ("workbench", "rcwa", "renderer", "calibration", "datasets_synthetic", "reports")
@@ -27,22 +29,8 @@ FORBIDDEN_PAIRS = {"calibration": ("datasets_synthetic",), "datasets_synthetic":
 
 
 def imported_modules(path: Path) -> set[str]:
-    """Every module name ``path`` imports (absolute, and relative ones resolved)."""
-    tree = ast.parse(path.read_text(encoding="utf-8"), filename=str(path))
-    package = ".".join(path.relative_to(ROOT).with_suffix("").parts[:-1])
-    names: set[str] = set()
-    for node in ast.walk(tree):
-        if isinstance(node, ast.Import):
-            names.update(alias.name for alias in node.names)
-        elif isinstance(node, ast.ImportFrom):
-            if node.level:
-                base = package.split(".")[: len(package.split(".")) - node.level + 1]
-                module = ".".join([*base, node.module] if node.module else base)
-            else:
-                module = node.module or ""
-            names.add(module)
-            names.update(f"{module}.{alias.name}" for alias in node.names)
-    return names
+    """Every module name ``path`` imports (absolute, and relative ones resolved): the layering check's scanner."""
+    return check_layering.imported_modules(path, ROOT)
 
 
 def modules_of(package: str) -> list[Path]:
