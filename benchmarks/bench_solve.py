@@ -229,11 +229,6 @@ def substrate_is_lossy(case: dict) -> bool:
     return isinstance(sub, dict) and float(sub.get("k", 0.0)) != 0.0
 
 
-def both_pols_in_one(res) -> bool:
-    """Whether one result carries the efficiencies of both incident polarizations."""
-    return bool(res.orders) and all(hasattr(res.orders[0], k) for k in KEYS)
-
-
 def our_efficiencies(res_s, res_p) -> dict[tuple[int, int], dict[str, float]]:
     """(m, n) -> {R_s, R_p, T_s, T_p} of the listed orders: s values from the pol="s"
     result, p values from the pol="p" one (a single-polarization solve leaves the other NaN)."""
@@ -244,14 +239,6 @@ def our_efficiencies(res_s, res_p) -> dict[tuple[int, int], dict[str, float]]:
             for k in ("R_", "T_"):
                 entry[k + pol] = float(getattr(o, k + pol)) if hasattr(o, k + pol) else float(getattr(o, k[0]))
     return out
-
-
-def our_power_into_substrate(res) -> dict[str, float] | None:
-    """Total power entering the substrate per incident polarization, when the result has it."""
-    t = getattr(res, "all_orders", {}).get("T_into_substrate") if hasattr(res, "all_orders") else None
-    if t is None or getattr(t, "ndim", 0) != 2:
-        return None
-    return {"T_s": float(t[:, 0].sum()), "T_p": float(t[:, 1].sum())}
 
 
 def cpu_time() -> float:
