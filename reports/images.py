@@ -229,9 +229,3 @@ def display_matrix(spec) -> np.ndarray:
 def to_display(rgb: np.ndarray, matrix: np.ndarray) -> np.ndarray:
     """Linear camera RGB (H, W, 3) to linear sRGB (negative values clipped to 0)."""
     return np.maximum(rgb @ matrix.T, 0.0).astype(np.float32)
-
-
-def srgb_encode(linear: np.ndarray) -> np.ndarray:
-    """The sRGB transfer function (IEC 61966-2-1) on values clipped to [0, 1]."""
-    x = np.clip(linear, 0.0, 1.0)
-    return np.where(x <= 0.0031308, 12.92 * x, 1.055 * np.power(x, 1 / 2.4) - 0.055)

@@ -352,10 +352,6 @@ def _fringe_plot(measured: dict, cd_radius_px: float, band: dict[tuple, float] |
     return uri
 
 
-def _cd_crop_mask(masks: dict[str, np.ndarray], shape: tuple[int, int]) -> np.ndarray:
-    return masks.get("cd", np.zeros(shape, bool))
-
-
 def _csv_text(rows: list[dict]) -> str:
     if not rows:
         return ""
