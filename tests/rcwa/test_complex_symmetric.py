@@ -20,7 +20,8 @@ import pytest
 
 import rcwa
 from rcwa import _core
-from rcwa.solver import INCIDENCE_OF, STACK_METHOD_OF, prepare, s_direction
+from rcwa.solver import INCIDENCE_OF, prepare, s_direction
+from rcwa.solver import STACK_METHODS as STACK_METHOD_OF
 from tests.rcwa.helpers import nk, structure
 from workbench.core.conventions import incident_tangential_k
 
@@ -165,19 +166,31 @@ def test_a_reflector_that_breaks_down_is_declined():
     assert np.linalg.norm(A @ V - V * w) <= RESIDUAL * np.linalg.norm(A) * np.linalg.norm(V)
 
 
-@pytest.mark.parametrize("asymmetry", [1e-8, 1e-6, 1e-4, 1e-2])
-def test_a_matrix_that_is_not_symmetric_is_answered_for_itself_or_declined(asymmetry):
+# Asymmetries on either side of the decision, with the margins measured over OpenBLAS's
+# kernels (OPENBLAS_CORETYPE = SkylakeX, Haswell, Sandybridge, Nehalem, Prescott and this
+# machine's default, 1 and 2 threads; 21, 41 and 61 harmonics): up to 1e-7 every kernel
+# answers, with a residual of at most 0.02 x RESIDUAL (a 50x margin); from 1e-5 every kernel
+# declines. At 1e-6 the refined residual lands at 1.02-1.04 x RESIDUAL, on the tolerance
+# itself, so whether it is answered depends on the kernel's round-off (Haswell and Prescott
+# decline at 41 harmonics, the others answer): there only the contract is asserted.
+ANSWERED, EITHER, DECLINED = "answered", "either", "declined"
+
+
+@pytest.mark.parametrize(("asymmetry", "expected"), [(1e-8, ANSWERED), (1e-7, ANSWERED), (1e-6, EITHER),
+                                                     (1e-4, DECLINED), (1e-2, DECLINED)])
+def test_a_matrix_that_is_not_symmetric_is_answered_for_itself_or_declined(asymmetry, expected):
     # Only the lower triangle is reduced; the refinement and the residual check use A itself,
     # so a slightly asymmetric A is still decomposed (its own eigenvectors, not those of its
-    # lower triangle's symmetric matrix), and a clearly asymmetric one is declined (measured:
-    # answered up to 1e-6, declined from 1e-4). The check probes the residual with two
-    # random-sign vectors, so the answer is bounded by a few times the tolerance.
+    # lower triangle's symmetric matrix), and a clearly asymmetric one is declined. The check
+    # probes the residual with two random-sign vectors, so an accepted answer is bounded by a
+    # few times the tolerance.
     A = _cd_te_matrix(41)
     A[5, 3] += asymmetry * np.max(np.abs(A))
     e = _core.eig_complex_symmetric(np.asfortranarray(A))
-    if asymmetry >= 1e-4:
+    if expected == DECLINED:
         assert e is None
     else:
-        assert e is not None
+        assert e is not None or expected == EITHER
+    if e is not None:
         w, V = np.asarray(e.values), np.asarray(e.vectors)
         assert np.linalg.norm(A @ V - V * w) <= 3 * RESIDUAL * np.linalg.norm(A) * np.linalg.norm(V)
