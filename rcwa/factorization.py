@@ -2,7 +2,9 @@
 
 Each rule returns :class:`PermittivityMatrices` for one layer at one wavelength; the
 solver's PQ eigenproblem (rcwa/cpp/modes.hpp) takes the Laurent matrix ``E = [[eps]]``
-(for ``E_z``: ``Z = E^{-1}``) and the in-plane tensor ``[Exx Exy; Eyx Eyy]``. Rules:
+(for ``E_z``: ``Z = E^{-1}``) and the in-plane tensor ``[Exx Exy; Eyx Eyy]``. The rules,
+one function each (``laurent_rule``, ``li_rule``, ``nv_rule``, ``auto_rule``), all with the
+signature ``FactorizationRule``, are chosen by name in ``FACTORIZATION_RULES``:
 
 * ``laurent``: ``Exx = Eyy = [[eps]]`` (the classical, slowly converging choice; kept so
   the difference can be measured).
@@ -32,12 +34,10 @@ import numpy as np
 from rcwa import _core, fourier
 from rcwa.shapes import Circle, Rect, Stripe, overlapping_pairs, visible_regions
 from rcwa.structure import Layer
+from workbench.core.errors import UserInputError
 
 LI_STAIRCASE_SLABS = 128
 NV_GRID = 256  # samples per period for the FFT of the normal-vector field
-
-FACTORIZATION_RULES: tuple[str, ...] = ("auto", "laurent", "li", "nv")
-
 
 @dataclass(frozen=True)
 class PermittivityMatrices:
@@ -58,12 +58,73 @@ class HarmonicIndices:
     n: np.ndarray
 
 
-def resolve_rule(rule: str, dimension: int, layers: tuple[Layer, ...] = ()) -> str:
-    if rule not in FACTORIZATION_RULES:
-        from workbench.core.errors import UserInputError
+# A rule: (layer, period (um, one entry per periodic direction), eps_of(material) -> permittivity,
+# retained harmonics) -> the layer's matrices at one wavelength.
+FactorizationRule = Callable[[Layer, tuple[float, ...], Callable, HarmonicIndices], PermittivityMatrices]
 
+
+def laurent_rule(layer: Layer, period: tuple[float, ...], eps_of: Callable, h: HarmonicIndices) -> PermittivityMatrices:
+    """Laurent's rule: ``Exx = Eyy = [[eps]]`` in 1D and 2D (the classical, slowly
+    converging choice, kept so the difference can be measured)."""
+    if len(period) == 1:
+        E, _ = lamellar_toeplitz(layer, period[0], eps_of, h.m, inverse=False)
+        return PermittivityMatrices(E, E, E)
+    E = _laurent_matrix(layer, (period[0], period[1]), eps_of, h)
+    return PermittivityMatrices(E, E, E)
+
+
+def li_rule(layer: Layer, period: tuple[float, ...], eps_of: Callable, h: HarmonicIndices) -> PermittivityMatrices:
+    """Li's inverse rule. 1D: ``Exx = [[1/eps]]^{-1}``, ``Eyy = [[eps]]`` (Li 1996, JOSA A
+    13, 1870, Theorems 1-2 and Eq. 37). 2D: Li 1997 (JOSA A 14, 2758, Eqs. 38-39), ``Exx``
+    the inverse rule along x inside each y-slab and the Laurent rule along y, ``Eyy`` the
+    reverse (_li_slabbed)."""
+    if len(period) == 1:
+        return _inverse_rule_1d(layer, period[0], eps_of, h.m)
+    E = _laurent_matrix(layer, (period[0], period[1]), eps_of, h)
+    exx = _li_slabbed(layer, period, eps_of, h, axis=0)
+    return PermittivityMatrices(E, exx, _li_slabbed(layer, period, eps_of, h, axis=1))
+
+
+def nv_rule(layer: Layer, period: tuple[float, ...], eps_of: Callable, h: HarmonicIndices) -> PermittivityMatrices:
+    """The normal vector method (Schuster, Ruoff, Kerwien, Rafler & Osten 2007, JOSA A 24,
+    2880, Eqs. 15-18; Götz et al. 2008, Opt. Express 16, 17295): ``Exx = E - Delta [[nx
+    nx]]``, ``Exy = Eyx = -Delta [[nx ny]]``, ``Eyy = E - Delta [[ny ny]]``, ``Delta = [[eps]]
+    - [[1/eps]]^{-1}``, the products symmetrized. In 1D n = x everywhere: Li's inverse rule."""
+    if len(period) == 1:
+        return _inverse_rule_1d(layer, period[0], eps_of, h.m)
+    cell = (period[0], period[1])
+    E = _laurent_matrix(layer, cell, eps_of, h)
+    mx, my = _max_orders(h)
+    gx, gy = _coefficient_orders(mx, my)
+    c_inv = cell_coefficients(layer, cell, lambda mat: 1.0 / eps_of(mat), gx, gy)
+    delta = E - np.linalg.inv(_convolution(c_inv, 2 * mx, 2 * my, h))
+    nxx, nxy, nyy = _normal_products(layer, cell, 2 * mx, 2 * my)
+    conv = lambda c: _convolution(c, 2 * mx, 2 * my, h)  # noqa: E731
+    # Symmetrized product: Hermitian for lossless cells, so the truncated problem
+    # conserves energy exactly (Delta [[N]] alone does not; see docs/architecture.md).
+    sym = lambda N: 0.5 * (delta @ N + N @ delta)  # noqa: E731
+    exy = -sym(conv(nxy))
+    return PermittivityMatrices(E, E - sym(conv(nxx)), E - sym(conv(nyy)), exy, exy)
+
+
+def auto_rule(layer: Layer, period: tuple[float, ...], eps_of: Callable, h: HarmonicIndices) -> PermittivityMatrices:
+    """``li`` in 1D and for 2D cells made only of rectangles (where Li 1997 is the correct
+    rule in both directions), ``nv`` for 2D cells with circles or polygons (resolve_rule)."""
+    return FACTORIZATION_RULES[resolve_rule("auto", len(period), (layer,))](layer, period, eps_of, h)
+
+
+# The rules by the names the command line, scene files and tables use.
+FACTORIZATION_RULES: dict[str, FactorizationRule] = {
+    "auto": auto_rule, "laurent": laurent_rule, "li": li_rule, "nv": nv_rule,
+}
+
+
+def resolve_rule(rule: str, dimension: int, layers: tuple[Layer, ...] = ()) -> str:
+    """The rule ``rule`` names (``auto`` resolved for these layers); UserInputError for an unknown name."""
+    if rule not in FACTORIZATION_RULES:
         raise UserInputError(
-            "unknown factorization rule", field="factorization", expected=f"one of {FACTORIZATION_RULES}", got=rule
+            "unknown factorization rule", field="factorization", expected=f"one of {tuple(FACTORIZATION_RULES)}",
+            got=rule,
         )
     if rule == "auto":
         only_rectangles = all(isinstance(s, (Rect, Stripe)) for layer in layers for s in layer.shapes)
@@ -78,20 +139,18 @@ def permittivity_matrices(
     harmonics: HarmonicIndices,
     rule: str,
 ) -> PermittivityMatrices:
-    """The matrices of a patterned layer; ``eps_of(material)`` gives its permittivity."""
-    rule = resolve_rule(rule, len(period), (layer,))
-    if len(period) == 1:
-        return _lamellar(layer, period[0], eps_of, harmonics.m, rule)
-    return _crossed(layer, period, eps_of, harmonics, rule)
+    """The matrices of a patterned layer by the rule named ``rule`` (FACTORIZATION_RULES);
+    ``eps_of(material)`` gives its permittivity."""
+    return FACTORIZATION_RULES[resolve_rule(rule, len(period), (layer,))](layer, period, eps_of, harmonics)
 
 
 # ---------------------------------------------------------------- 1D
 
 
-def _lamellar(layer: Layer, period: float, eps_of: Callable, m: np.ndarray, rule: str) -> PermittivityMatrices:
-    E, inverse = lamellar_toeplitz(layer, period, eps_of, m, inverse=rule != "laurent")
-    if inverse is None:
-        return PermittivityMatrices(E, E, E)
+def _inverse_rule_1d(layer: Layer, period: float, eps_of: Callable, m: np.ndarray) -> PermittivityMatrices:
+    """Li 1996's inverse rule of a 1D layer: ``Exx = [[1/eps]]^{-1}``, ``Eyy = [[eps]]``."""
+    E, inverse = lamellar_toeplitz(layer, period, eps_of, m, inverse=True)
+    assert inverse is not None  # asked for: inverse=True
     return PermittivityMatrices(E, np.linalg.inv(inverse), E)
 
 
@@ -158,25 +217,20 @@ def _convolution(c: np.ndarray, gx0: int, gy0: int, h: HarmonicIndices) -> np.nd
     return c.ravel().take(flat[None, :] - flat[:, None] + (gx0 * width + gy0))
 
 
-def _crossed(layer: Layer, period, eps_of: Callable, h: HarmonicIndices, rule: str) -> PermittivityMatrices:
-    mx, my = int(np.max(np.abs(h.m))), int(np.max(np.abs(h.n)))
-    gx, gy = np.arange(-2 * mx, 2 * mx + 1), np.arange(-2 * my, 2 * my + 1)
-    c_eps = cell_coefficients(layer, period, eps_of, gx, gy)
-    E = _convolution(c_eps, 2 * mx, 2 * my, h)
-    if rule == "laurent":
-        return PermittivityMatrices(E, E, E)
-    if rule == "li":
-        exx = _li_slabbed(layer, period, eps_of, h, axis=0)
-        return PermittivityMatrices(E, exx, _li_slabbed(layer, period, eps_of, h, axis=1))
-    c_inv = cell_coefficients(layer, period, lambda mat: 1.0 / eps_of(mat), gx, gy)
-    delta = E - np.linalg.inv(_convolution(c_inv, 2 * mx, 2 * my, h))
-    nxx, nxy, nyy = _normal_products(layer, tuple(period), 2 * mx, 2 * my)
-    conv = lambda c: _convolution(c, 2 * mx, 2 * my, h)  # noqa: E731
-    # Symmetrized product: Hermitian for lossless cells, so the truncated problem
-    # conserves energy exactly (Delta [[N]] alone does not; see docs/architecture.md).
-    sym = lambda N: 0.5 * (delta @ N + N @ delta)  # noqa: E731
-    exy = -sym(conv(nxy))
-    return PermittivityMatrices(E, E - sym(conv(nxx)), E - sym(conv(nyy)), exy, exy)
+def _max_orders(h: HarmonicIndices) -> tuple[int, int]:
+    return int(np.max(np.abs(h.m))), int(np.max(np.abs(h.n)))
+
+
+def _coefficient_orders(mx: int, my: int) -> tuple[np.ndarray, np.ndarray]:
+    """The Fourier orders (gx, gy) a convolution matrix of harmonics up to (mx, my) reads."""
+    return np.arange(-2 * mx, 2 * mx + 1), np.arange(-2 * my, 2 * my + 1)
+
+
+def _laurent_matrix(layer: Layer, period: tuple[float, float], eps_of: Callable, h: HarmonicIndices) -> np.ndarray:
+    """``E = [[eps]]`` of a 2D layer (Laurent's rule)."""
+    mx, my = _max_orders(h)
+    gx, gy = _coefficient_orders(mx, my)
+    return _convolution(cell_coefficients(layer, period, eps_of, gx, gy), 2 * mx, 2 * my, h)
 
 
 def _slab_edges(layer: Layer, length: float, axis: int) -> np.ndarray:

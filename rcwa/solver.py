@@ -36,9 +36,12 @@ _core.set_blas_threads(1)
 # imaginary part is below this (relative) is treated as lossless.
 LOSSLESS_TOLERANCE = 1e-12
 MAX_THETA_DEG = 90.0
-# The stack methods by their command-line names (rcwa/cpp/stack.hpp).
-STACK_METHOD_OF = {"etm": _core.StackMethod.ENHANCED_TRANSMITTANCE, "smatrix": _core.StackMethod.SCATTERING_MATRIX}
-STACK_METHODS = tuple(STACK_METHOD_OF)
+# The stack methods by the names the command line and ``solve(stack=...)`` use (rcwa/cpp/stack.hpp):
+# the enhanced transmittance matrix (Moharam et al. 1995b) and Redheffer's star product of
+# layer scattering matrices (Rumpf 2011).
+STACK_METHODS: dict[str, _core.StackMethod] = {
+    "etm": _core.StackMethod.ENHANCED_TRANSMITTANCE, "smatrix": _core.StackMethod.SCATTERING_MATRIX,
+}
 
 
 @dataclass(frozen=True, eq=False)  # eq=False: identity, since numpy arrays have no truth value
@@ -166,14 +169,14 @@ def solve(
         tests/rcwa/test_sectors.py); the two agree to 1e-12.
     """
     pol = _polarization(pol)
-    check_stack(stack)
+    method = stack_method(stack)
     theta, phi = _angles(theta_deg, phi_deg)
     prep = prepare(structure, wavelength_nm, orders, factorization)
     kx0, ky0 = incident_tangential_k(math.sqrt(prep.eps_sup.real), theta, phi)
     kx, ky = kx0 + prep.dkx, ky0 + prep.dky
     mirrors = mirrors_of(prep) if fast_paths and may_respect_a_mirror(kx0, ky0) else []
     sol = _core.solve_stack(kx, ky, prep.zero, prep.eps_sup, prep.eps_sub, s_direction(phi), prep.core_layers,
-                            STACK_METHOD_OF[stack], INCIDENCE_OF[pol.value], fast_paths, mirrors)
+                            method, INCIDENCE_OF[pol.value], fast_paths, mirrors)
     return _result(prep, theta_deg, phi_deg, pol, kx, ky, sol, _fast_paths(sol, pol))
 
 
@@ -222,9 +225,12 @@ def _fast_paths(sol: _core.StackSolution, pol: Polarization) -> tuple[str, ...]:
     return paths
 
 
-def check_stack(stack: str) -> None:
+def stack_method(stack: str) -> _core.StackMethod:
+    """The core's stack method named ``stack`` (STACK_METHODS); UserInputError for an unknown name."""
     if stack not in STACK_METHODS:
-        raise UserInputError("unknown stack method", field="stack", expected=f"one of {STACK_METHODS}", got=stack)
+        raise UserInputError("unknown stack method", field="stack", expected=f"one of {tuple(STACK_METHODS)}",
+                             got=stack)
+    return STACK_METHODS[stack]
 
 
 def s_direction(phi: float) -> tuple[float, float]:

@@ -22,7 +22,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from rcwa import _core
-from rcwa.solver import STACK_METHOD_OF, check_stack, mirrors_of, prepare
+from rcwa.solver import mirrors_of, prepare, stack_method
 from rcwa.structure import Structure
 from workbench.core.conventions import incident_tangential_k
 from workbench.core.errors import UserInputError
@@ -84,7 +84,7 @@ def sweep_directions(
     mirror of a 2D cell in mirror-symmetry sectors (False: the general path everywhere,
     to check them or time them).
     """
-    check_stack(stack)
+    method = stack_method(stack)
     theta = np.radians(np.asarray(theta_deg, dtype=float).ravel())
     phi = np.radians(np.asarray(phi_deg, dtype=float).ravel())
     if theta.shape != phi.shape:
@@ -98,7 +98,7 @@ def sweep_directions(
     kx0, ky0 = incident_tangential_k(n_sup, theta, phi)
     sol = _core.sweep(
         prep.dkx, prep.dky, prep.zero, prep.eps_sup, prep.eps_sub, prep.core_layers,
-        kx0, ky0, -np.sin(phi), np.cos(phi), [int(i) for i in idx], STACK_METHOD_OF[stack], threads or default_threads(),
+        kx0, ky0, -np.sin(phi), np.cos(phi), [int(i) for i in idx], method, threads or default_threads(),
         mirrors_of(prep) if sectors else [],
     )
     # The incident wave's kz is the specular order's, from the core (its outgoing branch,

@@ -26,7 +26,8 @@ import pytest
 import rcwa
 from rcwa import _core
 from rcwa.layer_input import LayerInput, LayerKind
-from rcwa.solver import STACK_METHOD_OF, prepare
+from rcwa.solver import STACK_METHODS as STACK_METHOD_OF
+from rcwa.solver import prepare
 from rcwa.sweep import kept_harmonics
 from tests.rcwa.helpers import lamellar, nk, structure
 from workbench.core.conventions import incident_tangential_k, kz_branch, order_kxy

@@ -22,7 +22,8 @@ import pytest
 
 import rcwa
 from rcwa import _core
-from rcwa.solver import INCIDENCE_OF, STACK_METHOD_OF, prepare, s_direction
+from rcwa.solver import INCIDENCE_OF, prepare, s_direction
+from rcwa.solver import STACK_METHODS as STACK_METHOD_OF
 from tests.rcwa.helpers import nk, structure
 from workbench.core.conventions import incident_tangential_k
 

@@ -18,7 +18,8 @@ import pytest
 
 import rcwa
 from rcwa import _core, symmetry
-from rcwa.solver import INCIDENCE_OF, STACK_METHOD_OF, mirrors_of, prepare, s_direction
+from rcwa.solver import INCIDENCE_OF, mirrors_of, prepare, s_direction
+from rcwa.solver import STACK_METHODS as STACK_METHOD_OF
 from rcwa.sweep import sweep_directions
 from tests.rcwa.helpers import nk, structure
 from workbench.core.conventions import incident_tangential_k
