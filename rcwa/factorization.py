@@ -113,9 +113,10 @@ def auto_rule(layer: Layer, period: tuple[float, ...], eps_of: Callable, h: Harm
     return FACTORIZATION_RULES[resolve_rule("auto", len(period), (layer,))](layer, period, eps_of, h)
 
 
-# The rules by the names the command line, scene files and tables use.
+# The rules by the names the command line, scene files and tables use (in the order the
+# command line's help lists them).
 FACTORIZATION_RULES: dict[str, FactorizationRule] = {
-    "auto": auto_rule, "laurent": laurent_rule, "li": li_rule, "nv": nv_rule,
+    "auto": auto_rule, "li": li_rule, "nv": nv_rule, "laurent": laurent_rule,
 }
 
 
@@ -123,7 +124,7 @@ def resolve_rule(rule: str, dimension: int, layers: tuple[Layer, ...] = ()) -> s
     """The rule ``rule`` names (``auto`` resolved for these layers); UserInputError for an unknown name."""
     if rule not in FACTORIZATION_RULES:
         raise UserInputError(
-            "unknown factorization rule", field="factorization", expected=f"one of {tuple(FACTORIZATION_RULES)}",
+            "unknown factorization rule", field="factorization", expected=f"one of {tuple(sorted(FACTORIZATION_RULES))}",
             got=rule,
         )
     if rule == "auto":
