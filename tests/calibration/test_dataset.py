@@ -31,7 +31,7 @@ import pytest
 from calibration.board_file import read_board_file, resolve_board
 from calibration.dataset import calibrate_dataset, dataset_files
 from tests.calibration.test_pose import calibrated_dataset
-from workbench.cli_calibrate_pose import route_dataset
+from workbench.commands.calibrate import route_dataset
 from workbench.core.errors import UserInputError
 
 PHOTOMETRIC = 0.01          # issue 14: exposure x light power within 1 %

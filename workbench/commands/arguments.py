@@ -1,9 +1,13 @@
-"""Argument types shared by the command line's command groups (argparse ``type=``)."""
+"""Argument types (argparse ``type=``) and help texts shared by the command modules."""
 
 from __future__ import annotations
 
 import argparse
 from collections.abc import Callable
+
+SEED_MAX = 2**32 - 1  # Mitsuba's and numpy's seeds are unsigned 32-bit
+SCENE_HELP = "a built-in scene (`workbench list scenes`) or a scene file (docs/scene_format.md)"
+STRUCTURE_HELP = "a built-in structure (`workbench list structures`) or a structure file (docs/structure_format.md)"
 
 
 def board_argument(text: str) -> tuple[int, int]:
@@ -47,3 +51,60 @@ def positive_number(kind: type[int] | type[float]) -> Callable[[str], float]:
         return value
 
     return parse
+
+
+def positive_numbers(kind: type[int] | type[float], name: str) -> Callable[[str], tuple[float, ...]]:
+    """An argparse type: comma-separated positive numbers of ``kind`` (``name`` says what, in the error)."""
+
+    def parse(text: str) -> tuple[float, ...]:
+        try:
+            values = tuple(kind(v) for v in text.split(","))
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"expected comma-separated {name}, got {text!r}") from None
+        if not values or not all(v > 0 for v in values):
+            raise argparse.ArgumentTypeError(f"expected positive {name}, got {text!r}")
+        return values
+
+    return parse
+
+
+def orders_argument(text: str) -> int | tuple[int, ...]:
+    """``N`` or ``NX,NY``: retained harmonics (one count for both directions, or one each)."""
+    parts = text.split(",")
+    try:
+        values = tuple(int(p) for p in parts)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected N or NX,NY (odd integers), got {text!r}") from None
+    return values[0] if len(values) == 1 else values
+
+
+def resolution_argument(text: str) -> tuple[int, int]:
+    """``WxH``: an image size in pixels."""
+    try:
+        w, h = (int(v) for v in text.lower().split("x"))
+        if w < 1 or h < 1:
+            raise ValueError
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected WxH with positive integers (e.g. 640x480), got {text!r}") from None
+    return w, h
+
+
+def angle_range_argument(text: str) -> tuple[float, float]:
+    """``LO,HI``: a range of angles in degrees."""
+    try:
+        lo, hi = (float(v) for v in text.split(","))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected LO,HI in degrees, got {text!r}") from None
+    return lo, hi
+
+
+def exposure_times_argument(text: str) -> list[float]:
+    """``T,T,...``: exposure times in seconds, each positive."""
+    try:
+        values = [float(t) for t in text.split(",")]
+    except ValueError:
+        raise argparse.ArgumentTypeError(
+            f"expected exposure times in seconds, T,T,... (e.g. 1/250 as 0.004), got {text!r}") from None
+    if any(not v > 0 for v in values):
+        raise argparse.ArgumentTypeError(f"exposure times must be positive, got {text!r}")
+    return values

@@ -34,7 +34,7 @@ def apply_cache_option(args: argparse.Namespace) -> None:
                                  got=folder) from None
 
 
-def add_parsers(commands) -> None:  # commands: the top-level parser's subparsers
+def add_parser(commands: argparse._SubParsersAction) -> None:
     """Add ``workbench cache list|clear``."""
     parser = commands.add_parser("cache", help="list or empty the cache of efficiency tables and meshes",
                                  description=f"The cache: {CACHE_HELP}. Entries are named by the content they hold, "
@@ -75,7 +75,7 @@ def _state(entry: cache.CacheEntry) -> str:
     return "ready"
 
 
-def _as_json(entry: cache.CacheEntry) -> dict:
+def _as_json(entry: cache.CacheEntry) -> dict[str, object]:
     return {"kind": entry.kind, "name": entry.name, "path": str(entry.path), "bytes": entry.bytes,
             "age_s": round(entry.age_s, 1), "state": _state(entry)}
 

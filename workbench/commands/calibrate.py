@@ -1,45 +1,55 @@
-"""The calibration commands of the ``workbench`` command line.
+"""``workbench calibrate intrinsics|response|pose|DATASET``: camera calibration from photographs (calibration)::
 
-    workbench decode FILE --out OUT.exr [--json] [--response response.json] [--demosaic ALG]
     workbench calibrate intrinsics IMAGE... --board COLSxROWS --square-mm S [--charuco DICT,MARKER_MM]
                                    --out intrinsics.json [--fit-k3] [--quiet]
     workbench calibrate response IMAGE... [--times T,...] --out response.json
+    workbench calibrate pose PHOTO --scene SCENE [--intrinsics intrinsics.json] [--response response.json] --out DIR
+    workbench calibrate DATASET --scene SCENE --out DIR [--board COLSxROWS] [--square-mm S]
 
-``calibrate`` is a group: each calibration step is one entry of CALIBRATE_STEPS (a
-function adding its parser, one running it), so ``response`` and ``pose`` are added the
-same way as ``intrinsics``. workbench/cli.py calls ``add_parsers`` while building its
-parser and ``run`` for the commands in COMMANDS; user errors raise UserInputError, which
-cli.py prints as ``error: ...`` with exit status 2.
+Each step is one entry of :data:`CALIBRATE_STEPS` (a function adding its parser, one running
+it). ``calibrate DATASET`` reads the board of DATASET/calibration/ from its board.json
+(calibration.board_file); ``--board`` and ``--square-mm`` override it (the run says so). It
+names a folder where the other steps name a subcommand: ``route_dataset`` rewrites such a
+command line to ``calibrate dataset DATASET ...`` before argparse sees it
+(``calibrate dataset DATASET`` works as well).
 """
 
 from __future__ import annotations
 
 import argparse
-import json
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from pathlib import Path
+from typing import TYPE_CHECKING, Any
 
-from workbench.cli_arguments import board_argument, positive_number
-from workbench.cli_calibrate_pose import STEPS as CALIBRATE_POSE_STEPS
+import cv2
 
-COMMANDS = ("decode", "calibrate")
+from calibration.charuco import parse_charuco
+from calibration.intrinsics import calibrate_board_views, write_intrinsics
+from workbench.commands.arguments import board_argument, exposure_times_argument, positive_number
 
+if TYPE_CHECKING:  # calibration.pose pulls in the renderer and scipy: imported where a pose is fitted
+    from calibration.pose import PoseSettings
 
-def _add_decode(commands) -> None:
-    from calibration.decode import DEMOSAIC_ALGORITHMS
-
-    decode = commands.add_parser("decode", help="a photograph (raw or JPEG/PNG/TIFF) to linear camera RGB (EXR + JSON)")
-    decode.add_argument("file", metavar="FILE", help="a raw file LibRaw reads, or an 8/16-bit JPEG, PNG or TIFF")
-    decode.add_argument("--out", required=True, metavar="OUT.exr", help="OpenEXR output; OUT.json beside it")
-    decode.add_argument("--json", action="store_true", help="print one JSON object instead of a summary")
-    decode.add_argument("--response", metavar="response.json",
-                        help='inverse response for non-raw images: {"points": [[irradiance, value], ...]} on [0, 1] '
-                             '(default: none; a JPEG/PNG/TIFF is then decoded as it is and flagged non-linear)')
-    decode.add_argument("--demosaic", choices=DEMOSAIC_ALGORITHMS, default="linear",
-                        help="LibRaw demosaicing for raw files (default: linear, i.e. bilinear)")
+POSE_SCENE_HELP = "the scene the photos show: a built-in scene (`workbench list scenes`) or a scene file"
+DATASET_STEP = "dataset"
 
 
-def _add_intrinsics(steps) -> None:
+def add_parser(commands: argparse._SubParsersAction) -> None:
+    """Add the ``calibrate`` group, one subcommand per step of :data:`CALIBRATE_STEPS`."""
+    calibrate = commands.add_parser("calibrate", help="camera calibration from photographs")
+    steps = calibrate.add_subparsers(dest="calibrate_command", required=True)
+    for add, _ in CALIBRATE_STEPS.values():
+        add(steps)
+
+
+def run(args: argparse.Namespace) -> int:
+    return CALIBRATE_STEPS[args.calibrate_command][1](args)
+
+
+# ---------------------------------------------------------------- intrinsics
+
+
+def add_intrinsics(steps: argparse._SubParsersAction) -> None:
     p = steps.add_parser("intrinsics", help="focal lengths, principal point and distortion from board views")
     p.add_argument("images", nargs="+", metavar="IMAGE", help="board photographs (raw, JPEG, PNG, TIFF), one camera")
     p.add_argument("--board", type=board_argument, required=True, metavar="COLSxROWS",
@@ -53,12 +63,7 @@ def _add_intrinsics(steps) -> None:
     p.add_argument("--quiet", action="store_true", help="no progress bar")
 
 
-def _run_intrinsics(args: argparse.Namespace) -> int:
-    import cv2
-
-    from calibration.charuco import parse_charuco
-    from calibration.intrinsics import calibrate_board_views, write_intrinsics
-
+def run_intrinsics(args: argparse.Namespace) -> int:
     charuco = parse_charuco(args.charuco) if args.charuco else None
     flags = 0 if args.fit_k3 else cv2.CALIB_FIX_K3
     result = calibrate_board_views(args.images, args.board, args.square_mm / 1000.0, flags=flags, charuco=charuco,
@@ -83,50 +88,24 @@ def _run_intrinsics(args: argparse.Namespace) -> int:
     return 0
 
 
-def _run_decode(args: argparse.Namespace) -> int:
-    from calibration.decode import decode_to_exr
-
-    record = decode_to_exr(args.file, args.out, response=args.response, demosaic=args.demosaic)
-    if args.json:
-        keys = ("width", "height", "black_level", "white_level", "cfa", "exposure_time_s", "iso", "make", "model",
-                "saturated_fraction", "linear", "source", "demosaic", "channels", "response")
-        print(json.dumps({k: record[k] for k in keys}))
-        return 0
-    exposure = "unknown" if record["exposure_time_s"] is None else f"{record['exposure_time_s']:g} s"
-    camera = " ".join(x for x in (record["make"], record["model"]) if x) or "unknown camera"
-    print(f"wrote {args.out} and {Path(args.out).with_suffix('.json')}: {record['width']} x {record['height']} "
-          f"{record['source']}, {camera}, exposure {exposure}, ISO {record['iso'] or 'unknown'}, "
-          f"{100 * record['saturated_fraction']:.2f} % saturated, "
-          f"{'linear' if record['linear'] else 'NOT linear (no response given)'}")
-    return 0
+# ---------------------------------------------------------------- response
 
 
-def _times_argument(text: str) -> list[float]:
-    try:
-        values = [float(t) for t in text.split(",")]
-    except ValueError:
-        raise argparse.ArgumentTypeError(
-            f"expected exposure times in seconds, T,T,... (e.g. 1/250 as 0.004), got {text!r}") from None
-    if any(not v > 0 for v in values):
-        raise argparse.ArgumentTypeError(f"exposure times must be positive, got {text!r}")
-    return values
-
-
-def _add_response(steps) -> None:
+def add_response(steps: argparse._SubParsersAction) -> None:
     p = steps.add_parser("response", help="the camera's response curve from an exposure bracket (raw: a linearity check)",
                          description="Fits the camera's response curve to an exposure bracket of one scene (JPEG, PNG "
                          "or TIFF: a monotone parametric curve fitted with nlopt, with OpenCV's Debevec and Robertson "
                          "curves beside it); a raw bracket is checked for linearity instead. Exposure times come from "
                          "EXIF or --times.")
     p.add_argument("images", nargs="+", metavar="IMAGE", help="the bracket's images, same scene and camera, any order")
-    p.add_argument("--times", type=_times_argument, metavar="T,...", help="exposure times in seconds, one per image "
-                   "in the order given (default: read from each file's EXIF)")
+    p.add_argument("--times", type=exposure_times_argument, metavar="T,...", help="exposure times in seconds, one per "
+                   "image in the order given (default: read from each file's EXIF)")
     p.add_argument("--out", required=True, metavar="response.json", help="the fitted curve and its comparison")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
 
 
-def _run_response(args: argparse.Namespace) -> int:
-    from calibration.response import calibrate_response
+def run_response(args: argparse.Namespace) -> int:
+    from calibration.response import calibrate_response  # deferred: pulls in scipy (start-up time)
 
     result = calibrate_response(args.images, args.out, times_s=args.times, progress=not args.quiet)
     if result.get("method") == "raw-linearity":
@@ -144,23 +123,117 @@ def _run_response(args: argparse.Namespace) -> int:
     return 0
 
 
-CALIBRATE_STEPS: dict[str, tuple[Callable, Callable[[argparse.Namespace], int]]] = {
-    "intrinsics": (_add_intrinsics, _run_intrinsics),
-    "response": (_add_response, _run_response),
+# ---------------------------------------------------------------- pose, dataset
+
+
+def _add_fit_options(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--scene", required=True, metavar="SCENE", help=POSE_SCENE_HELP)
+    p.add_argument("--out", required=True, metavar="DIR", help="the results folder (created; files in it are replaced)")
+    p.add_argument("--render-spp", type=positive_number(int), default=16, metavar="N",
+                   help="samples per pixel of the render check (exposure x light power, the edge finder's bias)")
+    p.add_argument("--no-render-check", action="store_true",
+                   help="skip the render check: edges only, no photometry (seconds instead of a minute)")
+    p.add_argument("--quiet", action="store_true", help="no progress bar")
+
+
+def add_pose(steps: argparse._SubParsersAction) -> None:
+    p = steps.add_parser("pose", help="pose and field of view of one scene photo from the scene's known edges",
+                         description="Starts from the scene file's camera, aligns the box's edges, the light and the "
+                                     "CD's rim with the photo (coarse chamfer, then sub-pixel edges), checks against a "
+                                     "render, and writes DIR/pose.json and DIR/fitted_scene.toml.")
+    p.add_argument("photo", metavar="PHOTO", help="a raw file (DNG, NEF, CR2, ...) or a JPEG/PNG/TIFF of the scene")
+    p.add_argument("--intrinsics", metavar="intrinsics.json",
+                   help="hold these intrinsics fixed (`workbench calibrate intrinsics`); without them the focal "
+                        "length, principal point and k1, k2 are fitted from the photo alone (weakly constrained; the default)")
+    p.add_argument("--response", metavar="response.json",
+                   help="inverse response for a non-raw photo (default: none; a JPEG/PNG/TIFF is then used as it is, non-linear)")
+    _add_fit_options(p)
+
+
+def add_dataset(steps: argparse._SubParsersAction) -> None:
+    p = steps.add_parser(DATASET_STEP, help="every step on a dataset folder (also: `workbench calibrate DATASET`)",
+                         description="Intrinsics from DATASET/calibration/, the response from DATASET/brackets/, the "
+                                     "pose of every photo in DATASET/photos/; writes DIR/calibration.json, "
+                                     "DIR/fitted_scene.toml, DIR/scenes/*.toml, intrinsics.json and response.json. "
+                                     "Never reads truth.json.")
+    p.add_argument("dataset", metavar="DATASET", help="a folder with photos/ (and brackets/, calibration/), "
+                                                      "as `workbench synth` writes")
+    p.add_argument("--board", type=board_argument, default=None, metavar="COLSxROWS",
+                   help="inner corners of the checkerboard in calibration/ (ChArUco: its squares); overrides "
+                        "calibration/board.json (the default), needed without it")
+    p.add_argument("--square-mm", type=positive_number(float), default=None, metavar="S",
+                   help="the board's square size in mm; overrides calibration/board.json (the default), needed without it")
+    _add_fit_options(p)
+
+
+def _pose_settings(args: argparse.Namespace) -> PoseSettings:
+    from calibration.pose import PoseSettings  # deferred: pulls in the renderer and scipy (start-up time)
+
+    return PoseSettings(render_check=not args.no_render_check, render_spp=args.render_spp)
+
+
+def run_pose(args: argparse.Namespace) -> int:
+    from calibration.pose import calibrate_pose  # deferred: pulls in the renderer and scipy (start-up time)
+
+    record = calibrate_pose(args.photo, args.scene, args.out, intrinsics=args.intrinsics, response=args.response,
+                            settings=_pose_settings(args), progress=not args.quiet)
+    print(pose_summary_line(record["photo"], record))
+    print(f"wrote {args.out}/pose.json and {args.out}/fitted_scene.toml in {record['timings']['total_s']:.1f} s")
+    return 0
+
+
+def run_dataset(args: argparse.Namespace) -> int:
+    from calibration.dataset import calibrate_dataset  # deferred: pulls in the renderer and scipy (start-up time)
+
+    record = calibrate_dataset(args.dataset, args.scene, args.out, board=args.board, square_mm=args.square_mm,
+                               settings=_pose_settings(args), progress=not args.quiet)
+    camera, std = record["camera"], record["std"]
+    board = record["settings"]["board"]
+    if board is not None:
+        size = board.get("inner_corners", board.get("squares"))
+        print(f"board: {board['kind']} {size[0]}x{size[1]}, {board['square_mm']:g} mm squares ({board['source']})")
+    print(f"camera: fx {camera['fx']:.2f} +- {std['fx']:.2f}, fy {camera['fy']:.2f} +- {std['fy']:.2f}, "
+          f"cx {camera['cx']:.2f} +- {std['cx']:.2f}, cy {camera['cy']:.2f} +- {std['cy']:.2f} px "
+          f"(FOV {camera['fov_x_deg']:.3f} deg; intrinsics: {record['intrinsics']['source']})")
+    for name, photo in record["photos"].items():
+        print(pose_summary_line(name, photo))
+    print(f"wrote {args.out}/calibration.json and fitted_scene.toml in {record['timings']['total_s']:.1f} s")
+    return 0
+
+
+def pose_summary_line(name: str, photo: dict[str, Any]) -> str:
+    """One photo's fitted camera, its uncertainty and residual, in one line."""
+    std, residuals = photo["std"], photo["residuals"]
+    centre = photo["camera"]["camera_center_m"]
+    scale = photo.get("exposure_scale")
+    text = (f"{name}: camera at ({centre[0]:.4f}, {centre[1]:.4f}, {centre[2]:.4f}) m "
+            f"+- {1000 * max(std['camera_center_m']):.2f} mm, rotation +- {std['rotation_total_deg']:.3f} deg, "
+            f"FOV {photo['camera']['fov_x_deg']:.3f} deg, edge residual {residuals['robust_sigma_px']:.2f} px "
+            f"({residuals['points']} points)")
+    if scale is not None:
+        text += f", exposure x light {scale:.4g}"
+    return text
+
+
+def route_dataset(argv: Sequence[str], steps: Sequence[str]) -> list[str]:
+    """``calibrate DATASET ...`` -> ``calibrate dataset DATASET ...`` when the word after
+    the ``calibrate`` command is neither a step (``steps``) nor an option. Only the command
+    word counts (top-level options such as ``--cache DIR`` may come before it), so a file
+    named ``calibrate`` given to another command is left alone."""
+    argv = list(argv)
+    i = 0
+    while i < len(argv) and argv[i].startswith("-"):
+        i += 2 if argv[i] == "--cache" else 1
+    if i < len(argv) and argv[i] == "calibrate":
+        nxt = i + 1
+        if nxt < len(argv) and argv[nxt] not in steps and not argv[nxt].startswith("-"):
+            argv.insert(nxt, DATASET_STEP)
+    return argv
+
+
+CALIBRATE_STEPS: dict[str, tuple[Callable[[argparse._SubParsersAction], None], Callable[[argparse.Namespace], int]]] = {
+    "intrinsics": (add_intrinsics, run_intrinsics),
+    "response": (add_response, run_response),
+    "pose": (add_pose, run_pose),
+    DATASET_STEP: (add_dataset, run_dataset),
 }
-CALIBRATE_STEPS.update(CALIBRATE_POSE_STEPS)  # calibrate pose, calibrate dataset (workbench/cli_calibrate_pose.py)
-
-
-def add_parsers(commands) -> None:
-    """Add ``decode`` and the ``calibrate`` group to the top-level subparsers."""
-    _add_decode(commands)
-    calibrate = commands.add_parser("calibrate", help="camera calibration from photographs")
-    steps = calibrate.add_subparsers(dest="calibrate_command", required=True)
-    for add, _ in CALIBRATE_STEPS.values():
-        add(steps)
-
-
-def run(args: argparse.Namespace) -> int:
-    if args.command == "decode":
-        return _run_decode(args)
-    return CALIBRATE_STEPS[args.calibrate_command][1](args)

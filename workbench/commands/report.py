@@ -5,11 +5,11 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from workbench.cli_cache import add_cache_option
+from workbench.commands.cache import add_cache_option
 from workbench.core.errors import UserInputError
 
 
-def add_parsers(commands) -> None:  # commands: the top-level parser's subparsers
+def add_parser(commands: argparse._SubParsersAction) -> None:
     """Add ``workbench report``."""
     parser = commands.add_parser(
         "report", help="compare a photo with a render of the same view: CD fringe positions, error maps, one HTML page",
@@ -36,7 +36,7 @@ def add_parsers(commands) -> None:  # commands: the top-level parser's subparser
 
 
 def run(args: argparse.Namespace) -> int:
-    from reports.report import Inputs, build_report
+    from reports.report import Inputs, build_report  # deferred: pulls in scipy and cv2 (start-up time)
 
     out = Path(args.out)
     if out.exists() and not out.is_dir():

@@ -1,30 +1,38 @@
-"""``workbench study calibrate DATASET --scene SCENE --out DIR`` (calibration.study).
-
-workbench/cli.py adds the parser to its ``study`` group with ``add_calibrate`` and runs it
-with ``run_calibrate``; user errors raise UserInputError (``error: ...``, exit status 2).
-"""
+"""``workbench study rcwa|render|calibrate``: accuracy-versus-time studies (rcwa.study, renderer.study,
+calibration.study)."""
 
 from __future__ import annotations
 
 import argparse
+from collections.abc import Callable
+
+import rcwa
+import renderer.study
+from workbench.commands.arguments import STRUCTURE_HELP, positive_numbers
+from workbench.core.errors import UserInputError
 
 CALIBRATE = "calibrate"
 
 
-def _numbers(kind, name: str):
-    def parse(text: str) -> tuple:
-        try:
-            values = tuple(kind(v) for v in text.split(","))
-        except ValueError:
-            raise argparse.ArgumentTypeError(f"expected comma-separated {name}, got {text!r}") from None
-        if not values or not all(v > 0 for v in values):
-            raise argparse.ArgumentTypeError(f"expected positive {name}, got {text!r}")
-        return values
-    return parse
+def add_parser(commands: argparse._SubParsersAction) -> None:
+    """Add the ``study`` group: ``rcwa``, ``render`` and ``calibrate``."""
+    study = commands.add_parser("study", help="accuracy-versus-time studies")
+    studies = study.add_subparsers(dest="study_command", required=True)
+    study_rcwa = studies.add_parser("rcwa", help="truncation and interpolation error versus time for tables")
+    study_rcwa.add_argument("structure", help=STRUCTURE_HELP)
+    study_rcwa.add_argument("--out", required=True, metavar="DIR", help="folder for the JSON, CSV and figures")
+    study_rcwa.add_argument("--quiet", action="store_true", help="no progress bar")
+
+    study_render = studies.add_parser("render", help="render error versus time, paper against improved BWDF")
+    study_render.add_argument("scene", nargs="?", default="cornell_cd",
+                              help="a built-in scene name or a TOML file; its camera must see a CD or grating")
+    study_render.add_argument("--out", required=True, metavar="DIR", help="folder for the JSON, CSV and figures")
+    study_render.add_argument("--quiet", action="store_true", help="no progress bar")
+    _add_calibrate(studies)
 
 
-def add_calibrate(study_commands) -> None:
-    p = study_commands.add_parser(
+def _add_calibrate(studies: argparse._SubParsersAction) -> None:
+    p = studies.add_parser(
         CALIBRATE, help="pose/FOV calibration error versus time on a synthetic dataset, against its truth",
         description="Fits every photo of DATASET (a `workbench synth` folder) with the pose refinement's settings "
                     "varied one at a time (fine-stage rounds and windows, fit resolution, render-check spp) and "
@@ -34,30 +42,59 @@ def add_calibrate(study_commands) -> None:
     p.add_argument("dataset", metavar="DATASET", help="a synthetic dataset folder with truth.json (`workbench synth`)")
     p.add_argument("--scene", required=True, metavar="SCENE", help="the scene the dataset shows (built-in name or file)")
     p.add_argument("--out", required=True, metavar="DIR", help="folder for the JSON, CSV and figures")
-    p.add_argument("--scales", type=_numbers(float, "scales"), default=(1.0, 0.5, 0.25), metavar="S,...",
+    p.add_argument("--scales", type=positive_numbers(float, "scales"), default=(1.0, 0.5, 0.25), metavar="S,...",
                    help="fit resolutions as fractions of the photo's (default 1,0.5,0.25)")
-    p.add_argument("--spp", type=_numbers(int, "integers"), default=(4, 16, 64), metavar="N,...",
+    p.add_argument("--spp", type=positive_numbers(int, "integers"), default=(4, 16, 64), metavar="N,...",
                    help="render-check samples per pixel (default 4,16,64)")
-    p.add_argument("--rounds", type=_numbers(int, "integers"), default=(1, 2, 4), metavar="N,...",
+    p.add_argument("--rounds", type=positive_numbers(int, "integers"), default=(1, 2, 4), metavar="N,...",
                    help="fine-stage rounds per window; N rounds use the default windows' last N + 1 (default 1,2,4)")
-    p.add_argument("--knots", type=_numbers(int, "integers"), default=(2, 3, 4, 6, 8), metavar="K,...",
+    p.add_argument("--knots", type=positive_numbers(int, "integers"), default=(2, 3, 4, 6, 8), metavar="K,...",
                    help="knot counts of the response curve's parametric fit (default 2,3,4,6,8)")
     p.add_argument("--free-intrinsics", action="store_true",
                    help="fit the intrinsics from each photo instead of holding the board views' (the FOV refinement)")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
 
 
+def run(args: argparse.Namespace) -> int:
+    return STUDIES[args.study_command](args)
+
+
+def run_rcwa(args: argparse.Namespace) -> int:
+    from rcwa.study import run_study  # deferred: pulls in scipy and shapely (start-up time)
+
+    structure = rcwa.load_structure(args.structure)
+    if structure.dimension != 1:
+        raise UserInputError("the study covers 1D structures for now", field="structure", got=args.structure)
+    data = run_study(structure, args.out, progress=not args.quiet)
+    print(f"wrote {args.out}/study_rcwa.json, truncation.csv, interpolation.csv, presets.csv, study_rcwa.png/.svg")
+    for p in data["presets"]:
+        if p["reachable"]:
+            print(f"target {p['target_error']:g}: {p['orders']} harmonics, {p['grid']} grid, {p['step_deg']:g} deg step, "
+                  f"~{p['estimated_table_seconds']:.0f} s for a full table, {p['table_bytes'] / 1e6:.2f} MB")
+        else:
+            print(f"target {p['target_error']:g}: not reached by the measured settings")
+    return 0
+
+
+def run_render(args: argparse.Namespace) -> int:
+    data = renderer.study.run_render_study(args.scene, args.out, progress=not args.quiet)
+    print(f"wrote {args.out}/study_render.json, the CSV files and study_render.png/.svg")
+    for e in data["energy"]:
+        print(f"furnace energy, {e['mode']} mode: {e['energy']:.4f}")
+    return 0
+
+
 def fine_settings(rounds: tuple[int, ...]) -> tuple[tuple[int, tuple[float, ...]], ...]:
     """Each rounds count with a window schedule: the default's last ``min(n + 1, all)`` windows
     (fewer rounds, fewer windows: the cheap end of the fine stage)."""
-    from calibration.pose import PoseSettings
+    from calibration.pose import PoseSettings  # deferred: pulls in the renderer, scipy and cv2 (start-up time)
 
     windows = PoseSettings().fine_windows_px
     return tuple((n, windows[-min(n + 1, len(windows)):]) for n in rounds)
 
 
 def run_calibrate(args: argparse.Namespace) -> int:
-    from calibration.study import CalibrateStudyConfig, run_calibrate_study
+    from calibration.study import CalibrateStudyConfig, run_calibrate_study  # deferred: as fine_settings
 
     cfg = CalibrateStudyConfig(fine=fine_settings(args.rounds), scales=args.scales, render_spp=args.spp, knots=args.knots,
                                free_intrinsics=args.free_intrinsics)
@@ -74,3 +111,5 @@ def run_calibrate(args: argparse.Namespace) -> int:
         print(f"response, {k['knots']} knots: RMS {k['response_rms_pct']:.3f} % in {k['seconds']:.2f} s")
     return 0
 
+
+STUDIES: dict[str, Callable[[argparse.Namespace], int]] = {"rcwa": run_rcwa, "render": run_render, CALIBRATE: run_calibrate}

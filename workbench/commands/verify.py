@@ -1,25 +1,21 @@
-"""``workbench verify`` and ``workbench score`` (workbench.verify, workbench.score)::
+"""``workbench verify DATASET --scene SCENE --out RUN``: photos to report in one resumable run (workbench.verify)::
 
     workbench verify DATASET --scene SCENE --out RUN [--preset draft|paper] [--spp N] [--photo NAME]...
                      [--seed N] [--board COLSxROWS] [--square-mm S] [--scheduler ADDRESS] [--force] [--quiet]
-    workbench score RUN --truth DATASET/truth.json [--json]
 
-cli.py calls ``add_parsers`` while building its parser and ``run`` for the commands in COMMANDS.
+The run itself, its stages and their folders: workbench/verify.py.
 """
 
 from __future__ import annotations
 
 import argparse
 
-from workbench.cli_arguments import board_argument, count_argument, positive_number
-from workbench.cli_cache import add_cache_option
-
-COMMANDS = ("verify", "score")
-SEED_MAX = 2**32 - 1  # Mitsuba's seeds are unsigned 32-bit
+from workbench.commands.arguments import SEED_MAX, board_argument, count_argument, positive_number
+from workbench.commands.cache import add_cache_option
 
 
-def add_parsers(commands) -> None:  # commands: the top-level parser's subparsers
-    """Add ``workbench verify`` and ``workbench score``."""
+def add_parser(commands: argparse._SubParsersAction) -> None:
+    """Add ``workbench verify``."""
     verify = commands.add_parser(
         "verify", help="photos to report in one resumable run: plan, tables, calibration, render, report",
         description="Runs plan -> tables -> calibration -> render (every photo with its fitted camera, at the photo's "
@@ -47,26 +43,9 @@ def add_parsers(commands) -> None:  # commands: the top-level parser's subparser
     verify.add_argument("--quiet", action="store_true", help="no progress bars")
     add_cache_option(verify)
 
-    score = commands.add_parser(
-        "score", help="a verify run on a synthetic dataset against its truth: calibration errors, fringe offsets",
-        description="Compares RUN's calibration with the dataset's truth.json (rotation, camera centre, field of view, "
-                    "principal point, exposure x light power, response) and prints them with the fringe offsets; "
-                    "writes RUN/score.json.")
-    score.add_argument("run", metavar="RUN", help="the --out folder of a `workbench verify` run")
-    score.add_argument("--truth", required=True, metavar="truth.json", help="the synthetic dataset's truth.json")
-    score.add_argument("--json", action="store_true", help="print score.json instead of the table")
-
 
 def run(args: argparse.Namespace) -> int:
-    if args.command == "score":
-        import json
-
-        from workbench.score import format_score, score_run
-
-        result = score_run(args.run, args.truth)
-        print(json.dumps(result, indent=2) if args.json else format_score(result))
-        return 0
-    from workbench.verify import VerifySettings, format_summary, verify
+    from workbench.verify import VerifySettings, format_summary, verify  # deferred: pulls in every library (start-up time)
 
     settings = VerifySettings(preset=args.preset, spp=args.spp, seed=args.seed, photos=tuple(args.photo),
                               board=args.board, square_mm=args.square_mm, scheduler=args.scheduler,
