@@ -39,21 +39,20 @@ import json
 import time
 from pathlib import Path
 
+import numpy as np
+from tqdm import tqdm
+
 from calibration.board_file import BoardSpec, resolve_board
+from calibration.fitted_scene import fitted_scene_text
+from calibration.intrinsics import calibrate_board_views
 from calibration.photo import RAW_SUFFIXES, read_photo
-from calibration.pose import (
-    FREE_RADIAL_TERMS,
-    PHOTOMETRY_NOTE,
-    PoseSettings,
-    Unknowns,
-    check_photo,
-    fit_photo,
-    fit_renderer,
-    result_json,
-    start_camera,
-    versions,
-)
+from calibration.pose_fit import FREE_RADIAL_TERMS, PoseSettings, Unknowns
+from calibration.pose_inputs import fit_renderer, start_camera
+from calibration.pose_outputs import PHOTOMETRY_NOTE, json_default, result_json, versions
+from calibration.pose_photo import check_photo, fit_photo
+from calibration.response import calibrate_response
 from calibration.scene_model import scene_model
+from renderer.scene import load_scene
 from workbench.core.errors import UserInputError
 from workbench.core.files import atomic_write_text
 
@@ -96,8 +95,6 @@ def intrinsics_from_boards(boards: list[Path], board: BoardSpec | None, progress
     """intrinsics.json's content from the board views (calibration.intrinsics), or None without views."""
     if not boards or board is None:
         return None
-    from calibration.intrinsics import calibrate_board_views
-
     calibration = calibrate_board_views(boards, board.size, board.square_mm / 1000.0, charuco=board.charuco(),
                                         progress=progress)
     record = calibration.to_json()
@@ -109,8 +106,6 @@ def response_from_bracket(brackets: list[Path], progress: bool) -> dict | None:
     """The response curve from the bracket's non-raw files, the linearity of its raw ones."""
     if not brackets:
         return None
-    from calibration.response import calibrate_response
-
     images = [p for p in brackets if p.suffix.lower() in IMAGE_SUFFIXES]
     raws = [p for p in brackets if p.suffix.lower() in RAW_SUFFIXES]
     result: dict = {}
@@ -131,10 +126,6 @@ def calibrate_dataset(dataset: str | Path, scene: str | Path, out: str | Path, *
     ``board`` (inner corners or ChArUco squares, cols x rows) and ``square_mm`` override
     the dataset's calibration/board.json; without that file both are needed when there are
     board views (a UserInputError naming the file and the flags, before anything runs)."""
-    from tqdm import tqdm
-
-    from renderer.scene import load_scene
-
     started = time.perf_counter()
     settings = settings or PoseSettings()
     out = Path(out)
@@ -164,8 +155,6 @@ def calibrate_dataset(dataset: str | Path, scene: str | Path, out: str | Path, *
 def fit_photos(photos: list[Path], spec, intrinsics: dict | None, response: dict | None, settings: PoseSettings, bar,
                timings: dict) -> dict:
     """Each photo's PoseResult by file name; the first fixes the intrinsics when no boards did."""
-    import numpy as np
-
     inverse = None
     if response is not None and "points" in response:
         points = np.asarray(response["points"], float)
@@ -234,9 +223,6 @@ def _response_summary(response: dict | None) -> dict | None:
 
 
 def _write(out: Path, record: dict, spec, results: dict, intrinsics: dict | None, response: dict | None) -> None:
-    from calibration.fitted_scene import fitted_scene_text
-    from calibration.pose import _json_default
-
     out.mkdir(parents=True, exist_ok=True)
     for i, (name, result) in enumerate(results.items()):
         exposure = spec.camera.exposure * (result.exposure_scale if result.exposure_scale is not None else 1.0)
@@ -246,7 +232,7 @@ def _write(out: Path, record: dict, spec, results: dict, intrinsics: dict | None
         if i == 0:
             atomic_write_text(out / "fitted_scene.toml", text)
     if intrinsics is not None:
-        atomic_write_text(out / "intrinsics.json", json.dumps(intrinsics, indent=2, default=_json_default) + "\n")
+        atomic_write_text(out / "intrinsics.json", json.dumps(intrinsics, indent=2, default=json_default) + "\n")
     if response is not None:
-        atomic_write_text(out / "response.json", json.dumps(response, indent=1, default=_json_default) + "\n")
-    atomic_write_text(out / "calibration.json", json.dumps(record, indent=2, default=_json_default) + "\n")
+        atomic_write_text(out / "response.json", json.dumps(response, indent=1, default=json_default) + "\n")
+    atomic_write_text(out / "calibration.json", json.dumps(record, indent=2, default=json_default) + "\n")

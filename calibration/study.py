@@ -52,11 +52,24 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+import cv2
 import numpy as np
+from tqdm import tqdm
 
-from calibration.pose import PoseSettings
+from calibration.dataset import IMAGE_SUFFIXES, dataset_board, dataset_files, intrinsics_from_boards
+from calibration.photo import read_photo
+from calibration.pose_fit import FREE_RADIAL_TERMS, PoseSettings, Unknowns
+from calibration.pose_inputs import fit_renderer, start_camera
+from calibration.pose_outputs import versions
+from calibration.pose_photo import check_photo, fit_photo
+from calibration.response_bracket import read_bracket
+from calibration.response_fit import parametric_knot_study
+from calibration.scene_model import scene_model
+from renderer.camera import CameraModel
+from renderer.scene import load_scene
 from workbench.core.errors import UserInputError
 from workbench.core.files import atomic_write_csv, atomic_write_text
+from workbench.core.plots import new_figure, save_figure
 
 STUDY_FORMAT = "workbench-study-calibrate"
 SYNTHETIC_FORMAT = "workbench-synthetic-dataset"  # truth.json's marker (datasets_synthetic.synth.MARKER)
@@ -187,8 +200,6 @@ def scaled_photo(photo, scale: float):
     compares without mosaicking)."""
     if scale == 1.0:
         return photo
-    import cv2
-
     size = (int(round(photo.width * scale)), int(round(photo.height * scale)))
     rgb = cv2.resize(photo.rgb, size, interpolation=cv2.INTER_AREA)
     saturated = cv2.resize(photo.saturated.astype(np.float32), size, interpolation=cv2.INTER_AREA) > 0
@@ -199,8 +210,6 @@ def _scaled_intrinsics(known: dict | None, scale: float) -> tuple[dict | None, d
     """Intrinsics held fixed, and their standard deviations, at ``scale``."""
     if known is None:
         return None, None
-    from renderer.camera import CameraModel
-
     template = CameraModel(width=known["width"], height=known["height"], fx=known["fx"], fy=known["fy"], cx=known["cx"],
                            cy=known["cy"], dist=tuple(known["dist"]), world_to_camera=np.eye(4))
     c = scaled_camera(template, scale)
@@ -233,8 +242,6 @@ class _Renderers:
         self.seconds: dict[tuple[int, int, int], float] = {}
 
     def get(self, start, spp: int):
-        from calibration.pose import fit_renderer
-
         key = (start.width, start.height, spp)
         if key not in self.built:
             tick = time.perf_counter()
@@ -247,11 +254,6 @@ class _Renderers:
 
 def _prepare(dataset: Path, scene: str | Path, cfg: CalibrateStudyConfig) -> _Inputs:
     """Everything checked and read before the first fit: files, truth, photos, the boards' intrinsics."""
-    from calibration.dataset import IMAGE_SUFFIXES, dataset_board, dataset_files, intrinsics_from_boards
-    from calibration.photo import read_photo
-    from calibration.pose import check_photo
-    from renderer.scene import load_scene
-
     spec = load_scene(scene)
     files = dataset_files(dataset)
     chosen = [p for p in files["photos"] if not cfg.photos or p.name in cfg.photos]
@@ -276,9 +278,6 @@ def _prepare(dataset: Path, scene: str | Path, cfg: CalibrateStudyConfig) -> _In
 
 def _fit_setting(inputs: _Inputs, settings: PoseSettings, scale: float, renderers: _Renderers, bar) -> list[dict]:
     """Every photo fitted with ``settings`` at ``scale``: errors and seconds per photo."""
-    from calibration.pose import FREE_RADIAL_TERMS, Unknowns, fit_photo, start_camera
-    from calibration.scene_model import scene_model
-
     model = scene_model(inputs.spec)
     known, known_std = _scaled_intrinsics(inputs.known, scale)
     unknowns = Unknowns(intrinsics=known is None, radial=FREE_RADIAL_TERMS if known is None else 0)
@@ -302,8 +301,6 @@ def _fit_setting(inputs: _Inputs, settings: PoseSettings, scale: float, renderer
 def _knot_study(inputs: _Inputs, cfg: CalibrateStudyConfig) -> list[dict]:
     if len(inputs.bracket) < 2 or "response" not in inputs.truth:
         return []
-    from calibration.response import parametric_knot_study, read_bracket
-
     rows = parametric_knot_study(read_bracket(inputs.bracket), inputs.truth["response"]["points"], cfg.knots)
     return [{"knots": r["knots"], "response_rms_pct": 100 * r["rms"], "seconds": r["seconds"]} for r in rows]
 
@@ -311,10 +308,6 @@ def _knot_study(inputs: _Inputs, cfg: CalibrateStudyConfig) -> list[dict]:
 def run_calibrate_study(dataset: str | Path, scene: str | Path, out: str | Path,
                         cfg: CalibrateStudyConfig | None = None, *, progress: bool = True) -> dict:
     """The study (module docstring); returns study_calibrate.json's content."""
-    from tqdm import tqdm
-
-    from calibration.pose import versions
-
     started = time.perf_counter()
     cfg = cfg or CalibrateStudyConfig()
     dataset, out = Path(dataset), Path(out)
@@ -370,8 +363,6 @@ def _write(out: Path, data: dict) -> None:
 
 
 def _plot(data: dict, out: Path) -> None:
-    from workbench.core.plots import new_figure, save_figure
-
     fig, axes = new_figure(3, size=(16, 4.4))
     style = {"fine": ("o", "C0"), "scale": ("s", "C1"), "render_spp": ("^", "C2")}
     for factor in FACTORS:

@@ -19,6 +19,7 @@ import pytest
 from PIL import Image, TiffImagePlugin
 
 from calibration import response as R
+from calibration import response_bracket
 from renderer.response import ResponseCurve
 from workbench.core.errors import UserInputError
 
@@ -161,7 +162,7 @@ def test_exposure_times_from_exif(tmp_path):
 
 def test_large_images_are_read_at_a_stride(tmp_path, monkeypatch):
     files, times = png_bracket(tmp_path, srgb)
-    monkeypatch.setattr(R, "MAX_PIXELS", 120 * 160 // 4)
+    monkeypatch.setattr(response_bracket, "MAX_PIXELS", 120 * 160 // 4)
     bracket = R.read_bracket(files, times)
     assert bracket.stride == 2 and bracket.codes.shape[1:3] == (60, 80)
 

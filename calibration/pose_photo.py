@@ -1,0 +1,231 @@
+"""One photo through every stage of calibration.pose: coarse, fine, the render check (the
+photometric scale, and the edge finder's bias measured on the render and subtracted before
+a last fine fit), the restarts that measure the spread with intrinsics free, the
+uncertainties, and the CD-fringe check (calibration.photometric). See calibration.pose for
+the method and its sources.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import time
+from dataclasses import dataclass
+
+import cv2
+import numpy as np
+
+from calibration.edges import edge_offsets, smoothed
+from calibration.photo import Photo, mosaic_like
+from calibration.photometric import FringeResult, refine_rotation
+from calibration.pose_fit import (
+    EdgeMatch,
+    PoseSettings,
+    Unknowns,
+    bias_corrected_fit,
+    coarse_fit,
+    fine_fit,
+    image_shift_px,
+    match_edges,
+    project,
+    subset_match,
+)
+from calibration.pose_uncertainty import covariance, derived_std, fov_x_deg, fov_y_deg, per_feature_residuals
+from calibration.scene_model import SceneModel, occluder_mask, sample_features
+from renderer.camera import CameraModel
+from workbench.core.errors import UserInputError
+
+BLACK_LEVEL_FRACTION = 1e-3   # a photo whose 99th percentile is below this (of the white level) is black
+SATURATED_SHARE = 0.98        # a photo with more saturated pixels than this share is white
+RESTART_SHIFT = 0.01          # with intrinsics free, restarts move the principal point by 1 % of the image
+RESCALE_AFTER_PX = 0.5       # the render check's last refit moved the camera more: the scale is measured again there
+
+
+# ------------------------------------------------------------------------------------ render check
+
+
+def photometric_mask(photo: Photo, render_grey: np.ndarray, model: SceneModel, camera: CameraModel) -> np.ndarray:
+    """Pixels where photo and render are compared: the walls, at least 6 px from the scene's
+    edges, 8 px from the glass, the CDs and the light, away from saturated pixels, and not
+    dark in the render."""
+    edges = np.zeros(render_grey.shape, np.uint8)
+    samples = sample_features(model, camera, 1.0, end_clearance_px=0.0)
+    for x, y in np.rint(project(camera, samples.points)).astype(int):
+        cv2.circle(edges, (int(x), int(y)), 6, 255, -1)
+    blocked = occluder_mask(model, camera, margin_px=8.0)
+    saturated = cv2.dilate(photo.saturated.astype(np.uint8), np.ones((9, 9), np.uint8)) > 0
+    level = np.percentile(render_grey, 99)
+    return (edges == 0) & ~blocked & ~saturated & (render_grey > 0.03 * level)
+
+
+@dataclass
+class RenderCheck:
+    scale: float            # photo / render over the walls (exposure x light power, relative to the scene file)
+    scale_std: float        # the spread of the ratio over 16 blocks of the image (not divided by 4: the path
+                            # tracer's heavy-tailed noise makes the mean's error larger than independence suggests)
+    bias: np.ndarray        # (N,) the edge finder's offset on the render at the match's points
+    pixels_compared: int
+    seconds: float
+
+
+def render_check(renderer, photo: Photo, model: SceneModel, camera: CameraModel, match: EdgeMatch, window: float,
+                 settings: PoseSettings) -> RenderCheck:
+    """Render at ``camera``, find the photometric scale, and measure the edge finder's bias on the render."""
+    tick = time.perf_counter()
+    renderer.set(camera=camera)
+    render = np.asarray(renderer.render(seed=settings.render_seed), np.float32)
+    grey = render.mean(axis=2)
+    mask = photometric_mask(photo, grey, model, camera)
+    if mask.sum() < 1000:
+        raise UserInputError("the photo and the scene's render share too few unsaturated wall pixels to compare",
+                             file=photo.path, expected="a photo of the scene that is not mostly saturated")
+    photo_grey = photo.grey
+    scale = float(photo_grey[mask].sum() / grey[mask].sum())
+    blocks = [float(photo_grey[mask & part].sum() / max(grey[mask & part].sum(), 1e-30))
+              for part in _blocks(mask.shape, 4) if (mask & part).sum() > 50]
+    scale_std = float(np.std(blocks, ddof=1)) if len(blocks) > 1 else float("nan")
+    like_photo = np.clip(mosaic_like(np.clip(render * scale, 0.0, None), photo.cfa), 0.0, 1.0)  # clipped at white
+    found = edge_offsets(smoothed(like_photo.mean(axis=2)), match.pixels, match.normals, window, sign=match.sign)
+    bias = np.where(found.valid, found.offset, np.nan)
+    return RenderCheck(scale, scale_std, bias, int(mask.sum()), time.perf_counter() - tick)
+
+
+def _blocks(shape: tuple[int, int], n: int) -> list[np.ndarray]:
+    h, w = shape
+    rows, cols = np.mgrid[0:h, 0:w]
+    return [((rows * n // h) == i) & ((cols * n // w) == j) for i in range(n) for j in range(n)]
+
+
+# ------------------------------------------------------------------------------------- one photo
+
+
+@dataclass
+class PoseResult:
+    photo: str
+    camera: CameraModel
+    unknowns: Unknowns
+    std: dict
+    residuals: dict
+    exposure_scale: float | None
+    exposure_scale_std: float | None
+    exposure_time_s: float | None
+    log: dict
+    timings: dict
+
+    def camera_json(self) -> dict:
+        c = self.camera
+        return {"width": c.width, "height": c.height, "fx": c.fx, "fy": c.fy, "cx": c.cx, "cy": c.cy,
+                "dist": [float(d) for d in c.dist], "world_to_camera": c.world_to_camera.tolist(),
+                "fov_x_deg": fov_x_deg(c), "fov_y_deg": fov_y_deg(c),
+                "camera_center_m": (-c.world_to_camera[:3, :3].T @ c.world_to_camera[:3, 3]).tolist()}
+
+
+def check_photo(photo: Photo) -> None:
+    """A photo that is black or saturated all over shows no scene: say so, naming the file."""
+    top = float(np.percentile(photo.grey, 99.0))
+    if top < BLACK_LEVEL_FRACTION:
+        raise UserInputError("the photo is black (its 99th percentile is at the black level)", file=photo.path,
+                             expected="an exposed photo of the scene", got=f"99th percentile {top:.2e} of the white level")
+    share = float(photo.saturated.mean())
+    if share > SATURATED_SHARE:
+        raise UserInputError(f"the photo is saturated almost everywhere ({100 * share:.1f} % of pixels)", file=photo.path,
+                             expected="an exposed photo of the scene, mostly below the white level")
+
+
+def fit_photo(photo: Photo, model: SceneModel, start: CameraModel, unknowns: Unknowns, settings: PoseSettings,
+              renderer=None, bar=None, intrinsics_std: dict | None = None) -> PoseResult:
+    """Coarse, fine, and (with ``renderer``, a renderer.fit.FitRenderer of the scene at the
+    photo's resolution) the render check and a last fine solve; see calibration.pose.
+    ``intrinsics_std``: the standard deviations of intrinsics held fixed (intrinsics.json's
+    ``std``), carried into the pose's."""
+    check_photo(photo)
+    if (photo.width, photo.height) != (start.width, start.height):
+        raise UserInputError("the photo's size differs from the camera's", file=photo.path,
+                             expected=f"{start.width} x {start.height} pixels", got=f"{photo.width} x {photo.height}")
+    timings: dict[str, float] = {}
+    tick = time.perf_counter()
+    camera, coarse_log = coarse_fit(photo.grey, model, start, unknowns, settings)
+    timings["coarse_s"] = time.perf_counter() - tick
+    _advance(bar)
+    tick = time.perf_counter()
+    image = smoothed(photo.grey)
+    camera, match, fine_log = fine_fit(image, model, camera, unknowns, settings)
+    timings["fine_s"] = time.perf_counter() - tick
+    _advance(bar)
+    scale = scale_std = None
+    check_log: dict = {}
+    if renderer is not None:
+        tick = time.perf_counter()
+        camera, match, scale, scale_std, check_log = _render_check_stage(renderer, photo, image, model, camera,
+                                                                         unknowns, settings)
+        timings["render_check_s"] = time.perf_counter() - tick
+    _advance(bar)
+    repeats = restarts(image, model, camera, unknowns, settings) if unknowns.intrinsics else None
+    cov, stats = covariance(match, unknowns, camera, intrinsics_std)
+    residuals = stats | {"per_feature": per_feature_residuals(match, unknowns, camera)}
+    std = derived_std(camera, unknowns, cov, intrinsics_std, repeats)
+    fringes = None
+    if renderer is not None and scale is not None and settings.cd_fringes:
+        tick = time.perf_counter()
+        fringes = refine_rotation(renderer, photo, model, camera, scale, np.asarray(std["rotation_deg"]), settings.fringes,
+                                  settings.cd_fringes_apply)
+        if fringes is not None and fringes.accepted:
+            camera = fringes.camera
+            residuals = covariance(match, unknowns, camera, intrinsics_std)[1] | {
+                "per_feature": per_feature_residuals(match, unknowns, camera)}
+        timings["cd_fringes_s"] = time.perf_counter() - tick
+    log = {"coarse": coarse_log, "fine": fine_log, "render_check": check_log,
+           "cd_fringes": _fringe_log(fringes, renderer is not None, settings)}
+    return PoseResult(photo.path, camera, unknowns, std, residuals, scale, scale_std, photo.exposure_time_s, log, timings)
+
+
+def _render_check_stage(renderer, photo: Photo, image: np.ndarray, model: SceneModel, camera: CameraModel,
+                        unknowns: Unknowns, settings: PoseSettings) -> tuple[CameraModel, EdgeMatch, float, float, dict]:
+    """Stage 3: the render check at ``camera``, the bias-corrected fine solves, and the scale
+    measured again if they moved the camera by more than RESCALE_AFTER_PX: (camera, match,
+    scale, its spread, the stage's log)."""
+    window = settings.fine_windows_px[-1]
+    match = match_edges(image, model, camera, window, settings)
+    check = render_check(renderer, photo, model, camera, match, window, settings)
+    usable = np.isfinite(check.bias) & (np.abs(check.bias) < window)
+    before, checked = camera, subset_match(match, usable)
+    camera, match, refit_log = bias_corrected_fit(image, model, camera, unknowns, settings, checked, check.bias[usable])
+    moved = image_shift_px(before, camera, checked.samples.points)
+    if moved > RESCALE_AFTER_PX:  # the walls' mask was drawn at a camera this far off: measure the scale again
+        check = dataclasses.replace(render_check(renderer, photo, model, camera, match, window, settings), bias=check.bias)
+    names = np.asarray(checked.samples.names)[checked.samples.feature]
+    check_log = {"seconds": check.seconds, "pixels_compared": check.pixels_compared, "points": int(usable.sum()),
+                 "moved_px": moved, "scale_measured_again": moved > RESCALE_AFTER_PX, "refit": refit_log,
+                 "bias_median_px": {str(n): float(np.median(check.bias[usable][names == n])) for n in sorted(set(names))}}
+    return camera, match, check.scale, check.scale_std, check_log
+
+
+def _fringe_log(fringes: FringeResult | None, rendered: bool, settings: PoseSettings) -> dict:
+    """Stage 4's entry in the log: its result, or why it did not run."""
+    if fringes is not None:
+        return fringes.to_json() | {"spp": settings.render_spp}
+    return {"accepted": False, "reason": "off" if not settings.cd_fringes or not rendered else "too few CD pixels"}
+
+
+def restarts(image: np.ndarray, model: SceneModel, camera: CameraModel, unknowns: Unknowns,
+             settings: PoseSettings) -> list[CameraModel]:
+    """The fine fit again from the solution with its principal point moved by
+    RESTART_SHIFT of the image each way: with intrinsics free, one photo of the box leaves
+    a long, shallow valley (principal point, tilt, focal length and distance trade
+    against each other at the level of the edge finder's systematic error, ~0.05 px), and
+    where a fit ends in it depends on where it starts; the spread of these ends is the
+    uncertainty the curvature alone understates."""
+    ends = []
+    for dx, dy in ((1, 0), (-1, 0), (0, 1), (0, -1)):
+        start = dataclasses.replace(camera, cx=camera.cx + dx * RESTART_SHIFT * camera.width,
+                                    cy=camera.cy + dy * RESTART_SHIFT * camera.height)
+        try:
+            end, _, _ = fine_fit(image, model, start, unknowns, settings)
+        except UserInputError:  # lost the edges from this start: no spread to learn from it
+            continue
+        ends.append(end)
+    return ends
+
+
+def _advance(bar) -> None:
+    if bar is not None:
+        bar.update()
