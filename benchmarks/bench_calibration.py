@@ -39,7 +39,7 @@ def fringe_errors(result: dict, truth: dict) -> dict:
     suggests, the number of steps the guard accepts, and the stage's seconds."""
     import numpy as np
 
-    from calibration.study import rotation_error_deg
+    from calibration.pose_study import rotation_error_deg
 
     edge, fringe, accepted, spent = [], [], 0, 0.0
     for name, record in (result.get("cd_fringes") or {}).items():

@@ -7,7 +7,7 @@ occlusion", Pattern Recognition 47(6), 2280-2292, 2014 (the markers); OpenCV's
 ``CharucoDetector`` finds the markers, then interpolates and sub-pixel refines the
 chessboard corners between them.
 
-The corners are then moved to their centre of point symmetry (calibration.symmetry) over
+The corners are then moved to their centre of point symmetry (calibration.corner_refinement) over
 a disc that must stay clear of the markers: the marker in a white square of side s starts
 (s - m) / 2 in from each edge, so its nearest point is sqrt(2) (s - m) / 2 from the
 corner; the disc's radius is MARKER_CLEARANCE of that, in pixels at the corner's local
@@ -22,8 +22,8 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
+from calibration.corner_refinement import RADIUS_FACTOR, refine_by_symmetry
 from calibration.images import grey_uint8, grey_unit
-from calibration.symmetry import RADIUS_FACTOR, refine_by_symmetry
 from workbench.core.errors import UserInputError
 
 MARKER_CLEARANCE = 0.8   # of the distance from a corner to the nearest marker point

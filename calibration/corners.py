@@ -11,7 +11,7 @@ reverse; its lists are turned round).
 OpenCV's own sub-pixel estimates, and ``cornerSubPix``'s, are biased by perspective and
 weigh noisy gradients (measured on the synthetic calibration set, 640 x 480: 0.21 and
 0.25 px RMS against the truth), so each corner is then moved to the centre of point
-symmetry of the image around it (calibration.symmetry: 0.09 px on the same views,
+symmetry of the image around it (calibration.corner_refinement: 0.09 px on the same views,
 0.02-0.03 px on analytically rasterized boards).
 
 A detector asked for fewer corners than the board has finds a sub-board; the board's
@@ -27,8 +27,8 @@ import cv2
 import numpy as np
 
 from calibration.board_border import continuing_sides, grid_is_regular
+from calibration.corner_refinement import refine_by_symmetry
 from calibration.images import grey_uint8, grey_unit
-from calibration.symmetry import refine_by_symmetry
 from workbench.core.errors import UserInputError
 
 # (name, detector, flags): tried in this order until one finds the board. The last is the one this module used

@@ -24,7 +24,7 @@ from typing import Any
 
 import numpy as np
 
-from calibration.study import centre_error_mm, expected_exposure_scale, fov_deg, rotation_error_deg
+from calibration.pose_study import centre_error_mm, expected_exposure_scale, fov_deg, rotation_error_deg
 from workbench.core.errors import UserInputError
 from workbench.core.files import atomic_write_text
 

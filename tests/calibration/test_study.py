@@ -16,7 +16,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from calibration.study import ERRORS, CalibrateStudyConfig, run_calibrate_study, scaled_camera
+from calibration.pose_study import ERRORS, CalibrateStudyConfig, run_calibrate_study, scaled_camera
 from tests.conftest import synthetic_dataset
 from workbench.core.errors import UserInputError
 

@@ -94,7 +94,7 @@ def fine_settings(rounds: tuple[int, ...]) -> tuple[tuple[int, tuple[float, ...]
 
 
 def run_calibrate(args: argparse.Namespace) -> int:
-    from calibration.study import CalibrateStudyConfig, run_calibrate_study  # deferred: as fine_settings
+    from calibration.pose_study import CalibrateStudyConfig, run_calibrate_study  # deferred: as fine_settings
 
     cfg = CalibrateStudyConfig(fine=fine_settings(args.rounds), scales=args.scales, render_spp=args.spp, knots=args.knots,
                                free_intrinsics=args.free_intrinsics)
