@@ -28,7 +28,7 @@ class DiagonalTables:
 def build_tables(folder: Path, monkeypatch_context) -> DiagonalTables:
     """``monkeypatch_context``: pytest.MonkeyPatch.context (the old-format table is built
     with the diagonal switched off, as the code before it did)."""
-    import rcwa.table as table_module
+    import rcwa.table.settings as table_module
 
     s = rcwa.load_structure("gold2d")
     folded = _settings(s)

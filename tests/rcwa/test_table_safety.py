@@ -149,7 +149,7 @@ def test_a_failed_table_run_leaves_nothing_and_the_corrected_run_needs_no_force(
 
 
 def test_a_build_that_fails_before_a_chunk_is_finished_removes_what_it_created(tmp_path, monkeypatch):
-    import rcwa.table as table
+    import rcwa.table.store as table
 
     def broken(*args, **kwargs):
         raise RuntimeError("solver failure")
