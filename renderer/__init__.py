@@ -3,7 +3,7 @@
 Mitsuba's variant is chosen in one place, :mod:`renderer.variant`; no other module calls
 ``mi.set_variant``. The modules:
 
-Plugins (registered with Mitsuba by ``renderer.build.register_plugins``)
+Plugins (registered with Mitsuba by ``renderer.mitsuba_scene.register_plugins``)
     bwdf          the BWDF: a grating's diffraction orders from an RCWA efficiency table,
                   ``type = "bwdf"`` (paper mode, Lange et al. 2021 Eqs. 2-5, and improved mode)
     dielectric    a dispersive smooth dielectric, ``type = "dispersive_dielectric"``
@@ -13,11 +13,16 @@ Plugins (registered with Mitsuba by ``renderer.build.register_plugins``)
 
 Scenes and rendering
     scene         scene files (TOML) and their validation; ``scenes/`` holds the built-in ones
-    build         a scene spec to a Mitsuba scene (meshes, spectra, tables, sensor)
+    mitsuba_scene a scene spec to a Mitsuba scene dict (shapes, light, sensor)
+    spectra       Mitsuba spectra, the light's emission, the camera's sensitivities
+    meshes        the box's quads and the CDs' annuli as PLY files in the cache
+    placement     where objects sit in the world (shared with calibration.scene_model)
+    tables        which efficiency table serves each CD and grating, built when missing
     camera        the camera model shared with calibration (OpenCV pinhole with distortion)
     response      camera response curves
     checks        pre-render checks (table coverage of the camera's sensitivities)
-    planner       what a scene needs simulated, and its estimated cost
+    planner       what a scene needs simulated (the table nodes its camera reads)
+    table_cost    a table's estimated build time on this machine, for the planner
     render        ``workbench render``: passes, resume, EXR, preview, sidecar
     fit           fast in-place re-renders for calibration (the ``fit`` preset)
     variant       Mitsuba's variant and the libLLVM it needs

@@ -24,7 +24,7 @@ from workbench.core.timing import timed
 RELMSE_EPS = 1e-2
 
 
-ELEMENT_PREFIXES = ("cd", "grating")  # scene keys of diffractive elements (renderer.build), CD tops included
+ELEMENT_PREFIXES = ("cd", "grating")  # scene keys of diffractive elements (renderer.mitsuba_scene), CD tops included
 
 
 def primary_hits(mi, scene):
@@ -52,7 +52,7 @@ def element_mask(mi, scene_d: dict) -> np.ndarray:
 def element_crop(mi, spec, margin: int = 2) -> tuple[tuple[list[int], list[int]], np.ndarray]:
     """((offset, size) of the film region the scene's diffractive elements cover, their
     mask over that region). Raises UserInputError when the camera sees none."""
-    from renderer.build import scene_dict
+    from renderer.mitsuba_scene import scene_dict
     from workbench.core.errors import UserInputError
 
     d, _ = scene_dict(mi, spec, spp=1)
@@ -69,7 +69,7 @@ def element_crop(mi, spec, margin: int = 2) -> tuple[tuple[list[int], list[int]]
 
 def load_cropped(mi, spec, mode: str, crop, *, delta: float | None = None, spp: int = 64):
     """The scene in ``mode``, its film cropped; ``delta`` sets paper mode's Delta."""
-    from renderer.build import scene_dict
+    from renderer.mitsuba_scene import scene_dict
 
     d, _ = scene_dict(mi, spec, spp=spp, mode=mode)
     if delta is not None:

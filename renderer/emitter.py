@@ -12,7 +12,7 @@ area is L0 cos^(n+1)(theta), so the total power is
 
     P = L0 * A * integral over the hemisphere of cos^(n+1)(theta) d omega = L0 * A * 2 pi / (n + 2),
 
-which renderer.build uses to turn the scene's ``power_w`` into L0.
+which renderer.mitsuba_scene uses to turn the scene's ``power_w`` into L0.
 
 Parameters (Mitsuba properties)
 -------------------------------

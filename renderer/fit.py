@@ -35,7 +35,7 @@ class FitRenderer:
         set_variant()
         import mitsuba as mi
 
-        from renderer.build import scene_dict
+        from renderer.mitsuba_scene import scene_dict
 
         self.mi = mi
         from renderer.scene import SceneSpec

@@ -35,26 +35,34 @@ What a render skips besides: no RCWA at all without a diffractive element in vie
 only over an opaque substrate; the side a camera cannot see; dispersion for glass the
 camera cannot see.
 
-The estimated time of a table is measured here: a short sweep at the table's orders,
-timed, scaled to the table's directions and wavelengths on this machine's cores.
+The estimated time of a table is measured (renderer.table_cost): a short sweep at the
+table's orders, timed, scaled to the table's directions and wavelengths on this machine's cores.
 """
 
 from __future__ import annotations
 
 import math
-import os
 import time
 from dataclasses import asdict, dataclass, field
 from typing import Any
 
 import numpy as np
 
-from renderer.scene import CD_TOP_THICKNESS_M, SceneSpec
+import rcwa
+from rcwa import symmetry
+from rcwa.structure import Structure
+from rcwa.symmetry import MirrorSymmetry
+from rcwa.table import NodePlan, TableSettings, kept_indices, table_symmetry, transmits
+from renderer.checks import visible_range
+from renderer.placement import frame_to
+from renderer.scene import CD_TOP_THICKNESS_M, CDSpec, GratingSpec, SceneSpec
+from renderer.spectra import camera_sensitivities, on_common_grid
+from renderer.table_cost import table_cost
+from renderer.tables import scene_settings_for
 from workbench.core.conventions import ORDER_SIGN
 
 PLAN_WAVELENGTH_STEP_NM = 5.0  # wavelengths sampled for the domain; the tables' own steps are 10 nm or more
 NODE_MARGIN = 0  # extra grid nodes around a needed cell: none, since one ray per pixel is far denser than any table grid
-COST_SAMPLE_DIRECTIONS = 16  # directions timed for the cost model
 PLAN_RAYS_ACROSS = 400  # rays across the image: neighbours 0.1 deg apart for a 40 deg view, far below any table step (2 deg)
 
 
@@ -91,11 +99,9 @@ class ElementPlan:
     def fraction(self) -> float:
         return self.directions_needed / self.directions_total if self.directions_total else 0.0
 
-    def node_plan(self):
+    def node_plan(self) -> NodePlan | None:
         """The rcwa.table.NodePlan a render builds this element's table with: out of view,
         every node is a fill node (paths can still reach the element after a bounce)."""
-        from rcwa.table import NodePlan
-
         return None if self.mask is None else NodePlan(self.mask, self.fill_orders)
 
     def to_json(self) -> dict[str, Any]:
@@ -127,6 +133,23 @@ class Plan:
                 "glass": [asdict(g) for g in self.glass], "planning_seconds": self.seconds}
 
 
+@dataclass(frozen=True)
+class ElementHit:
+    """Where the planner's camera rays meet one CD or grating (world frame, metres).
+
+    ``points`` (N, 3): the hit points in view; ``axis`` (N, 3): the grating frame's x axis
+    at each (a CD's radial direction, a plate's frame x); ``normal`` (3,): the element's
+    normal; ``top``: seen through a CD's flat polycarbonate top.
+    """
+
+    key: str  # the scene's element key, ``cd[0]``, ``grating[0]``
+    element: CDSpec | GratingSpec
+    points: np.ndarray
+    axis: np.ndarray
+    normal: np.ndarray
+    top: bool
+
+
 # ---------------------------------------------------------------- geometry
 
 
@@ -152,33 +175,26 @@ def plane_hits(origin: np.ndarray, rays: np.ndarray, center: np.ndarray, normal:
     return origin + rays * np.where(ok, t, 0.0)[:, None], ok
 
 
-def _frame(normal, rotation_deg: float) -> np.ndarray:
-    from renderer.build import frame_to
-
-    return frame_to(normal, rotation_deg)
-
-
-def element_hits(spec: SceneSpec, origin: np.ndarray, rays: np.ndarray) -> list[dict[str, Any]]:
+def element_hits(spec: SceneSpec, origin: np.ndarray, rays: np.ndarray) -> list[ElementHit]:
     """For each CD and grating: the hit points the camera sees, the grating axis there and the normal."""
     out = []
     for i, cd in enumerate(spec.cds):
-        frame = _frame(cd.normal, cd.rotation_deg)
+        frame = frame_to(cd.normal, cd.rotation_deg)
         normal = frame[:, 2]
         center = np.asarray(cd.center, float)
         points, ok = plane_hits(origin, rays, center, normal)
         radius = np.linalg.norm(points - center, axis=1)
         ok &= (radius >= cd.inner_radius) & (radius <= cd.outer_radius)
         radial = (points[ok] - center) / np.maximum(radius[ok, None], 1e-12)
-        out.append({"key": f"cd[{i}]", "element": cd, "points": points[ok], "axis": radial, "normal": normal,
-                    "top": cd.top_surface})
+        out.append(ElementHit(f"cd[{i}]", cd, points[ok], radial, normal, cd.top_surface))
     for i, g in enumerate(spec.gratings):
-        frame = _frame(g.normal, g.rotation_deg)
+        frame = frame_to(g.normal, g.rotation_deg)
         center = np.asarray(g.center, float)
         points, ok = plane_hits(origin, rays, center, frame[:, 2])
         local = (points - center) @ frame
         ok &= (np.abs(local[:, 0]) <= g.size[0] / 2) & (np.abs(local[:, 1]) <= g.size[1] / 2)
-        out.append({"key": f"grating[{i}]", "element": g, "points": points[ok],
-                    "axis": np.repeat(frame[:, 0][None], int(ok.sum()), axis=0), "normal": frame[:, 2], "top": False})
+        out.append(ElementHit(f"grating[{i}]", g, points[ok], np.repeat(frame[:, 0][None], int(ok.sum()), axis=0),
+                              frame[:, 2], False))
     return out
 
 
@@ -201,8 +217,6 @@ def fold_azimuths(phi_deg: np.ndarray, mirror_x: bool, mirror_y: bool, diagonal:
     """Azimuths folded into a table's stored range (rcwa.symmetry.fold_azimuths, the rule
     rcwa.table.Table.fold_azimuth applies); the nodes a lookup reads do not depend on the
     order flips or the swap."""
-    from rcwa import symmetry
-
     return symmetry.fold_azimuths(phi_deg, mirror_x, mirror_y, diagonal)[0]
 
 
@@ -244,131 +258,202 @@ def hits_light(points: np.ndarray, directions: np.ndarray, spec: SceneSpec) -> n
 # ---------------------------------------------------------------- the plan
 
 
-def _table_settings(element, structure, where: str, scene_file: str | None):
-    from renderer.build import scene_settings_for
+TABLE_NAMES = ("R", "T", "R_below", "T_below")  # the tables a camera ray can read: each side's reflection and transmission
 
+
+@dataclass(frozen=True)
+class _ElementTable:
+    """The table an element's scene options ask for, as the planner reads it."""
+
+    structure: Structure
+    settings: TableSettings
+    sym: MirrorSymmetry
+    see_through: bool  # light reaches the camera through the element (not reflection only)
+    kept: list[tuple[int, int]]  # the kept orders (m, n), in the sweep's order
+
+    @property
+    def grid_theta(self) -> np.ndarray:
+        return np.asarray(self.settings.theta_deg)
+
+    @property
+    def grid_phi(self) -> np.ndarray:
+        return np.asarray(self.settings.phi_deg)
+
+    @property
+    def wavelengths(self) -> np.ndarray:
+        return np.asarray(self.settings.wavelengths_nm)
+
+    @property
+    def nodes(self) -> int:
+        """The whole table's (wavelength, theta, phi) nodes."""
+        return len(self.grid_theta) * len(self.grid_phi) * len(self.wavelengths)
+
+
+@dataclass(frozen=True)
+class _SideRays:
+    """The camera rays that meet an element from one side, in its grating frame."""
+
+    name: str  # "above" (the superstrate's side) or "below"
+    omega_t: np.ndarray  # (N, 2) tangential components of the direction toward the camera (along axis, ey)
+    points: np.ndarray  # (N, 3) hit points
+    axis: np.ndarray  # (N, 3) the grating frame's x axis
+    ey: np.ndarray  # (N, 3) the grating frame's y axis (normal x axis)
+
+
+@dataclass
+class _Lookups:
+    """What the camera's rays read of an element's tables: the nodes per table (wavelength,
+    theta, phi), the orders that reach the camera, and how many lookups see the light directly."""
+
+    masks: dict[str, np.ndarray]
+    orders: set[tuple[int, int]] = field(default_factory=set)
+    direct: int = 0
+    total: int = 0
+
+
+def _table_settings(element: CDSpec | GratingSpec, structure: Structure, where: str,
+                    scene_file: str | None) -> TableSettings:
     options = {k: v for k, v in dict(element.table).items() if k != "path"}
     preset = options.pop("preset", "draft")
     return scene_settings_for(structure, preset, options, where, scene_file)
 
 
-def _indices(structure, wavelengths: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def _element_table(spec: SceneSpec, hit: ElementHit) -> _ElementTable:
+    structure = rcwa.load_structure(hit.element.structure)
+    settings = _table_settings(hit.element, structure, hit.key, spec.source)
+    sym = table_symmetry(structure, settings.orders, settings.keep, settings.use_symmetry)
+    see_through = transmits(structure, settings) and not settings.reflection_only
+    ms, ns = kept_indices(settings.keep)
+    return _ElementTable(structure, settings, sym, see_through, [(int(m), int(n)) for m, n in zip(ms, ns, strict=True)])
+
+
+def _indices(structure: Structure, wavelengths: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     n1 = np.sqrt(np.asarray(structure.superstrate.epsilon(wavelengths), dtype=complex)).real
     n3 = np.sqrt(np.asarray(structure.substrate.epsilon(wavelengths), dtype=complex)).real
     return n1, n3
 
 
-def _cost_sample(structure, settings, fill_orders: tuple[int, ...]) -> tuple[float, float, dict[str, float]]:
-    """Measured on COST_SAMPLE_DIRECTIONS directions at the middle wavelength: seconds per
-    direction with the table's orders and with the fill's, and the fill's error there
-    (|R_fill - R| over the kept orders: max and median)."""
-    from rcwa.sweep import sweep_directions
-
-    wl = settings.wavelengths_nm[len(settings.wavelengths_nm) // 2]
-    rng = np.random.default_rng(0)
-    theta = rng.uniform(0.0, 80.0, COST_SAMPLE_DIRECTIONS)
-    phi = rng.uniform(0.0, 90.0, COST_SAMPLE_DIRECTIONS)
-    sweep_directions(structure, wl, theta[:2], phi[:2], settings.orders, settings.keep, threads=1)  # warm up
-    start = time.perf_counter()
-    exact = sweep_directions(structure, wl, theta, phi, settings.orders, settings.keep, threads=1)
-    middle = time.perf_counter()
-    fill = sweep_directions(structure, wl, theta, phi, fill_orders, settings.keep, threads=1)
-    end = time.perf_counter()
-    error = np.abs(fill.R - exact.R)
-    return ((middle - start) / COST_SAMPLE_DIRECTIONS, (end - middle) / COST_SAMPLE_DIRECTIONS,
-            {"max": float(error.max()), "median": float(np.median(error.max(axis=(1, 2))))})
-
-
-def plan_element(spec: SceneSpec, hit: dict[str, Any], origin: np.ndarray, camera_range: tuple[float, float],
+def plan_element(spec: SceneSpec, hit: ElementHit, origin: np.ndarray, camera_range: tuple[float, float],
                  *, measure_cost: bool = True) -> ElementPlan:
-    import rcwa
-    from rcwa.table import _kept_indices, _transmits, table_symmetry
+    """What one element needs: the table nodes its camera rays read (module docstring), and the cost."""
+    table = _element_table(spec, hit)
+    wavelengths = table.settings.wavelengths_nm
+    lo, hi = max(camera_range[0], min(wavelengths)), min(camera_range[1], max(wavelengths))
+    samples = _chunk_samples(table.wavelengths, lo, hi)
+    sides = _camera_sides(hit, origin)
+    found = _lookups(spec, hit, table, sides, samples)
+    used, union = _union(found.masks)
+    seen = np.any(union, axis=0)  # (theta, phi) nodes some wavelength needs
+    grid_theta, grid_phi = table.grid_theta, table.grid_phi
+    cost = table_cost(table.structure, table.settings, table.see_through, len(table.kept), found.masks,
+                      bool(measure_cost and samples))
+    sym = table.sym
+    return ElementPlan(
+        key=hit.key, structure=table.structure.name, visible_pixels=int(len(hit.points)),
+        camera_side=_side_name([rays.name for rays in sides]), see_through=bool(table.see_through), tables=used,
+        orders_needed=sorted(found.orders), orders_kept=table.kept, wavelength_range_nm=(float(lo), float(hi)),
+        symmetry=f"{sym.describe()}, azimuths stored {sym.azimuth_range()[0]:g}-{sym.azimuth_range()[1]:g} deg",
+        grid_theta_deg=[float(x) for x in grid_theta], grid_phi_deg=[float(x) for x in grid_phi],
+        directions_needed=int(union.sum()), directions_total=table.nodes,
+        theta_range_deg=_seen_range(grid_theta, seen.any(axis=1)), phi_range_deg=_seen_range(grid_phi, seen.any(axis=0)),
+        direct_light_share=found.direct / found.total if found.total else 0.0,
+        seconds_whole=cost.seconds_whole, seconds_planned=cost.seconds_planned, megabytes_whole=cost.megabytes_whole,
+        fill_orders=cost.fill_orders, fill_error=cost.fill_error, notes=_notes(samples, hit), mask=union,
+    )
 
-    element = hit["element"]
-    structure = rcwa.load_structure(element.structure)
-    settings = _table_settings(element, structure, hit["key"], spec.source)
-    sym = table_symmetry(structure, settings.orders, settings.keep, settings.use_symmetry)
-    see_through = _transmits(structure, settings) and not settings.reflection_only
-    grid_theta, grid_phi = np.asarray(settings.theta_deg), np.asarray(settings.phi_deg)
-    ms, ns = _kept_indices(settings.keep)
-    kept = [(int(m), int(n)) for m, n in zip(ms, ns, strict=True)]
-    points, axis, normal = hit["points"], hit["axis"], hit["normal"]
-    omega = origin - points
+
+def _camera_sides(hit: ElementHit, origin: np.ndarray) -> list[_SideRays]:
+    """The camera's rays on each side of the element that they meet it from."""
+    omega = origin - hit.points
     omega /= np.maximum(np.linalg.norm(omega, axis=1, keepdims=True), 1e-300)
-    side = omega @ normal
-    ey = np.cross(normal, axis)
-    omega_t = np.stack([np.einsum("ij,ij->i", omega, axis), np.einsum("ij,ij->i", omega, ey)], axis=1)
-    lo, hi = max(camera_range[0], min(settings.wavelengths_nm)), min(camera_range[1], max(settings.wavelengths_nm))
-    table_wl = np.asarray(settings.wavelengths_nm)
-    samples = _chunk_samples(table_wl, lo, hi)
-    masks = {name: np.zeros((len(table_wl), len(grid_theta), len(grid_phi)), bool) for name in ("R", "T", "R_below", "T_below")}
-    needed_orders: set[tuple[int, int]] = set()
-    direct = total = 0
-    sides = {"above": side > 0, "below": side < 0}
-    for side_name, on_side in sides.items():
-        if not on_side.any() or (side_name == "below" and not see_through):
-            continue
-        channels = [("R" if side_name == "above" else "R_below", False)]
-        if see_through:
-            channels.append(("T_below" if side_name == "above" else "T", True))
-        for table_name, transmitted in channels:
+    side = omega @ hit.normal
+    ey = np.cross(hit.normal, hit.axis)
+    omega_t = np.stack([np.einsum("ij,ij->i", omega, hit.axis), np.einsum("ij,ij->i", omega, ey)], axis=1)
+    out = []
+    for name, on_side in {"above": side > 0, "below": side < 0}.items():
+        if on_side.any():
+            out.append(_SideRays(name, omega_t[on_side], hit.points[on_side], hit.axis[on_side], ey[on_side]))
+    return out
+
+
+def _channels(rays: _SideRays, see_through: bool) -> list[tuple[str, bool]]:
+    """(table, transmitted) for the tables the rays of one side read: reflection on their
+    side, and transmission from the other side for a see-through element."""
+    if rays.name == "below" and not see_through:
+        return []
+    channels = [("R" if rays.name == "above" else "R_below", False)]
+    if see_through:
+        channels.append(("T_below" if rays.name == "above" else "T", True))
+    return channels
+
+
+def _lookups(spec: SceneSpec, hit: ElementHit, table: _ElementTable, sides: list[_SideRays],
+             samples: list[tuple[int, float]]) -> _Lookups:
+    """The nodes the camera's rays read: over sides, tables, sampled wavelengths and kept orders."""
+    shape = (len(table.wavelengths), len(table.grid_theta), len(table.grid_phi))
+    found = _Lookups({name: np.zeros(shape, bool) for name in TABLE_NAMES})
+    for rays in sides:
+        for table_name, transmitted in _channels(rays, table.see_through):
             for chunk, lam in samples:
-                n1, n3 = _indices(structure, np.array([lam]))
-                # omega_t is the camera's direction in air; behind a flat top the BWDF's n_pc sin(theta_pc) is sin(theta_air)
-                n_cam = 1.0 if hit["top"] else (n1[0] if side_name == "above" else n3[0])
-                n_side = n1[0] if side_name == "above" else n3[0]  # the table's angles are in this medium
-                n_light = (n3[0] if side_name == "above" else n1[0]) if transmitted else n_side
-                for m, n in kept:
-                    theta, phi, ok = incident_directions(omega_t[on_side], m, n, lam, structure.period, n_cam, n_light)
-                    if not ok.any():
-                        continue
-                    needed_orders.add((m, n))
-                    folded = fold_azimuths(phi[ok], sym.x, sym.y, sym.diagonal)
-                    _mark(masks[table_name][chunk], grid_theta, grid_phi, theta[ok], folded)
-                    src = source_rays(theta[ok], phi[ok], axis[on_side][ok], ey[on_side][ok], normal,
-                                       above=(side_name == "above") != transmitted)
-                    direct += int(np.count_nonzero(hits_light(points[on_side][ok], src, spec)))
-                    total += int(ok.sum())
+                n_cam, n_light = _refractive_indices(table.structure, lam, rays.name, transmitted, hit.top)
+                for m, n in table.kept:
+                    _mark_order(found, found.masks[table_name][chunk], spec, hit, table, rays, (m, n), lam, n_cam,
+                                n_light, above=(rays.name == "above") != transmitted)
+    return found
+
+
+def _refractive_indices(structure: Structure, lam: float, side: str, transmitted: bool, top: bool) -> tuple[float, float]:
+    """The indices of the camera's medium (n_cam) and of the incident light's (n_light) at ``lam``."""
+    n1, n3 = _indices(structure, np.array([lam]))
+    # omega_t is the camera's direction in air; behind a flat top the BWDF's n_pc sin(theta_pc) is sin(theta_air)
+    n_cam = 1.0 if top else (n1[0] if side == "above" else n3[0])
+    n_side = n1[0] if side == "above" else n3[0]  # the table's angles are in this medium
+    n_light = (n3[0] if side == "above" else n1[0]) if transmitted else n_side
+    return n_cam, n_light
+
+
+def _mark_order(found: _Lookups, chunk_mask: np.ndarray, spec: SceneSpec, hit: ElementHit, table: _ElementTable,
+                rays: _SideRays, order: tuple[int, int], lam: float, n_cam: float, n_light: float, *,
+                above: bool) -> None:
+    """Mark in ``chunk_mask`` the nodes order (m, n) at ``lam`` reads for the rays, and count
+    the lookups whose incident light comes straight from the ceiling light (``above``: the
+    light's side of the element)."""
+    m, n = order
+    theta, phi, ok = incident_directions(rays.omega_t, m, n, lam, table.structure.period, n_cam, n_light)
+    if not ok.any():
+        return
+    found.orders.add(order)
+    sym = table.sym
+    folded = fold_azimuths(phi[ok], sym.x, sym.y, sym.diagonal)
+    _mark(chunk_mask, table.grid_theta, table.grid_phi, theta[ok], folded)
+    src = source_rays(theta[ok], phi[ok], rays.axis[ok], rays.ey[ok], hit.normal, above=above)
+    found.direct += int(np.count_nonzero(hits_light(rays.points[ok], src, spec)))
+    found.total += int(ok.sum())
+
+
+def _union(masks: dict[str, np.ndarray]) -> tuple[list[str], np.ndarray]:
+    """The tables some ray reads, and the nodes any of them needs (wavelength, theta, phi)."""
     used = [name for name, mk in masks.items() if mk.any()]
     union = np.zeros_like(masks["R"])
     for name in used:
         union |= masks[name]
-    seen = np.any(union, axis=0)  # (theta, phi) nodes some wavelength needs
-    theta_range = (float(grid_theta[seen.any(axis=1)].min()), float(grid_theta[seen.any(axis=1)].max())) if seen.any() else None
-    phi_range = (float(grid_phi[seen.any(axis=0)].min()), float(grid_phi[seen.any(axis=0)].max())) if seen.any() else None
-    nodes_whole = len(grid_theta) * len(grid_phi) * len(table_wl)
-    whole_tables = ["R", "T"] if see_through else ["R"]
-    if settings.both_sides or see_through:
-        whole_tables += [name + "_below" for name in whole_tables]
-    fill_orders = tuple(settings.keep)  # the nodes no camera ray reads: only the kept orders retained (rcwa.table.NodePlan)
-    per_dir, per_fill, fill_error = (_cost_sample(structure, settings, fill_orders) if measure_cost and samples
-                                     else (0.0, 0.0, {}))
-    cores = os.cpu_count() or 1
-    nwl = 1  # the node counts below include the wavelength axis
-    sides_whole = 2 if (settings.both_sides or see_through) else 1
-    needed_above = int((masks["R"] | masks["T"]).sum())
-    needed_below = int((masks["R_below"] | masks["T_below"]).sum())
-    bytes_whole = len(whole_tables) * nodes_whole * len(kept) * len(settings_pol(settings)) * 4
+    return used, union
+
+
+def _seen_range(grid: np.ndarray, seen: np.ndarray) -> tuple[float, float] | None:
+    """The range of the grid's values some needed node has, or None when none is needed."""
+    return (float(grid[seen].min()), float(grid[seen].max())) if seen.any() else None
+
+
+def _notes(samples: list[tuple[int, float]], hit: ElementHit) -> list[str]:
     notes = []
     if not samples:
         notes.append("the table's wavelengths miss the camera's range: nothing to look up")
-    if not len(points):
+    if not len(hit.points):
         notes.append("the camera does not see this element: nothing to simulate")
-    if hit["top"]:
+    if hit.top:
         notes.append(f"seen through a {CD_TOP_THICKNESS_M * 1e3:g} mm flat polycarbonate top: tangential k is kept across it")
-    return ElementPlan(
-        key=hit["key"], structure=structure.name, visible_pixels=int(len(points)),
-        camera_side=_side_name(side), see_through=bool(see_through), tables=used, orders_needed=sorted(needed_orders),
-        orders_kept=kept, wavelength_range_nm=(float(lo), float(hi)),
-        symmetry=f"{sym.describe()}, azimuths stored {sym.azimuth_range()[0]:g}-{sym.azimuth_range()[1]:g} deg",
-        grid_theta_deg=[float(x) for x in grid_theta], grid_phi_deg=[float(x) for x in grid_phi],
-        directions_needed=int(union.sum()), directions_total=nodes_whole, theta_range_deg=theta_range,
-        phi_range_deg=phi_range, direct_light_share=direct / total if total else 0.0,
-        seconds_whole=per_dir * nodes_whole * nwl * sides_whole / cores,
-        seconds_planned=(per_dir * (needed_above + needed_below)
-                         + per_fill * (nodes_whole * sides_whole - needed_above - needed_below)) * nwl / cores,
-        megabytes_whole=bytes_whole / 1e6, fill_orders=fill_orders, fill_error=fill_error, notes=notes, mask=union,
-    )
+    return notes
 
 
 def _chunk_samples(table_wl: np.ndarray, lo: float, hi: float) -> list[tuple[int, float]]:
@@ -388,14 +473,8 @@ def _chunk_samples(table_wl: np.ndarray, lo: float, hi: float) -> list[tuple[int
     return out
 
 
-def settings_pol(settings) -> list[str]:
-    from rcwa.table import pol_names
-
-    return pol_names(settings.pol)
-
-
-def _side_name(side: np.ndarray) -> str:
-    above, below = bool((side > 0).any()), bool((side < 0).any())
+def _side_name(sides: list[str]) -> str:
+    above, below = "above" in sides, "below" in sides
     return "both" if above and below else "above" if above else "below" if below else "none"
 
 
@@ -414,13 +493,8 @@ def source_rays(theta_deg: np.ndarray, phi_deg: np.ndarray, ex: np.ndarray, ey: 
 
 def plan_scene(spec: SceneSpec, *, measure_cost: bool = True) -> Plan:
     """The plan of a scene (see the module's docstring)."""
-    from renderer.build import camera_sensitivities
-    from renderer.checks import visible_range
-
     start = time.perf_counter()
-    sens = camera_sensitivities(spec.camera.sensitivities)
-    wl = np.unique(np.concatenate([w for w, _ in sens]))
-    curves = np.stack([np.interp(wl, w, s, left=0, right=0) for w, s in sens])
+    wl, curves = on_common_grid(camera_sensitivities(spec.camera.sensitivities))
     camera_range = visible_range(wl, curves)
     step = ray_step(spec)
     origin, rays = camera_rays(spec, step)
@@ -432,6 +506,23 @@ def plan_scene(spec: SceneSpec, *, measure_cost: bool = True) -> Plan:
              for i, (g, count) in enumerate(zip(spec.glass, _glass_visible(spec, origin, rays), strict=True))]
     return Plan(spec.name, camera_range, elements, glass, any(e.visible_pixels for e in elements),
                 time.perf_counter() - start)
+
+
+def planned_nodes(spec: SceneSpec, margin: int = 0) -> dict[str, NodePlan | None]:
+    """The planner's rcwa.table.NodePlan per element key (``cd[0]``).
+
+    ``margin``: grow each mask by this many grid nodes in theta and phi, so that the
+    table also serves cameras near this one (a run plans with the scene's camera and
+    renders with the fitted one; renderer.tables then finds the table)."""
+    from scipy.ndimage import binary_dilation  # deferred: start-up time
+
+    plan = plan_scene(spec, measure_cost=False)
+    nodes = {e.key: e.node_plan() for e in plan.elements}
+    if margin:
+        grow = np.ones((1, 2 * margin + 1, 2 * margin + 1), bool)
+        nodes = {k: None if n is None else NodePlan(binary_dilation(n.mask, grow), n.fill_orders)
+                 for k, n in nodes.items()}
+    return nodes
 
 
 def format_plan(plan: Plan) -> str:

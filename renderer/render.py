@@ -52,7 +52,7 @@ def render_pass(spec: SceneSpec, pass_spp: int, integrator: str, mode: str, pass
     set_variant()
     import mitsuba as mi
 
-    from renderer.build import scene_dict
+    from renderer.mitsuba_scene import scene_dict
 
     scene_d, _ = scene_dict(mi, spec, spp=pass_spp, integrator=integrator, mode=mode, plan=plan)
     # Mitsuba's stub types seed as UInt32; a Python int is what it takes at run time
@@ -73,7 +73,7 @@ def render(scene: str | Path, out: str | Path, *, preset: str = "draft", spp: in
     interrupted render of the same request resumes (``info["resumed_passes"]``).
 
     ``plan`` (the default): the tables are planned for this camera (renderer.planner,
-    renderer.build.scene_dict); False builds whole tables, for comparison.
+    renderer.mitsuba_scene.scene_dict); False builds whole tables, for comparison.
     """
     from tqdm import tqdm
 
@@ -90,7 +90,7 @@ def render(scene: str | Path, out: str | Path, *, preset: str = "draft", spp: in
     variant = set_variant()
     import mitsuba as mi
 
-    from renderer.build import scene_dict
+    from renderer.mitsuba_scene import scene_dict
 
     started = time.perf_counter()
     scene_d, built = scene_dict(mi, spec, spp=pass_spp, integrator=integrator, mode=mode, plan=plan, progress=progress)
@@ -191,7 +191,7 @@ def _request_key(spec: SceneSpec, spp: int, pass_spp: int, integrator: str, mode
     keys (their content, wherever the cache is; planned for the camera or whole) and the
     workbench version.
     """
-    from renderer.build import table_keys
+    from renderer.tables import table_keys
 
     request = {"scene": spec.text, "w": spec.camera.model.width, "h": spec.camera.model.height, "spp": spp,
                "pass": pass_spp, "integrator": integrator, "mode": mode, "seed": seed, "tables": table_keys(spec),

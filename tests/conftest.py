@@ -5,7 +5,7 @@ of the numbered ``pytest-N`` folders, which pytest rotates; this folder is not r
 so the whole suite shares one cache, across runs too, as it shared ``./build/tables``
 before the cache moved: the built-in scenes' tables (about 30 s for gold2d's) are built
 once. Entries are named by content and checked by checksum when reused (rcwa.table,
-renderer.build), and concurrent runs are safe (file locks). With ``--basetemp`` the cache
+renderer.meshes), and concurrent runs are safe (file locks). With ``--basetemp`` the cache
 lives inside that folder instead (and starts empty). Tests that need an empty cache of
 their own set WORKBENCH_CACHE to a tmp_path folder with monkeypatch.
 """

@@ -1,6 +1,6 @@
 """The CD's grating vector is radial at every hit point (renderer/bwdf.py, radial mapping).
 
-The built CD is a 256-segment annulus mesh (renderer/build.py); a triangle's dp/du is
+The built CD is a 256-segment annulus mesh (renderer/meshes.py); a triangle's dp/du is
 radial only along one of its edges, up to 2 pi / 256 = 1.4 degrees off elsewhere, which
 moves the CD's fringes (about 0.2 px at 640 x 480). The plugin takes the radial direction
 from the hit point and the CD's centre instead, which the builder passes from the scene.
@@ -28,11 +28,11 @@ MIN_TANGENTIAL = 0.1  # |wi + wo|_t of a diffracted order here is >= 0.15 (lambd
 
 @pytest.fixture(scope="module")
 def built_cd(mitsuba_variant, cd_table):
-    """cornell_cd_view2 built by renderer.build with the session's CD table and no top
+    """cornell_cd_view2 built by renderer.mitsuba_scene with the session's CD table and no top
     (rays reach the grating directly): the loaded scene and the CD's spec."""
     import mitsuba as mi
 
-    from renderer.build import scene_dict
+    from renderer.mitsuba_scene import scene_dict
     from renderer.scene import load_scene, parse_scene
 
     builtin = load_scene("cornell_cd_view2")
@@ -45,7 +45,7 @@ def built_cd(mitsuba_variant, cd_table):
 
 def _hits(mi, scene, cd, rng):
     """Rays cast straight at random points of the CD's annulus (uniform in area)."""
-    from renderer.build import frame_to
+    from renderer.placement import frame_to
 
     R = frame_to(cd.normal, cd.rotation_deg)
     r = np.sqrt(rng.uniform(cd.inner_radius**2, cd.outer_radius**2, POINTS))

@@ -1,4 +1,4 @@
-"""The light's emission profile (renderer.emitter, renderer.build.light_dict).
+"""The light's emission profile (renderer.emitter, renderer.mitsuba_scene.light_dict).
 
 * Power: the built light's radiance, integrated over the hemisphere (Gauss-Legendre in
   cos theta, exact to float precision for these smooth integrands), over the spectrum
@@ -42,7 +42,7 @@ def _light(cos_power, *, size=(0.2, 0.15), power_w=10.0, spectrum="LED-B3", cent
 
 
 def _emitter(mi, light):
-    from renderer.build import light_dict, register_plugins
+    from renderer.mitsuba_scene import light_dict, register_plugins
 
     register_plugins()
     scene = mi.load_dict({"type": "scene", "light": light_dict(mi, light)})
@@ -119,7 +119,7 @@ def test_sampling_is_consistent(mitsuba_variant, cos_power):
 
 def _floor_render(mi, cos_power, *, builtin=False, res=12, spp=256, light_size=0.01, height=0.25, box=False, seed=0):
     """A white floor (and optionally walls) under a downward light of radiance 1 / nm."""
-    from renderer.build import register_plugins
+    from renderer.mitsuba_scene import register_plugins
 
     register_plugins()
     half = light_size / 2
@@ -211,7 +211,7 @@ def test_scene_file_profile_builds_and_renders(mitsuba_variant):
     narrower beam at equal power puts more light straight below it."""
     import mitsuba as mi
 
-    from renderer.build import scene_dict
+    from renderer.mitsuba_scene import scene_dict
     from renderer.render import with_resolution
     from renderer.scene import load_scene, parse_scene
 

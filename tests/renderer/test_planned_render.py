@@ -41,7 +41,7 @@ def _small(name: str):
 
 
 def _renders(spec, monkeypatch, nodes_rule=None) -> dict[str, np.ndarray]:
-    from renderer import build
+    from renderer import mitsuba_scene as build
     from renderer.accuracy import element_mask
     from renderer.variant import set_variant
 
@@ -88,7 +88,7 @@ def test_a_planned_table_serves_every_plan_it_covers(tmp_path, monkeypatch) -> N
     """A finished planned table whose exact nodes include a new plan's (same fill) serves it;
     one that misses a node does not (a new planned table is built)."""
     from rcwa.table import build_table
-    from renderer.build import table_plan
+    from renderer.tables import table_plan
 
     monkeypatch.setenv(ENVIRONMENT_VARIABLE, str(tmp_path / "cache"))
     spec = _small("cornell_cd")

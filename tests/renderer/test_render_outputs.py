@@ -106,7 +106,7 @@ def test_a_scene_can_name_a_table_built_with_rcwa_table(mitsuba_variant, tmp_pat
 
     import mitsuba as mi
 
-    from renderer.build import scene_dict
+    from renderer.mitsuba_scene import scene_dict
     from renderer.scene import load_scene
 
     shutil.copytree(cd_table.path, tmp_path / "mine.zarr")
@@ -124,7 +124,7 @@ def test_a_named_table_must_exist_be_intact_and_match_the_structure(mitsuba_vari
 
     import rcwa
     from rcwa.table import build_table, settings_for
-    from renderer.build import scene_dict
+    from renderer.mitsuba_scene import scene_dict
     from renderer.scene import load_scene
 
     missing = r"scene.toml: field 'cd\[0\].table.path'.*nope.zarr.*not an efficiency table"

@@ -48,7 +48,8 @@ def test_patch_colour_equals_spectral_integration(mitsuba_variant):
     import colour
     import mitsuba as mi
 
-    from renderer.build import irregular, sensor_dict
+    from renderer.mitsuba_scene import sensor_dict
+    from renderer.spectra import irregular
     from renderer.camera import CameraModel, look_at
     from renderer.scene import CameraSpec, cornell_data
 
@@ -133,7 +134,8 @@ def _light_irradiance_factor(light_bbox, points, normals, cos_power=0.0, n=48):
 def test_direct_light_equals_the_analytic_irradiance(mitsuba_variant, profile):
     import mitsuba as mi
 
-    from renderer.build import camera_sensitivities, light_dict, light_spectrum, scene_dict
+    from renderer.mitsuba_scene import light_dict, scene_dict
+    from renderer.spectra import camera_sensitivities, light_spectrum
     from renderer.render import with_resolution
     from renderer.scene import cornell_data
 
@@ -173,7 +175,7 @@ def test_cd_splits_colours_unlike_a_flat_mirror(mitsuba_variant):
     import mitsuba as mi
 
     from renderer.accuracy import element_crop
-    from renderer.build import scene_dict
+    from renderer.mitsuba_scene import scene_dict
     from renderer.render import with_resolution
 
     spec = with_resolution(load_scene("cornell_cd"), PHYSICS_RESOLUTION)
@@ -291,7 +293,7 @@ def test_box_size_rescales_the_measured_box(mitsuba_variant):
     """A 2x larger box: its walls are twice as far, and the camera check follows it."""
     import mitsuba as mi
 
-    from renderer.build import scene_dict
+    from renderer.mitsuba_scene import scene_dict
 
     text = BASE.replace('model = "cornell"', 'model = "cornell"\nsize = [1.112, 1.0976, 1.1184]')
     spec = parse_scene(text, source="big.toml", base_dir=None)

@@ -13,8 +13,9 @@ import numpy as np
 import pytest
 
 from rcwa.table import NodePlan, build_table, open_table
-from renderer.build import camera_sensitivities, element_table, table_plan
 from renderer.scene import load_scene
+from renderer.spectra import camera_sensitivities
+from renderer.tables import element_table, table_plan
 from workbench.cli import main
 from workbench.core.cache import ENVIRONMENT_VARIABLE
 
