@@ -18,8 +18,8 @@ import tempfile
 import time
 
 from rcwa.table import build_table
-from renderer.build import planned_nodes, table_plan
-from renderer.planner import plan_scene
+from renderer.planner import plan_scene, planned_nodes
+from renderer.tables import table_plan
 from renderer.scene import load_scene
 from workbench.core.cache import ENVIRONMENT_VARIABLE
 

@@ -40,7 +40,7 @@ def noise_per_mode(spp: int = NOISE_SPP, resolution=NOISE_RESOLUTION) -> dict:
     import mitsuba as mi
 
     from renderer.accuracy import element_mask
-    from renderer.build import scene_dict
+    from renderer.mitsuba_scene import scene_dict
     from renderer.render import with_resolution
     from renderer.scene import load_scene
 

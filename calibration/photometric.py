@@ -147,7 +147,7 @@ class CroppedRender:
     fixed, so the warp's maps (renderer.camera.CameraModel.warp) are computed once."""
 
     def __init__(self, renderer, camera: CameraModel, region: np.ndarray, margin_px: float, spp: int) -> None:
-        from renderer.build import sensor_dict
+        from renderer.mitsuba_scene import sensor_dict
 
         self.renderer, self.camera, self.spp = renderer, camera, spp
         mi = renderer.mi

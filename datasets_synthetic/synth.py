@@ -224,7 +224,7 @@ def _checked_request(scene: str, out: str | Path, seed: int, preset: str) -> tup
 
 def _request_key(spec, seed: int, preset: str, settings: dict) -> str:
     """What a dataset is of: the scene's text and tables, seed, preset, workbench version."""
-    from renderer.build import table_keys
+    from renderer.tables import table_keys
     from workbench.core.version import __version__ as workbench_version
 
     request = {"scene": spec.text, "tables": table_keys(spec), "seed": seed, "preset": preset,
@@ -519,7 +519,7 @@ def colour_tags(spec) -> dict:
     RGB under D65 (ColorMatrix1), row-major. From the camera's spectral sensitivities, the
     renderer's own data (renderer.build)."""
     from datasets_synthetic.sensor import as_shot_neutral, xyz_to_camera
-    from renderer.build import camera_sensitivities, light_spectrum
+    from renderer.spectra import camera_sensitivities, light_spectrum
 
     curves = camera_sensitivities(spec.camera.sensitivities)
     wl = np.unique(np.concatenate([w for w, _ in curves]))
@@ -541,7 +541,7 @@ def _flash(spec, camera) -> dict:
     light on the board (80 W/m^2 at 0.5 m, against about 25 W/m^2 at 35 cm from the
     10 W ceiling light).
     """
-    from renderer.build import irregular, light_spectrum
+    from renderer.spectra import irregular, light_spectrum
 
     wl, s = light_spectrum(spec.light.spectrum)
     centre = np.linalg.inv(camera.world_to_camera)[:3, 3]

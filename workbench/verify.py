@@ -361,7 +361,7 @@ def _elements(spec) -> list[tuple[str, Any]]:
 
 
 def _stage_tables(run: _Run, plan: dict) -> dict:
-    from renderer.build import table_plan
+    from renderer.tables import table_plan
     from renderer.scene import load_scene
 
     spec = load_scene(run.scene)
