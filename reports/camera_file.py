@@ -19,6 +19,7 @@ from typing import Any
 
 import numpy as np
 
+from calibration.decode import load_response
 from renderer.camera import CameraModel
 from workbench.core.errors import UserInputError
 
@@ -124,8 +125,6 @@ def read_response(path: str | Path) -> dict | None:
     response = data.get("response") if isinstance(data, dict) else None
     if not isinstance(response, dict) or "points" not in response:
         return None
-    from calibration.decode import load_response
-
     try:
         load_response({"points": response["points"]})
     except UserInputError as error:

@@ -30,6 +30,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, replace
 
+import cv2
 import numpy as np
 
 from reports.images import Photo
@@ -153,8 +154,6 @@ def _check_same_view(photo: Photo, frame: Photo, exif_ratio: float | None) -> fl
     """Phase correlation of the two log luminances, each brought to the photo's units (EXIF's ratio, or a median
     over pixels unclipped in both) and limited to the same range (the darker clip level, the brighter noise floor),
     so a region clipped in one image and not in the other is flat in both and cannot look like a shift."""
-    import cv2
-
     a, b = _grey(photo), _grey(frame)
     ratio = exif_ratio
     if ratio is None:

@@ -26,12 +26,17 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import cv2
 import numpy as np
 
+from calibration.decode import bilinear_demosaic, cfa_channels, decode, is_raw
+from renderer.mitsuba_scene import scene_dict
+from renderer.spectra import camera_sensitivities, light_spectrum
+from renderer.variant import set_variant
+from reports.prediction import pixel_rays
 from workbench.core.errors import UserInputError
 
 WALL_REGIONS = ("wall_left", "wall_right", "wall_back")
@@ -57,7 +62,7 @@ class Photo:
 
 def read_linear(path: str | Path, what: str) -> np.ndarray:
     """A float image (H, W, 3) through OpenImageIO."""
-    import OpenImageIO as oiio
+    import OpenImageIO as oiio  # deferred: start-up time
 
     path = Path(path)
     if not path.is_file():
@@ -81,8 +86,6 @@ def read_photo(path: str | Path, response: dict | None = None, what: str = "--ph
     ``response`` is the calibration's fitted response (calibration.json's ``response``,
     ``points`` of normalised irradiance and value): a JPEG, PNG or integer TIFF is taken
     through its inverse; without one such a photo is refused (it is not linear)."""
-    from calibration.decode import cfa_channels, decode, is_raw
-
     path = Path(path)
     if not path.is_file():
         raise UserInputError("no such file", field=what, got=str(path))
@@ -109,8 +112,6 @@ def through_photo_sensor(render: np.ndarray, photo: Photo) -> np.ndarray:
     the photo's units (photometric_scale). A photo that is not raw: the render as it is."""
     if photo.channel is None:
         return render
-    from calibration.decode import bilinear_demosaic
-
     h, w = photo.channel.shape
     mosaic = np.take_along_axis(np.asarray(render, np.float32)[:h, :w], photo.channel[..., None], axis=2)[..., 0]
     if photo.clip_level is not None:
@@ -122,7 +123,7 @@ def through_photo_sensor(render: np.ndarray, photo: Photo) -> np.ndarray:
 
 
 def _region_name(shape_id: str) -> str | None:
-    """A scene shape's region (renderer.build's keys), or None for shapes that are none of them."""
+    """A scene shape's region (renderer.mitsuba_scene's keys), or None for shapes that are none of them."""
     if shape_id.startswith("cd"):
         return "cd"
     if shape_id.startswith("glass"):
@@ -141,16 +142,9 @@ def _region_name(shape_id: str) -> str | None:
 def region_masks(spec, camera=None) -> dict[str, np.ndarray]:
     """Boolean masks (H, W) by region: which shape each pixel's centre ray meets first, with
     ``camera`` (the scene's by default), through the lens model (reports.prediction.pixel_rays)."""
-    from dataclasses import replace
-
-    from renderer.variant import set_variant
-
     set_variant()
-    import drjit as dr
+    import drjit as dr  # deferred: start-up time; drjit loads after set_variant has set DRJIT_LIBLLVM_PATH
     import mitsuba as mi
-
-    from renderer.build import scene_dict
-    from reports.prediction import pixel_rays
 
     if camera is not None:
         spec = replace(spec, camera=replace(spec.camera, model=camera))
@@ -198,9 +192,7 @@ def photometric_scale(photo: np.ndarray, render: np.ndarray, masks: dict[str, np
 def camera_to_xyz(sensitivities: str) -> np.ndarray:
     """The 3 x 3 matrix taking camera RGB to CIE XYZ that best maps the camera's
     sensitivities onto the CIE 1931 2-degree observer (least squares over 380-780 nm)."""
-    import colour
-
-    from renderer.build import camera_sensitivities
+    import colour  # deferred: start-up time
 
     cmfs = colour.MSDS_CMFS["CIE 1931 2 Degree Standard Observer"]
     wl = np.arange(380.0, 781.0, 5.0)
@@ -213,8 +205,6 @@ def camera_to_xyz(sensitivities: str) -> np.ndarray:
 def display_matrix(spec) -> np.ndarray:
     """Camera RGB -> linear sRGB, white-balanced on the scene's light (module docstring);
     the light's own camera RGB maps to equal sRGB values of luminance 1."""
-    from renderer.build import camera_sensitivities, light_spectrum
-
     to_xyz = camera_to_xyz(spec.camera.sensitivities)
     wl, emission = light_spectrum(spec.light.spectrum)
     light_rgb = np.array([np.trapezoid(np.interp(wl, w, s, left=0, right=0) * emission, wl)

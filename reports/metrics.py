@@ -25,7 +25,7 @@ def relative_error(photo: np.ndarray, render: np.ndarray, reference_level: float
 
 
 def _lab(srgb_linear: np.ndarray) -> np.ndarray:
-    import colour
+    import colour  # deferred: start-up time
 
     xyz = np.clip(srgb_linear, 0.0, 1.0) @ SRGB_TO_XYZ.T
     return colour.XYZ_to_Lab(xyz, colour.CCS_ILLUMINANTS["CIE 1931 2 Degree Standard Observer"]["D65"])
@@ -33,7 +33,7 @@ def _lab(srgb_linear: np.ndarray) -> np.ndarray:
 
 def ciede2000(photo_display: np.ndarray, render_display: np.ndarray, exposure: float) -> np.ndarray:
     """Delta E 2000 per pixel between two linear sRGB images, both scaled by ``exposure``."""
-    import colour
+    import colour  # deferred: start-up time
 
     return np.asarray(colour.delta_E(_lab(photo_display * exposure), _lab(render_display * exposure),
                                      method="CIE 2000"), np.float32)
@@ -42,7 +42,7 @@ def ciede2000(photo_display: np.ndarray, render_display: np.ndarray, exposure: f
 def flip(photo_display: np.ndarray, render_display: np.ndarray) -> tuple[np.ndarray | None, str]:
     """HDR-FLIP map (photo as reference), or None and why not."""
     try:
-        import flip_evaluator
+        import flip_evaluator  # an optional dependency: the report says when it is missing
     except ImportError:
         return None, "flip-evaluator is not installed (pip install flip-evaluator)"
     error_map, _mean, _parameters = flip_evaluator.evaluate(np.ascontiguousarray(photo_display, np.float32),

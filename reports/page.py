@@ -21,6 +21,7 @@ import json
 from typing import Any
 
 import numpy as np
+from PIL import Image
 
 COLORMAP = "magma"
 
@@ -32,8 +33,6 @@ def float16_base64(image: np.ndarray) -> str:
 
 def png_data_uri(rgb8: np.ndarray) -> str:
     """An (H, W, 3) or (H, W, 4) uint8 image as a PNG data: URI."""
-    from PIL import Image
-
     buffer = io.BytesIO()
     Image.fromarray(np.ascontiguousarray(rgb8)).save(buffer, format="PNG", optimize=True)
     return "data:image/png;base64," + base64.b64encode(buffer.getvalue()).decode("ascii")
@@ -41,7 +40,7 @@ def png_data_uri(rgb8: np.ndarray) -> str:
 
 def false_colour(values: np.ndarray, vmax: float, mask: np.ndarray | None = None) -> np.ndarray:
     """``values`` in [0, vmax] through the colour map, uint8 RGB; nan and unmasked pixels black."""
-    from matplotlib import colormaps
+    from matplotlib import colormaps  # deferred: start-up time
 
     scaled = np.clip(np.nan_to_num(values, nan=0.0) / max(vmax, 1e-12), 0.0, 1.0)
     rgb = (colormaps[COLORMAP](scaled)[..., :3] * 255).astype(np.uint8)

@@ -19,7 +19,7 @@ DIR/report.html the page (reports.page). Steps:
    (reports.prediction); band edges along circles and radii (reports.fringes) in photo,
    render and prediction, paired, offsets in pixels and degrees. Also relative to each
    image's own CD: the photo's grid moved by the affine map between the two rim ellipses.
-   Hue crossings (reports.fringes.find_hue_crossings: where the equivalent wavelength
+   Hue crossings (reports.hue.find_hue_crossings: where the equivalent wavelength
    passes 440, 460, ... nm) along the circles, paired the same way (``hue_offset_px``).
    The prediction's uncertainty band: cameras drawn within the calibration's standard
    deviations (prediction_band), plotted on the fringe plot.
@@ -31,6 +31,7 @@ are reported on the page and in report.json under ``messages``.
 
 from __future__ import annotations
 
+import base64
 import csv
 import dataclasses
 import io
@@ -42,9 +43,15 @@ from typing import Any
 
 import numpy as np
 
+from calibration.decode import is_raw
+from renderer.scene import load_scene
 from reports import fringes, images, metrics, page, polar
+from reports.camera_draws import CAMERA_STD_KEYS, draw_cameras
 from reports.camera_file import FittedCamera, check_scene, read_camera, read_response
-from reports.prediction import Prediction, predict
+from reports.exposure_merge import merge_highlights
+from reports.hue import HUE_LEVELS_NM, find_hue_crossings, hue_scale
+from reports.prediction import Prediction, cd_bbox, cd_geometry, predict
+from reports.rim import fit_rim
 from workbench.core.errors import UserInputError
 from workbench.core.files import atomic_write_text
 
@@ -75,8 +82,6 @@ class Inputs:
 
 
 def _scene_with_camera(scene: str, fitted: FittedCamera):
-    from renderer.scene import load_scene
-
     spec = load_scene(scene)
     check_scene(fitted, spec, scene)
     return dataclasses.replace(spec, camera=dataclasses.replace(spec.camera, model=fitted.model))
@@ -162,14 +167,14 @@ def measure_fringes(pred: Prediction, photo: images.Photo, render: np.ndarray, g
 
 def measure_hue(pred: Prediction, photo: images.Photo, render: np.ndarray, circles: polar.PolarGrid,
                 focal_px: float) -> dict[str, Any]:
-    """Hue crossings (reports.fringes.find_hue_crossings) along the circles in prediction, photo
+    """Hue crossings (reports.hue.find_hue_crossings) along the circles in prediction, photo
     and render; pairs and summaries, as for the band edges."""
-    scale = fringes.hue_scale(pred.wavelengths_nm, pred.weights, pred.white)
+    scale = hue_scale(pred.wavelengths_nm, pred.weights, pred.white)
     sampled = _sampled_prediction(pred, circles)
-    found = {"prediction": fringes.find_hue_crossings(circles, sampled, pred.orders, scale),
-             "photo": fringes.find_hue_crossings(circles, sampled, pred.orders, scale, photo.rgb, _correlation(photo),
-                                                 clipped=photo.clipped),
-             "render": fringes.find_hue_crossings(circles, sampled, pred.orders, scale, render)}
+    found = {"prediction": find_hue_crossings(circles, sampled, pred.orders, scale),
+             "photo": find_hue_crossings(circles, sampled, pred.orders, scale, photo.rgb, _correlation(photo),
+                                         clipped=photo.clipped),
+             "render": find_hue_crossings(circles, sampled, pred.orders, scale, render)}
     pairs = {"photo_render": fringes.pair_edges(circles, found["photo"], found["render"], focal_px),
              "prediction_photo": fringes.pair_edges(circles, found["prediction"], found["photo"], focal_px),
              "prediction_render": fringes.pair_edges(circles, found["prediction"], found["render"], focal_px)}
@@ -188,11 +193,9 @@ def _quality_counts(edges: list) -> dict[str, int]:
 def prediction_band(spec, camera, std: dict, grids, reference: list[fringes.Edge], draws: int = UNCERTAINTY_DRAWS,
                     seed: int = 0) -> dict[tuple, float]:
     """The prediction's uncertainty band: for cameras drawn within the calibration's standard
-    deviations (reports.prediction.draw_cameras), the RMS distance (px) of each predicted band
+    deviations (reports.camera_draws.draw_cameras), the RMS distance (px) of each predicted band
     edge from where ``camera`` puts it (``reference``: that camera's predicted edges), by edge key.
     The band is the reference edge +- ``BAND_SIGMAS`` times it."""
-    from reports.prediction import draw_cameras
-
     ref = {e.key(): e for e in reference}
     spreads: dict[tuple, list[float]] = {}
     for drawn_camera in draw_cameras(camera, std, draws, seed):
@@ -207,8 +210,6 @@ def prediction_band(spec, camera, std: dict, grids, reference: list[fringes.Edge
 
 def _prediction_spread(spec, fitted: FittedCamera, grids, reference: list) -> tuple[dict[str, Any] | None, dict[tuple, float]]:
     """The band (prediction_band) for the fitted camera, summarised, and per edge."""
-    from reports.prediction import CAMERA_STD_KEYS
-
     std = fitted.std or {}
     keys = [k for k in CAMERA_STD_KEYS if isinstance(std.get(k), (int, float))]
     if not keys:
@@ -225,8 +226,6 @@ def analyse_cd(spec, fitted: FittedCamera, photo: images.Photo, render: np.ndarr
     """Everything about the CD (module docstring, step 4); ``problems`` for what could not be
     done, ``messages`` for what the reader should know; ``as_taken``: the photo before its
     highlights were filled from a bracket (measure_fringes)."""
-    from reports.prediction import cd_bbox, cd_geometry
-
     started = time.perf_counter()
     camera = fitted.model
     try:
@@ -239,8 +238,8 @@ def analyse_cd(spec, fitted: FittedCamera, photo: images.Photo, render: np.ndarr
         return {"status": "not in view"}
     pred = predict(spec, camera)
     expected_rim = camera.project(cd.rim_points(on_top=True))
-    photo_rim = fringes.fit_rim(photo.rgb, expected_rim)
-    render_rim = fringes.fit_rim(render, expected_rim)
+    photo_rim = fit_rim(photo.rgb, expected_rim)
+    render_rim = fit_rim(render, expected_rim)
     grids = polar.standard_grids(camera, cd)
     measured = measure_fringes(pred, photo, render, grids, camera.fx, as_taken)
     result: dict[str, Any] = {
@@ -254,7 +253,7 @@ def analyse_cd(spec, fitted: FittedCamera, photo: images.Photo, render: np.ndarr
         "edge_quality": {name: _quality_counts(e) for name, e in measured["edges"].items()},
         "offsets": measured["summary"],
         "hue": {"offsets": measured["hue"]["summary"], "scale_nm": measured["hue"]["scale_nm"],
-                "levels_nm": list(fringes.HUE_LEVELS_NM),
+                "levels_nm": list(HUE_LEVELS_NM),
                 "quality": {name: _quality_counts(e) for name, e in measured["hue"]["edges"].items()},
                 "how": "along circles, where the camera's hue (white-balanced on the light) turned into an equivalent "
                        "wavelength with its spectral sensitivities passes each level; the prediction's hue leaves out "
@@ -323,7 +322,7 @@ def _band_bars(measured: dict, band: dict[tuple, float], cd_radius_px: float) ->
 
 
 def _fringe_plot(measured: dict, cd_radius_px: float, band: dict[tuple, float] | None = None) -> str:
-    import matplotlib
+    import matplotlib  # deferred: start-up time
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
@@ -387,7 +386,7 @@ def _studies(paths: tuple[Path, ...]) -> list[tuple[str, str]]:
         if not figures:
             raise UserInputError("holds no study figure (study_*.png)", field="--study", got=str(folder))
         for figure in figures:
-            uri = "data:image/png;base64," + __import__("base64").b64encode(figure.read_bytes()).decode("ascii")
+            uri = "data:image/png;base64," + base64.b64encode(figure.read_bytes()).decode("ascii")
             sections.append((f"study: {figure.name}", f"<img alt='{page.html.escape(figure.name)}' src='{uri}' "
                                                       f"style='max-width:900px'>"))
     return sections
@@ -396,14 +395,10 @@ def _studies(paths: tuple[Path, ...]) -> list[tuple[str, str]]:
 def _photo(inputs: Inputs, messages: list[str]) -> tuple[images.Photo, images.Photo]:
     """The photo with its clipped highlights filled from the bracket's darker frames (reports.exposure_merge), and
     the photo as taken (the same object when nothing was filled)."""
-    from reports.exposure_merge import merge_highlights
-
     response = read_response(inputs.calibration)
     photo = images.read_photo(inputs.photo, response)
     if not inputs.brackets:
         return photo, photo
-    from calibration.decode import is_raw
-
     frames, left_out = [], {}
     for path in inputs.brackets:
         if not inputs.brackets_strict and is_raw(path) != is_raw(inputs.photo):  # a RAW+JPEG folder: not decoded

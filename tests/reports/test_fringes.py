@@ -1,4 +1,4 @@
-"""reports/fringes.py and reports/polar.py: band edges and the CD's rim, on images made to order.
+"""reports/fringes.py, reports/rim.py and reports/polar.py: band edges and the CD's rim, on images made to order.
 
 Images here are built from the grating-equation prediction (reports.prediction) of
 cornell_cd_view2 at a small size: each order's lit fraction times a brightness, over a
@@ -16,6 +16,7 @@ from renderer.render import with_resolution
 from renderer.scene import load_scene
 from reports import fringes, images, polar
 from reports.prediction import predict
+from reports.rim import fit_rim
 
 RESOLUTION = (320, 240)
 EXPOSURE_INVARIANCE_PX = 1e-6  # a half-maximum crossing does not move with a scale and an offset of the image
@@ -130,7 +131,7 @@ def test_rim_ellipse_is_found_where_it_was_drawn():
                          [np.sin(np.radians(angle)), np.cos(np.radians(angle))]])
     guess = (np.stack([(axes[0] / 2 + 2) * np.cos(t), (axes[1] / 2 - 1.5) * np.sin(t)], 1) @ rotation.T
              + np.array(centre) + [1.5, -1.0])  # a wrong guess by a few pixels
-    rim = fringes.fit_rim(image, guess)
+    rim = fit_rim(image, guess)
     assert rim is not None
     assert np.hypot(rim.center[0] - centre[0], rim.center[1] - centre[1]) < RIM_CENTRE_PX
     assert abs(max(rim.axes) - axes[0]) < RIM_AXES_PX and abs(min(rim.axes) - axes[1]) < RIM_AXES_PX

@@ -1,4 +1,4 @@
-"""reports/fringes.py's hue crossings: the camera's hue as an equivalent wavelength.
+"""reports/hue.py's hue crossings: the camera's hue as an equivalent wavelength.
 
 The image here is made from the grating-equation prediction of cornell_cd_view2 with the
 wavelength per pixel known: each pixel of order -1's band shows monochromatic light at
@@ -13,7 +13,7 @@ import pytest
 
 from renderer.render import with_resolution
 from renderer.scene import load_scene
-from reports import fringes, polar
+from reports import hue, polar
 from reports.prediction import channel_weights, light_white, predict
 from reports.report import _sampled_prediction
 
@@ -30,7 +30,7 @@ def setup():
     spec = with_resolution(load_scene("cornell_cd_view2"), RESOLUTION)
     wavelengths, weights = channel_weights(spec)
     white = light_white(spec)
-    return spec, predict(spec), fringes.hue_scale(wavelengths, weights, white), wavelengths, weights, white
+    return spec, predict(spec), hue.hue_scale(wavelengths, weights, white), wavelengths, weights, white
 
 
 def test_scale_inverts_monochromatic_light(setup):
@@ -62,7 +62,7 @@ def test_hue_crossings_lie_where_the_wavelength_is_known(setup):
     distances = []
     circles, _radii = polar.standard_grids(pred.camera, pred.cd)  # hue crossings are measured along circles
     for grid in (circles,):
-        for e in fringes.find_hue_crossings(grid, _sampled_prediction(pred, grid), pred.orders, scale, image):
+        for e in hue.find_hue_crossings(grid, _sampled_prediction(pred, grid), pred.orders, scale, image):
             if e.order != ORDER or e.quality != "ok":
                 continue
             level = float(e.side.split()[0])
@@ -83,5 +83,5 @@ def test_no_hue_where_the_band_is_grey(setup):
     grey = pred.channel_image(ORDER).sum(axis=0)[..., None] * light_white(spec)[None, None]
     image = (0.02 * light_white(spec) + 5.0 * grey).astype(np.float32)
     for grid in polar.standard_grids(pred.camera, pred.cd):
-        found = fringes.find_hue_crossings(grid, _sampled_prediction(pred, grid), pred.orders, scale, image)
+        found = hue.find_hue_crossings(grid, _sampled_prediction(pred, grid), pred.orders, scale, image)
         assert not [e for e in found if e.order == pred.orders[i] and e.quality == "ok"]

@@ -1,4 +1,4 @@
-"""The prediction's uncertainty band (reports.report.prediction_band, reports.prediction.draw_cameras).
+"""The prediction's uncertainty band (reports.report.prediction_band, reports.camera_draws.draw_cameras).
 
 Cameras are drawn within the calibration's standard deviations and the predicted band
 edges of each are compared with the fitted camera's; the band is the fitted camera's edge
@@ -14,7 +14,8 @@ from scipy.spatial.transform import Rotation
 from renderer.render import with_resolution
 from renderer.scene import load_scene
 from reports import fringes, polar
-from reports.prediction import draw_cameras, predict
+from reports.camera_draws import draw_cameras
+from reports.prediction import predict
 from reports.report import BAND_SIGMAS, _sampled_prediction, prediction_band
 
 RESOLUTION = (320, 240)

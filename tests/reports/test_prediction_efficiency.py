@@ -1,4 +1,4 @@
-"""reports/prediction.py's efficiency weighting, checked against independent computations.
+"""reports/prediction_efficiency.py: the prediction's efficiency weighting, checked against independent computations.
 
 The prediction weighs each lit (pixel, wavelength) of order m by the order's RCWA efficiency
 at the incident wave's direction (the scene's table) and by the flat top's Fresnel
@@ -20,7 +20,7 @@ from scipy.interpolate import RegularGridInterpolator
 from rcwa.table import Table
 from renderer.render import with_resolution
 from renderer.scene import load_scene
-from reports import prediction
+from reports import prediction, prediction_efficiency
 from workbench.core.conventions import order_kx
 
 RESOLUTION = (160, 120)  # small: the weights do not depend on the pixel count
@@ -36,16 +36,16 @@ def _scene(top: bool):
 
 
 @pytest.fixture(scope="module")
-def efficiency() -> prediction.Efficiency:
-    return prediction.scene_efficiency(_scene(top=True))
+def efficiency() -> prediction_efficiency.Efficiency:
+    return prediction_efficiency.scene_efficiency(_scene(top=True))
 
 
-def _table_interpolator(eff: prediction.Efficiency, m: int) -> RegularGridInterpolator:
+def _table_interpolator(eff: prediction_efficiency.Efficiency, m: int) -> RegularGridInterpolator:
     k = eff.orders_m.index(m)
     return RegularGridInterpolator((eff.wavelengths_nm, eff.theta_deg, eff.phi_deg), eff.values[..., k])
 
 
-def _stored(eff: prediction.Efficiency) -> Table:
+def _stored(eff: prediction_efficiency.Efficiency) -> Table:
     """rcwa.table's reader over the same metadata, for its scalar fold_azimuth."""
     return Table(Path(eff.source), {"symmetry": {"mirror_x": eff.mirror_x, "mirror_y": eff.mirror_y}}, {})
 
@@ -90,16 +90,16 @@ def test_fresnel_transmission_is_born_and_wolfs():
     R_s = sin^2(i - t) / sin^2(i + t), R_p = tan^2(i - t) / tan^2(i + t); at Brewster's angle
     the p wave passes whole; at grazing incidence nothing passes."""
     n = 1.59
-    assert abs(prediction.fresnel_transmission(np.array(1.0), n) - 4 * n / (n + 1) ** 2) < ROUND_OFF
+    assert abs(prediction_efficiency.fresnel_transmission(np.array(1.0), n) - 4 * n / (n + 1) ** 2) < ROUND_OFF
     for i in np.radians([10.0, 35.0, 60.0, 80.0]):
         t = math.asin(math.sin(i) / n)
         rs = math.sin(i - t) ** 2 / math.sin(i + t) ** 2
         rp = math.tan(i - t) ** 2 / math.tan(i + t) ** 2
-        assert abs(prediction.fresnel_transmission(np.array(math.cos(i)), n) - (1 - (rs + rp) / 2)) < ROUND_OFF
+        assert abs(prediction_efficiency.fresnel_transmission(np.array(math.cos(i)), n) - (1 - (rs + rp) / 2)) < ROUND_OFF
     brewster = math.atan(n)
     rs = math.sin(brewster - math.asin(math.sin(brewster) / n)) ** 2 / math.sin(brewster + math.asin(math.sin(brewster) / n)) ** 2
-    assert abs(prediction.fresnel_transmission(np.array(math.cos(brewster)), n) - (1 - rs / 2)) < ROUND_OFF
-    assert prediction.fresnel_transmission(np.array(0.0), n) == 0.0
+    assert abs(prediction_efficiency.fresnel_transmission(np.array(math.cos(brewster)), n) - (1 - rs / 2)) < ROUND_OFF
+    assert prediction_efficiency.fresnel_transmission(np.array(0.0), n) == 0.0
 
 
 def test_flat_efficiency_without_a_top_gives_back_the_geometric_prediction(efficiency):
@@ -116,7 +116,7 @@ def test_flat_efficiency_without_a_top_gives_back_the_geometric_prediction(effic
     assert weighted.weighting == "efficiency" and plain.weighting == "geometric"
 
 
-def _expected_lit(spec, eff: prediction.Efficiency, pixel: np.ndarray, m: int) -> np.ndarray:
+def _expected_lit(spec, eff: prediction_efficiency.Efficiency, pixel: np.ndarray, m: int) -> np.ndarray:
     """(3,) sum over the pixel's lit wavelengths of S_c E eta_m T_in T_out, from the definitions."""
     cd = prediction.cd_geometry(spec)
     camera = spec.camera.model
@@ -139,8 +139,8 @@ def _expected_lit(spec, eff: prediction.Efficiency, pixel: np.ndarray, m: int) -
         theta = math.degrees(math.asin(sin_air / float(np.interp(lam, *eff.superstrate))))
         phi, flip_m, _, _ = stored.fold_azimuth(math.degrees(math.atan2(k_in[1], k_in[0])))
         eta = float(_table_interpolator(eff, -m if flip_m else m)([[lam, theta, phi]])[0])
-        fresnel = (prediction.fresnel_transmission(np.array(cos_camera), n_top)
-                   * prediction.fresnel_transmission(np.array(math.sqrt(1.0 - sin_air**2)), n_top))
+        fresnel = (prediction_efficiency.fresnel_transmission(np.array(cos_camera), n_top)
+                   * prediction_efficiency.fresnel_transmission(np.array(math.sqrt(1.0 - sin_air**2)), n_top))
         total += weights[:, li] * eta * float(fresnel)
     return total
 
