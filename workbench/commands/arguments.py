@@ -3,11 +3,48 @@
 from __future__ import annotations
 
 import argparse
-from collections.abc import Callable
+from collections.abc import Callable, Collection, Iterable, Iterator
+from typing import Any
 
 SEED_MAX = 2**32 - 1  # Mitsuba's and numpy's seeds are unsigned 32-bit
 SCENE_HELP = "a built-in scene (`workbench list scenes`) or a scene file (docs/scene_format.md)"
 STRUCTURE_HELP = "a built-in structure (`workbench list structures`) or a structure file (docs/structure_format.md)"
+
+
+class RegistryNames(Collection[str]):
+    """The names of a registry (a dict of methods by name), read when argparse first needs them.
+
+    As an option's choices (:func:`add_registry_option`), the option accepts exactly the
+    registry's names and its help lists them in the registry's order, while the registry's
+    module (``read`` imports it, and with it scipy) is imported only when that subcommand's
+    help is shown or the option is given, not to build the parser: ``workbench --help`` and
+    ``workbench list`` stay quick.
+    """
+
+    def __init__(self, read: Callable[[], Iterable[str]]) -> None:
+        self._read = read
+        self._names: tuple[str, ...] | None = None
+
+    def _all(self) -> tuple[str, ...]:
+        if self._names is None:
+            self._names = tuple(self._read())
+        return self._names
+
+    def __contains__(self, name: object) -> bool:
+        return name in self._all()
+
+    def __iter__(self) -> Iterator[str]:
+        return iter(self._all())
+
+    def __len__(self) -> int:
+        return len(self._all())
+
+
+def add_registry_option(parser: argparse.ArgumentParser, flag: str, names: RegistryNames, **options: Any) -> None:
+    """``parser.add_argument(flag, choices=names, **options)``, without reading ``names`` to add it
+    (argparse formats a new argument's usage once, as a check, which would iterate its choices)."""
+    action = parser.add_argument(flag, **options)
+    action.choices = names
 
 
 def board_argument(text: str) -> tuple[int, int]:

@@ -4,12 +4,19 @@ from __future__ import annotations
 
 import argparse
 import json
-from collections.abc import Callable
+from collections.abc import Callable, Iterable
 from typing import TYPE_CHECKING
 
 import rcwa
 from workbench.catalog import format_table_info, table_info
-from workbench.commands.arguments import STRUCTURE_HELP, angle_range_argument, count_argument, orders_argument
+from workbench.commands.arguments import (
+    STRUCTURE_HELP,
+    RegistryNames,
+    add_registry_option,
+    angle_range_argument,
+    count_argument,
+    orders_argument,
+)
 from workbench.core.executor import DaskExecutor
 from workbench.report_text import solve_table
 
@@ -22,8 +29,22 @@ FACTORIZATION_HELP = ("Fourier factorization rule: auto = li for 1D and for 2D c
 PRESET_HELP = ("paper: 31 wavelengths 400-700 nm, 2 deg steps in theta and phi, 61 (1D) or 11x11 (2D) harmonics "
                "(the CD takes about 70-95 s here); draft: 11 wavelengths, 5/10 deg steps, 31 or 7x7 harmonics "
                "(seconds); fine: 81 wavelengths 380-780 nm, 1 deg steps, 81 or 15x15 harmonics")
-FACTORIZATION_CHOICES = ["auto", "li", "nv", "laurent"]
-STACK_CHOICES = ["etm", "smatrix"]
+
+
+def factorization_rules() -> Iterable[str]:
+    from rcwa.factorization import FACTORIZATION_RULES  # deferred: pulls in scipy and shapely (start-up time)
+
+    return FACTORIZATION_RULES
+
+
+def stack_methods() -> Iterable[str]:
+    from rcwa.solver import STACK_METHODS  # deferred: as factorization_rules
+
+    return STACK_METHODS
+
+
+FACTORIZATION_CHOICES = RegistryNames(factorization_rules)  # auto, li, nv, laurent
+STACK_CHOICES = RegistryNames(stack_methods)  # etm, smatrix
 
 
 def add_parser(commands: argparse._SubParsersAction) -> None:
@@ -45,9 +66,9 @@ def _add_solve(actions: argparse._SubParsersAction) -> None:
                        help="retained harmonics per direction (odd)")
     solve.add_argument("--pol", choices=["s", "p", "unpolarized"], default="unpolarized",
                        help="incident polarization; unpolarized is the mean of s and p")
-    solve.add_argument("--factorization", choices=FACTORIZATION_CHOICES, default="auto", help=FACTORIZATION_HELP)
-    solve.add_argument("--stack", choices=STACK_CHOICES, default="etm",
-                       help="layer stacking: enhanced transmittance matrix (default) or Redheffer star product")
+    add_registry_option(solve, "--factorization", FACTORIZATION_CHOICES, default="auto", help=FACTORIZATION_HELP)
+    add_registry_option(solve, "--stack", STACK_CHOICES, default="etm",
+                        help="layer stacking: enhanced transmittance matrix (default) or Redheffer star product")
     solve.add_argument("--json", action="store_true", help="print one JSON object instead of a table")
 
 
@@ -72,7 +93,7 @@ def _add_table(actions: argparse._SubParsersAction) -> None:
                        help="polarizations stored; all = s, p and their mean")
     table.add_argument("--reflection-only", action="store_true", help="store R only, even where the substrate transmits")
     table.add_argument("--both-sides", action="store_true", help="also light from below (see-through elements)")
-    table.add_argument("--factorization", choices=FACTORIZATION_CHOICES, default="auto", help=FACTORIZATION_HELP)
+    add_registry_option(table, "--factorization", FACTORIZATION_CHOICES, default="auto", help=FACTORIZATION_HELP)
     table.add_argument("--no-symmetry", action="store_true", help="compute the whole azimuth range")
     table.add_argument("--threads", type=count_argument(1), default=None, help="solver threads (default: all cores)")
     table.add_argument("--scheduler", metavar="ADDRESS",
