@@ -27,6 +27,8 @@ def _preload_openblas() -> None:
 
 _preload_openblas()
 
+# The public names, imported on first use: so that importing a submodule (rcwa.materials,
+# say) loads neither the solver nor the C++ core (tests/rcwa/test_materials.py).
 _LAZY = {
     "Structure": "rcwa.structure",
     "Layer": "rcwa.structure",

@@ -30,6 +30,8 @@ from functools import lru_cache
 from typing import Callable
 
 import numpy as np
+import shapely
+from shapely import affinity
 
 from rcwa import _core, fourier
 from rcwa.shapes import Circle, Rect, Stripe, overlapping_pairs, visible_regions
@@ -382,9 +384,6 @@ def _periodic_boundary_segments(outline, period, points: np.ndarray) -> tuple[np
     """Segments (start points, steps) of the boundary of the union of a polygon's periodic
     images, within one period of the sample points (the union's outer rim, an artefact of
     tiling only 5 x 5 images, lies further out and is cut away)."""
-    import shapely
-    from shapely import affinity
-
     lx, ly = period
     grid = 1e-9 * max(lx, ly)
     images = [affinity.translate(outline, i * lx, j * ly) for i in range(-2, 3) for j in range(-2, 3)]

@@ -6,6 +6,29 @@ factorization rules of rcwa.factorization, layer eigenmodes and the enhanced tra
 matrix stack in C++ (rcwa/cpp). This module converts units, validates the request, builds
 the Fourier matrices and turns the core's amplitudes and efficiencies into a result. Conventions:
 workbench.core.conventions.
+
+Fast paths (``solve(fast_paths=True)``, the default). Where a 1D stack has every k_y = 0
+(classical mount) and the ETM stack is used, TE and TM are solved apart on N x N blocks
+(rcwa/cpp/polarized.hpp), and for ``pol="s"`` or ``"p"`` only that one: the other
+polarization's efficiencies and amplitudes are then NaN. Lossless 1D layers (real
+permittivity everywhere) are solved with Hermitian eigen-solvers (zheevd / zhegvd), their
+inverses taken from the eigenvectors, and in real arithmetic (dsyevd / dsygvd,
+"real_arithmetic") where the layer is symmetric about a point (moving the origin there
+makes its matrices real). A 2D cell with a mirror (rcwa.symmetry) the incidence respects
+(x -> -x at k_x = 0: normal incidence or phi = +-90; y -> -y at k_y = 0: phi = 0 or 180)
+is solved in mirror-symmetry sectors (rcwa/cpp/sectors.hpp), only those the asked
+polarization excites (for ``"s"`` or ``"p"`` the other's values are NaN). Otherwise a
+stack of one patterned layer (2D, or 1D off the classical mount) is solved as one 4N x 4N
+boundary system ("single_layer_direct", rcwa/cpp/stack.cpp) instead of through the
+layer's W^-1 and V^-1. Lossy 1D layers below 75 harmonics take their eigenvalues from the
+QR algorithm alone and their eigenvectors by inverse iteration ("inverse_iteration",
+rcwa/cpp/linalg.hpp eig_small), 20 % faster than zgeev there. Lossy 1D layers symmetric
+about a point (their matrices complex symmetric once the origin is moved there) are solved
+before that as complex symmetric problems ("complex_symmetric",
+rcwa/cpp/complex_symmetric.hpp: tridiagonal form by complex-orthogonal reflectors, QL,
+inverse iteration, one refinement step against the layer's own matrix), each accepted only
+on a residual check and otherwise solved as above; about 2x faster than eig_small at 61
+harmonics.
 """
 
 from __future__ import annotations
@@ -142,31 +165,10 @@ def solve(
         sweep, the default: half the time of the other for one-sided solves), or
         ``"smatrix"``, Redheffer's star product of layer scattering matrices (Rumpf 2011).
         They agree to round-off (tests/rcwa/test_stack_methods.py).
-    fast_paths: where a 1D stack has every k_y = 0 (classical mount) and the ETM stack is
-        used, TE and TM are solved apart on N x N blocks (rcwa/cpp/polarized.hpp), and for
-        ``pol="s"`` or ``"p"`` only that one: the other polarization's efficiencies and
-        amplitudes are then NaN. Lossless 1D layers (real permittivity everywhere) are
-        solved with Hermitian eigen-solvers (zheevd / zhegvd), their inverses taken from the
-        eigenvectors, and in real arithmetic (dsyevd / dsygvd, "real_arithmetic") where the
-        layer is symmetric about a point (moving the origin there makes its matrices real).
-        A 2D cell with a mirror (rcwa.symmetry) the incidence respects
-        (x -> -x at k_x = 0: normal incidence or phi = +-90; y -> -y at k_y = 0: phi = 0
-        or 180) is solved in mirror-symmetry sectors (rcwa/cpp/sectors.hpp), only those
-        the asked polarization excites (for ``"s"`` or ``"p"`` the other's values are
-        NaN). Otherwise a stack of one patterned layer (2D, or 1D off the classical mount)
-        is solved as one 4N x 4N boundary system ("single_layer_direct", rcwa/cpp/stack.cpp)
-        instead of through the layer's W^-1 and V^-1. Lossy 1D layers below 75 harmonics
-        take their eigenvalues from the QR algorithm alone and their eigenvectors by inverse
-        iteration ("inverse_iteration", rcwa/cpp/linalg.hpp eig_small), 20 % faster than
-        zgeev there. Lossy 1D layers symmetric about a point (their matrices complex
-        symmetric once the origin is moved there) are solved before that as complex
-        symmetric problems ("complex_symmetric", rcwa/cpp/complex_symmetric.hpp: tridiagonal
-        form by complex-orthogonal reflectors, QL, inverse iteration, one refinement step
-        against the layer's own matrix), each accepted only on a residual check and
-        otherwise solved as above; about 2x faster than eig_small at 61 harmonics.
-        ``SolveResult.fast_paths`` names what was used. False
-        forces the general path (to check the fast ones: tests/rcwa/test_fast_paths.py,
-        tests/rcwa/test_sectors.py); the two agree to 1e-12.
+    fast_paths: take the fast paths where they apply (this module's docstring lists them;
+        ``SolveResult.fast_paths`` names what was used). False forces the general path (to
+        check the fast ones: tests/rcwa/test_fast_paths.py, tests/rcwa/test_sectors.py); the
+        two agree to 1e-12.
     """
     pol = _polarization(pol)
     method = stack_method(stack)

@@ -15,6 +15,9 @@ from importlib import resources
 from pathlib import Path
 from typing import Any
 
+import tomli_w
+from shapely.geometry import Polygon as ShapelyPolygon
+
 from rcwa.materials import Material, material_from_spec
 from rcwa.shapes import Circle, Polygon, Rect, Shape, Shape2D, Stripe
 from workbench.core import validation
@@ -100,8 +103,6 @@ class Structure:
         cls, data: dict[str, Any], *, source: str = "<dict>", base_dir: Path | None = None, text: str | None = None
     ) -> "Structure":
         if text is None:
-            import tomli_w
-
             # The same structure as TOML, so that tables can store and re-read it.
             try:
                 text = tomli_w.dumps(data)
@@ -243,8 +244,6 @@ def _parse_2d(kind: str, value: Any, where: str, mat: Material) -> Shape2D:
         if not isinstance(value, list) or len(value) < 3:
             raise UserInputError("must list at least 3 vertices", field=where, expected="[[x, y], ...]", got=value)
         vertices = tuple(_pair(v, f"{where}[{i}]") for i, v in enumerate(value))
-        from shapely.geometry import Polygon as ShapelyPolygon
-
         outline = ShapelyPolygon(vertices)
         if not outline.is_valid or outline.area <= 0:
             raise UserInputError("the polygon must be simple (no self-crossing) with non-zero area", field=where, got=value)

@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import json
 import math
+import platform
 import time
 from dataclasses import asdict, dataclass
 from pathlib import Path
@@ -36,6 +37,8 @@ import rcwa
 from rcwa.structure import Structure
 from rcwa.sweep import sweep_directions
 from workbench.core.files import atomic_write_csv, atomic_write_text
+from workbench.core.plots import new_figure, save_figure
+from workbench.core.version import versions
 
 GRAZING_SIN = math.sin(math.radians(89.999))
 
@@ -168,11 +171,7 @@ def study_steps(cfg: StudyConfig) -> int:
 
 
 def run_study(structure: Structure, out: str | Path, cfg: StudyConfig = StudyConfig(), *, progress: bool = True) -> dict:
-    import platform
-
-    from tqdm import tqdm
-
-    from workbench.core.version import versions
+    from tqdm import tqdm  # deferred: start-up time
 
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
@@ -193,8 +192,6 @@ def run_study(structure: Structure, out: str | Path, cfg: StudyConfig = StudyCon
 
 
 def _plot(truncation: list[dict], interpolation: list[dict], out: Path, name: str) -> None:
-    from workbench.core.plots import new_figure, save_figure
-
     fig, axes = new_figure()
     for rule in ("li", "laurent"):
         rows = [r for r in truncation if r["rule"] == rule]
