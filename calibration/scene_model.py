@@ -1,6 +1,7 @@
 """What calibration knows of a scene's geometry: edges to align with, and what hides them.
 
-Built from a renderer.scene.SceneSpec exactly as renderer/build.py places the objects:
+Built from a renderer.scene.SceneSpec with the renderer's placement of the objects
+(renderer.placement, the one definition the Mitsuba scene uses too):
 the measured Cornell box (renderer/data/cornell_box.json, mm, scaled to metres and by
 ``box.size``), the ceiling light rectangle, the CDs (annuli, a polycarbonate top 1.2 mm
 above the grating) and the glass cube and sphere.
@@ -27,7 +28,8 @@ from dataclasses import dataclass, field
 import cv2
 import numpy as np
 
-from renderer.scene import CD_TOP_THICKNESS_M, MM, SceneSpec, box_scale, cornell_data
+from renderer.placement import box_points_m, cd_top_center, cube_to_world
+from renderer.scene import SceneSpec, box_scale, cornell_data
 
 BOX_WALLS = ("floor_white", "ceiling_white", "back_wall_white", "right_wall_green", "left_wall_red")
 OCCLUSION_EPS_M = 2e-4  # a point on a surface is not hidden by that surface (nor by a neighbour within this)
@@ -85,10 +87,10 @@ def _orthonormal_pair(normal: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 
 def box_walls(spec: SceneSpec) -> dict[str, np.ndarray]:
-    """The box's five quads in metres, as renderer/build.py scales them."""
+    """The box's five quads in metres, scaled to the scene's box (renderer.placement.box_points_m)."""
     geometry = cornell_data()["geometry"]
     scale = box_scale(spec.box)
-    return {name: np.asarray(geometry[name], float) * MM * scale for name in BOX_WALLS}
+    return {name: box_points_m(geometry[name], scale) for name in BOX_WALLS}
 
 
 def light_corners(spec: SceneSpec) -> np.ndarray:
@@ -113,11 +115,10 @@ def _quad_segments(walls: dict[str, np.ndarray]) -> list[Segment]:
 
 
 def _cube_triangles(center: np.ndarray, size: float, rotation_deg: float) -> np.ndarray:
-    """A glass cube's 12 triangles as renderer/build.py places it (turned about y)."""
-    a = math.radians(rotation_deg)
-    R = np.array([[math.cos(a), 0, math.sin(a)], [0, 1, 0], [-math.sin(a), 0, math.cos(a)]])
-    corners = np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)], float) * size / 2
-    corners = corners @ R.T + center
+    """A glass cube's 12 triangles where the renderer places it (renderer.placement.cube_to_world)."""
+    to_world = cube_to_world(center, size, rotation_deg)
+    corners = np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)], float)  # Mitsuba's cube
+    corners = corners @ to_world[:3, :3].T + to_world[:3, 3]
     faces = [(0, 1, 3, 2), (4, 5, 7, 6), (0, 1, 5, 4), (2, 3, 7, 6), (0, 2, 6, 4), (1, 3, 7, 5)]
     return np.array([[corners[f[0]], corners[f[i]], corners[f[i + 1]]] for f in faces for i in (1, 2)])
 
@@ -132,7 +133,7 @@ def scene_model(spec: SceneSpec) -> SceneModel:
     for i, cd in enumerate(spec.cds):
         normal = np.asarray(cd.normal, float)
         base = np.asarray(cd.center, float)
-        top = base + (CD_TOP_THICKNESS_M * normal if cd.top_surface else 0.0)
+        top = cd_top_center(cd) if cd.top_surface else base
         circles.append(Circle(f"cd[{i}].rim", top, normal, cd.outer_radius))
         bases.append(base)
         discs += [(base, normal, cd.inner_radius, cd.outer_radius), (top, normal, cd.inner_radius, cd.outer_radius)]

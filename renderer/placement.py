@@ -55,11 +55,16 @@ def cd_top_center(cd: CDSpec) -> np.ndarray:
 
 
 def glass_cube_to_world(glass: GlassSpec) -> np.ndarray:
-    """A glass cube's transform from Mitsuba's [-1, 1]^3: edge ``size``, turned by
-    ``rotation_deg`` about the world's y axis (upright), centred at ``center``."""
-    c, s = math.cos(math.radians(glass.rotation_deg)), math.sin(math.radians(glass.rotation_deg))
+    """A glass cube's transform from Mitsuba's [-1, 1]^3 (cube_to_world of the scene's cube)."""
+    return cube_to_world(glass.center, glass.size, glass.rotation_deg)
+
+
+def cube_to_world(center, size: float, rotation_deg: float) -> np.ndarray:
+    """A cube's transform from Mitsuba's [-1, 1]^3: edge ``size``, turned by ``rotation_deg``
+    about the world's y axis (upright), centred at ``center``."""
+    c, s = math.cos(math.radians(rotation_deg)), math.sin(math.radians(rotation_deg))
     R = frame_to([0, 0, 1], 0.0) @ np.array([[c, 0, s], [0, 1, 0], [-s, 0, c]])  # about y
-    return transform(glass.center, R, (glass.size / 2,) * 3)
+    return transform(center, R, (size / 2,) * 3)
 
 
 def light_to_world(light: LightSpec) -> np.ndarray:
