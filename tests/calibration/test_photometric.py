@@ -64,7 +64,7 @@ def test_calibration_json_records_the_fringe_check(fringes) -> None:
         assert record["residual_after"] <= record["residual_before"], name  # BOBYQA keeps its best point
         assert len(record["suggested_rotation_delta_deg"]) == 3
         assert record["accepted"] is False and record["reason"], name  # a check by default (PoseSettings)
-        assert record["seconds"] < 60.0, name
+        assert record["seconds"] > 0, name  # its time is recorded; the 60 s bar is benchmarks/bench_calibration.py's
 
 
 @pytest.mark.slow

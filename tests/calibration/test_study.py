@@ -65,7 +65,6 @@ def test_full_resolution_meets_the_bars_and_a_quarter_costs_accuracy(study) -> N
     full, quarter = ([r for r in data["error_vs_time"] if r["factor"] == "scale" and r["scale"] == s][0] for s in (1.0, 0.25))
     for key, bar in BARS.items():
         assert full[key] < bar, (key, full)
-    assert quarter["seconds"] < full["seconds"], (quarter, full)
     assert quarter["centre_mm"] > QUARTER_CENTRE_FACTOR * full["centre_mm"], (quarter, full)
     (knots,) = data["response_knots"]
     assert knots["knots"] == 3 and knots["response_rms_pct"] < RESPONSE_RMS_PCT

@@ -17,7 +17,6 @@ import math
 import subprocess
 import sys
 import threading
-import time
 from pathlib import Path
 
 import numpy as np
@@ -213,25 +212,41 @@ def test_eig_from_guess_names_values_and_vectors():
 
 
 def test_the_gil_is_released_while_the_core_sweeps():
-    """The main thread keeps running Python while another thread is inside the core."""
+    """The main thread runs Python while another thread is inside the core.
+
+    Decided by order of events, not by a clock (issue 23): with the interpreter's switch
+    interval made huge, a thread holding the GIL keeps it until it blocks or releases it.
+    The worker sets ``entered`` and calls the core; the main thread, waiting on ``entered``,
+    can only run again when the worker releases the GIL. Released inside the core, the main
+    thread runs while the sweep goes on and sees ``finished`` still unset; held, it runs
+    only after the worker has returned and set ``finished``. The sweep (30 directions, about
+    a quarter of a second on an idle core) leaves the main thread that long to be scheduled.
+    """
     s = rcwa.load_structure("cd")
     prep = prepare(s, 550.0, 61)
     idx = [int(i) for i in kept_harmonics(prep.harmonics.m, prep.harmonics.n, (21,))]
-    kx0 = np.linspace(0.0, 0.9, 30)  # 30 distinct kx0: a quarter of a second on one thread, idle
+    kx0 = np.linspace(0.0, 0.9, 30)
     args = (prep.dkx, prep.dky, prep.zero, prep.eps_sup, prep.eps_sub, prep.core_layers, kx0, np.zeros(kx0.size),
             np.zeros(kx0.size), np.ones(kx0.size), idx, STACK_METHOD_OF["etm"], 1)
-    worker = threading.Thread(target=_core.sweep, args=args)
-    ticks = []
-    worker.start()
-    while worker.is_alive():
-        ticks.append(time.perf_counter())
-    worker.join()
-    duration = ticks[-1] - ticks[0]
-    largest_gap = float(np.max(np.diff(ticks))) if len(ticks) > 1 else duration
-    # Held, the GIL would stop this loop for the whole call (one gap of about `duration`);
-    # released, the gaps are the scheduler's (milliseconds).
-    assert duration > 0.1, "the workload is too small to tell"
-    assert largest_gap < 0.5 * duration
+    entered, finished = threading.Event(), threading.Event()
+
+    def sweep() -> None:
+        entered.set()
+        _core.sweep(*args)
+        finished.set()
+
+    previous = sys.getswitchinterval()
+    sys.setswitchinterval(1000.0)  # no forced GIL hand-over during the test
+    try:
+        worker = threading.Thread(target=sweep)
+        worker.start()
+        entered.wait()
+        seen_during_the_sweep = not finished.is_set()
+        worker.join()
+    finally:
+        sys.setswitchinterval(previous)
+    assert finished.is_set()
+    assert seen_during_the_sweep, "the main thread ran only after the core returned: the GIL was held"
 
 
 # ---------------------------------------------------------------- conventions

@@ -1,48 +1,48 @@
-"""Noise at equal time on the real scene (benchmarks/bench_noise.py, small settings).
+"""Noise at equal cost on the real scene (benchmarks/bench_noise.py, small settings).
 
-Asserted: at equal wall time, improved mode's error on cornell_cd's CD is at most half
-of paper mode's (GOAL_RATIO = 2, the issue's goal) in the relative RMS error, and at most
-a quarter (GOAL_RATIO^2, the same goal for a squared error) in the relative MSE; the
+Asserted: at equal samples per pixel, improved mode's error on cornell_cd's CD is at most
+half of paper mode's (GOAL_RATIO = 2, the issue's goal) in the relative RMS error, and at
+most a quarter (GOAL_RATIO^2, the same goal for a squared error) in the relative MSE; the
 references' own noise is removed from both.
 
-Settings: 160 x 120 (the CD, propped toward the camera since issue 15, covers 520
-pixels), BUDGET_S = 3 s per mode, two 8192-spp improved references (the same reference
-cost as 320 x 240 at 2048 spp). Paper mode's error is mostly bias there, which more time
-does not remove: with four wavelengths per ray its Delta test keeps the diffracted light
-on about one of them, so the CD comes out at about 45 % of its brightness. Measured on
-the tilted CD: paper 1.64 relative RMS error at 524 spp (2.7 s), improved 0.34 at 537 spp
-(2.7 s), 4.8x (relative MSE 5.8x). With the CD lying flat (before issue 15; 260 pixels):
-paper 0.70 at 1024 spp (2.3 s), 0.72 at 256; improved 0.22 at 1024 spp (2.0 s), 0.34 at
-256; ``make bench`` (640 x 480, 20 s per mode) measured 3.8x in relative RMS error and 45x
-in relative MSE.
+Why samples, not seconds (issue 23): a test that measures "equal time" with the clock
+fails on a busy machine. The sample count is a deterministic cost, and the modes' samples
+cost about the same: ``make bench`` (bench_noise, timed) measured 524 paper and 537 improved
+spp in the same 2.7 s here, so equal samples favour paper mode by 2-3 % and the assertion
+is, if anything, conservative. The timed comparison stays in the benchmark.
 
-Timing. bench_noise scales each error to the budget by sqrt(seconds / budget), which is
-right for noise but not for a bias: a paper render that ran over the budget would have
-its bias inflated. Paper mode's error is therefore taken conservatively, as the error it
-reached times min(1, sqrt(seconds / budget)), never more than its true error at the
-budget (more time cannot lower an error faster than 1 / sqrt(t)), so a busy machine can
-make the test fail but not pass wrongly. Improved mode is unbiased, so its scaling holds.
+Settings: 160 x 120 (the CD, propped toward the camera since issue 15, covers 520 pixels),
+SPP = 512 per mode, two 8192-spp improved references. Paper mode's error is mostly bias
+there, which more samples do not remove: with four wavelengths per ray its Delta test keeps
+the diffracted light on about one of them, so the CD comes out at about 45 % of its
+brightness. Measured with these settings: paper 1.64 relative RMS error, improved 0.36 (4.5x;
+relative MSE 0.214 against 0.0175, 12x).
+
+Noise allowed. Improved mode's error is Monte Carlo noise; its relative RMS error is
+estimated over the CD's ~520 pixels, so the estimate itself spreads by about
+sqrt(2 / 520) = 6 % between seeds or CPUs, and the reference noise subtracted from it is
+smaller still (2 x 8192 spp against 512). The measured 4.5x sits 2.2x above the bar of 2:
+a false alarm would need the error estimate to be 2.2x its expectation, about 20 of its
+standard deviations, with a false-alarm rate per run far below 1e-9. The assertion still
+catches a real loss: improved mode at 2.2x its noise, as if it had a fifth of its samples.
 """
 
 import pytest
 
 GOAL_RATIO = 2.0
 RESOLUTION = (160, 120)
-BUDGET_S = 3.0
+SPP = 512
 REFERENCE_SPP = 8192
 
 
 @pytest.mark.slow
-def test_improved_has_at_most_half_the_error_at_equal_time(mitsuba_variant):
-    from benchmarks.bench_noise import noise_at_equal_time
+def test_improved_has_at_most_half_the_error_at_equal_samples(mitsuba_variant):
+    from benchmarks.bench_noise import noise_at_equal_samples
 
-    r = noise_at_equal_time(resolution=RESOLUTION, budget_s=BUDGET_S, reference_spp=REFERENCE_SPP)
+    r = noise_at_equal_samples(resolution=RESOLUTION, spp=SPP, reference_spp=REFERENCE_SPP)
     paper, improved = r["modes"]["paper"], r["modes"]["improved"]
-    time_share = min(1.0, paper["seconds"] / BUDGET_S)
-    paper_rms = paper["relative_rms_error"] * time_share**0.5
-    paper_mse = paper["relative_mse"] * time_share
     print(r)
-    print(f"paper (conservative) {paper_rms:.3f} / {paper_mse:.4f}, improved {improved['at_budget']}")
     assert r["cd_pixels"] > 200
-    assert paper_rms >= GOAL_RATIO * improved["at_budget"]["relative_rms_error"]
-    assert paper_mse >= GOAL_RATIO**2 * improved["at_budget"]["relative_mse"]
+    assert paper["spp"] == improved["spp"] == SPP
+    assert paper["relative_rms_error"] >= GOAL_RATIO * improved["relative_rms_error"]
+    assert paper["relative_mse"] >= GOAL_RATIO**2 * improved["relative_mse"]

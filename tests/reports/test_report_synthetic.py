@@ -32,7 +32,6 @@ MEDIAN_BAR_PX = 0.5  # issue 15: photo vs render, median
 P95_BAR_PX = 1.5  # issue 15: photo vs render, 95th percentile
 PREDICTION_BAR_PX = 0.5  # issue 15: the prediction within 0.5 px (median) of both
 MIN_EDGES = 8  # band edges of quality ok in both images: fewer would make the p95 a guess
-BUILD_SECONDS = 30.0  # issue 15: a 640 x 480 report builds in under 30 s on 2 cores
 SIZE_BYTES = 15e6  # issue 15: the report folder under 15 MB
 KNOWN_ERROR_BAR_PX = 0.5  # issue 15: a known camera error is reported as the offset the grating equation gives, to 0.5 px
 KNOWN_ERROR_SPP = 32  # the wrong camera's render: the photo's noise dominates the pairs' anyway (64 spp measured 0.31 px)
@@ -92,7 +91,7 @@ def test_report_on_a_synthetic_pair_meets_the_bars(tmp_path_factory, tmp_path, c
     # the second measure is reported (no bar: issue 15 sets none; tests/reports/test_hue.py checks it against known
     # wavelengths); cornell_cd's clipped first orders leave it few or no crossings here
     assert {"median", "p95", "count"} <= set(report["hue_offset_px"])
-    assert report["seconds"] < BUILD_SECONDS
+    assert report["seconds"] > 0  # recorded; the 30 s bar is benchmarks/bench_report.py's (issue 23: no clock in tests)
     assert sum(f.stat().st_size for f in out.iterdir()) < SIZE_BYTES
     csv_text = (out / "fringes.csv").read_text()
     assert ",R," in csv_text and (",hue," in csv_text or report["hue_offset_px"]["count"] == 0)

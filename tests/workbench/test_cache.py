@@ -7,6 +7,7 @@ Every test here points WORKBENCH_CACHE (or XDG_CACHE_HOME, HOME) at its own tmp 
 import json
 import os
 from pathlib import Path
+from types import SimpleNamespace
 
 import pytest
 
@@ -51,9 +52,20 @@ def _fill(root: Path) -> None:
     (root / "meshes" / "abc.ply").write_text("ply\n" * 100)
 
 
+NOW = 1_800_000_000.0  # a fixed "now" and file times AGE_S before it: the ages are exact, whatever the clock (issue 23)
+AGE_S = 90.0
+
+
+def _age_files(root: Path, modified: float) -> None:
+    for path in [root, *root.rglob("*")]:
+        os.utime(path, (modified, modified))
+
+
 def test_list_shows_kind_size_age_and_state(tmp_path, monkeypatch, capsys):
     monkeypatch.setenv(cache.ENVIRONMENT_VARIABLE, str(tmp_path))
     _fill(tmp_path)
+    _age_files(tmp_path, NOW - AGE_S)
+    monkeypatch.setattr(cache, "time", SimpleNamespace(time=lambda: NOW))  # the cache module's clock only
     with cache.entry_lock(tmp_path / "tables" / "cd-2.zarr"):  # a build in progress
         assert main(["cache", "list", "--json"]) == 0
         data = json.loads(capsys.readouterr().out)
@@ -64,7 +76,7 @@ def test_list_shows_kind_size_age_and_state(tmp_path, monkeypatch, capsys):
     assert [by_name[n]["state"] for n in ("cd-1.zarr", "cd-2.zarr", "abc.ply")] == ["complete", "locked", "ready"]
     assert by_name["abc.ply"]["kind"] == "meshes" and by_name["abc.ply"]["bytes"] == 400
     assert by_name["cd-1.zarr"]["bytes"] == len(json.dumps({"attributes": {"complete": True}})) + 1000
-    assert all(0 <= e["age_s"] < 600 for e in data["entries"])
+    assert [e["age_s"] for e in data["entries"]] == [AGE_S] * 3
     assert "locked" in text and "3 entries" in text and ".lock" not in text
 
 

@@ -26,8 +26,8 @@ from workbench.cli import main
 from workbench.verify import STAGES, VerifySettings, open_run, verify
 
 SPP = 4  # the render stage at 4 spp: one pass per photo, a few seconds; the report only needs the pixels to exist
-# A re-run only hashes the inputs (17 MB of dataset files) and reads the scene: seconds, where the run took a minute.
-RERUN_SECONDS = 20.0
+# A re-run only hashes the inputs (17 MB of dataset files) and reads the scene: every stage is skipped (asserted from
+# run.json, not from the clock: issue 23).
 # The resumed calibration equals the uninterrupted run's up to round-off, which the fit amplifies: OpenCV's
 # parallel sums move the intrinsics by ~1e-9 relative (1.4e-9 measured on dist[0]; tests/calibration saw 4.7e-9)
 # and the fit renders' film sums float32 samples in thread order, so two uninterrupted runs' pose fits end apart
@@ -89,13 +89,10 @@ def test_verify_ends_with_a_report_and_run_json(reference: tuple[Path, dict, flo
 def test_a_rerun_skips_every_stage(reference: tuple[Path, dict, float], dataset: Path,
                                    capsys: pytest.CaptureFixture[str]) -> None:
     out, _, _ = reference
-    start = time.perf_counter()
     code = main(["verify", str(dataset), "--scene", "cornell_cd", "--out", str(out), "--spp", str(SPP), "--quiet"])
-    seconds = time.perf_counter() - start
     printed = capsys.readouterr().out
     record = json.loads((out / "run.json").read_text())
     assert code == 0 and all(s["skipped"] for s in record["stages"].values()), record["stages"]
-    assert seconds < RERUN_SECONDS, seconds
     assert "report.html" in printed and "pose residual RMS" in printed and "fringe offset" in printed
 
 
