@@ -50,8 +50,8 @@ from reports.camera_draws import CAMERA_STD_KEYS, draw_cameras
 from reports.camera_file import FittedCamera, check_scene, read_camera, read_response
 from reports.exposure_merge import merge_highlights
 from reports.hue import HUE_LEVELS_NM, find_hue_crossings, hue_scale
-from reports.prediction import Prediction, cd_bbox, cd_geometry, predict
-from reports.rim import fit_rim
+from reports.prediction import CDGeometry, Prediction, cd_bbox, cd_geometry, predict
+from reports.rim import Rim, fit_rim
 from workbench.core.errors import UserInputError
 from workbench.core.files import atomic_write_text
 
@@ -221,6 +221,67 @@ def _prediction_spread(spec, fitted: FittedCamera, grids, reference: list) -> tu
              "edge_rms_px_p95": float(np.percentile(values, 95)) if values else None}, band)
 
 
+def _cd_result(pred: Prediction, cd: CDGeometry, expected_rim: np.ndarray, photo_rim: Rim | None,
+               render_rim: Rim | None, measured: dict[str, Any]) -> dict[str, Any]:
+    """report.json's ``cd`` entry from the prediction, the rims and the measured fringes."""
+    return {
+        "status": "measured", "orders_predicted": pred.orders, "period_um": cd.period_um,
+        "top_dispersive": cd.top_dispersive, "prediction_seconds": pred.seconds,
+        "prediction_weighting": {"weighting": pred.weighting, "efficiency_table": pred.efficiency_source,
+                                 "order_efficiency": None if pred.order_efficiency is None else
+                                 {str(m): float(c) for m, c in zip(pred.orders, pred.order_efficiency, strict=True)}},
+        "rim": {"expected_center_px": expected_rim.mean(axis=0).tolist(),
+                "photo": photo_rim.to_json() if photo_rim else None, "render": render_rim.to_json() if render_rim else None},
+        "edge_quality": {name: _quality_counts(e) for name, e in measured["edges"].items()},
+        "offsets": measured["summary"],
+        "hue": {"offsets": measured["hue"]["summary"], "scale_nm": measured["hue"]["scale_nm"],
+                "levels_nm": list(HUE_LEVELS_NM),
+                "quality": {name: _quality_counts(e) for name, e in measured["hue"]["edges"].items()},
+                "how": "along circles, where the camera's hue (white-balanced on the light) turned into an equivalent "
+                       "wavelength with its spectral sensitivities passes each level; the prediction's hue leaves out "
+                       "the diffraction efficiency's change with wavelength, so its offsets carry that bias"},
+    }
+
+
+def _offsets_relative_to_rim(pred: Prediction, grids: tuple[polar.PolarGrid, ...], own: tuple[polar.PolarGrid, ...],
+                             photo: images.Photo, render: np.ndarray) -> dict[str, Any]:
+    """{median, p95, count} of photo-render edge offsets, each image relative to its own CD: the
+    photo's edges on the grids ``own`` (moved by the affine map between the rims), the render's on ``grids``."""
+    relative = []
+    for grid_ref, grid_own in zip(grids, own, strict=True):
+        sampled = _sampled_prediction(pred, grid_ref)
+        photo_edges = fringes.find_edges(grid_own, sampled, pred.orders, photo.rgb, photo.clipped, _correlation(photo))
+        render_edges = fringes.find_edges(grid_ref, sampled, pred.orders, render)
+        by_key = {e.key(): e for e in photo_edges}
+        step = float(np.nanmean(grid_ref.step_px()))
+        for a in render_edges:
+            b = by_key.get(a.key())
+            if b is not None and a.quality == "ok" and b.quality == "ok":
+                relative.append(abs(b.position - a.position) * step)
+    return {"median": float(np.median(relative)) if relative else float("nan"),
+            "p95": float(np.percentile(relative, 95)) if relative else float("nan"), "count": len(relative)}
+
+
+def _cd_notes(result: dict[str, Any], cd: CDGeometry, photo: images.Photo, messages: list[str],
+              problems: list[str]) -> None:
+    """What the reader should know about the CD's measurement (``messages``) and what failed (``problems``)."""
+    if not cd.top_dispersive:
+        messages.append("CD: the scene's polycarbonate top is not dispersive (the mean index over 360-830 nm): the "
+                        "orders' directions in air are exact (the grating under it uses the same index), but the "
+                        "top's refraction and Fresnel transmission are the mean index's, which may shift the render's "
+                        "colours by 2-4 nm against a real CD's; the prediction uses the same top")
+    unsaturated = result["offsets"]["prediction_photo"]["count"]
+    if unsaturated < MIN_PREDICTION_EDGES and photo.clipped.any():
+        messages.append(f"CD: the prediction is compared with the photo on {unsaturated} band edges only: the photo's bands "
+                        "saturate (a saturated band's edge is not a half-maximum edge); photo and render are compared "
+                        "through the photo's saturation instead")
+    photo_quality = result["edge_quality"]["photo"]
+    ok_photo = photo_quality.get("ok", 0) + photo_quality.get("clipped", 0)  # a saturated band is visible
+    if ok_photo < MIN_OK_EDGES:
+        problems.append(f"CD: no fringes visible in the photo where the grating equation puts them ({ok_photo} band "
+                        f"edges of quality ok; {result['edge_quality']['photo']})")
+
+
 def analyse_cd(spec, fitted: FittedCamera, photo: images.Photo, render: np.ndarray, messages: list[str],
                problems: list[str], as_taken: images.Photo | None = None) -> dict[str, Any]:
     """Everything about the CD (module docstring, step 4); ``problems`` for what could not be
@@ -242,60 +303,16 @@ def analyse_cd(spec, fitted: FittedCamera, photo: images.Photo, render: np.ndarr
     render_rim = fit_rim(render, expected_rim)
     grids = polar.standard_grids(camera, cd)
     measured = measure_fringes(pred, photo, render, grids, camera.fx, as_taken)
-    result: dict[str, Any] = {
-        "status": "measured", "orders_predicted": pred.orders, "period_um": cd.period_um,
-        "top_dispersive": cd.top_dispersive, "prediction_seconds": pred.seconds,
-        "prediction_weighting": {"weighting": pred.weighting, "efficiency_table": pred.efficiency_source,
-                                 "order_efficiency": None if pred.order_efficiency is None else
-                                 {str(m): float(c) for m, c in zip(pred.orders, pred.order_efficiency, strict=True)}},
-        "rim": {"expected_center_px": expected_rim.mean(axis=0).tolist(),
-                "photo": photo_rim.to_json() if photo_rim else None, "render": render_rim.to_json() if render_rim else None},
-        "edge_quality": {name: _quality_counts(e) for name, e in measured["edges"].items()},
-        "offsets": measured["summary"],
-        "hue": {"offsets": measured["hue"]["summary"], "scale_nm": measured["hue"]["scale_nm"],
-                "levels_nm": list(HUE_LEVELS_NM),
-                "quality": {name: _quality_counts(e) for name, e in measured["hue"]["edges"].items()},
-                "how": "along circles, where the camera's hue (white-balanced on the light) turned into an equivalent "
-                       "wavelength with its spectral sensitivities passes each level; the prediction's hue leaves out "
-                       "the diffraction efficiency's change with wavelength, so its offsets carry that bias"},
-    }
+    result = _cd_result(pred, cd, expected_rim, photo_rim, render_rim, measured)
     if photo_rim and render_rim:
         result["rim"]["photo_minus_render_center_px"] = [photo_rim.center[0] - render_rim.center[0],
                                                          photo_rim.center[1] - render_rim.center[1]]
-        affine = render_rim.affine_to(photo_rim)[:2]
-        own = polar.standard_grids(camera, cd, affine)
-        relative = []
-        for grid_ref, grid_own in zip(grids, own, strict=True):
-            sampled = _sampled_prediction(pred, grid_ref)
-            photo_edges = fringes.find_edges(grid_own, sampled, pred.orders, photo.rgb, photo.clipped, _correlation(photo))
-            render_edges = fringes.find_edges(grid_ref, sampled, pred.orders, render)
-            by_key = {e.key(): e for e in photo_edges}
-            step = float(np.nanmean(grid_ref.step_px()))
-            for a in render_edges:
-                b = by_key.get(a.key())
-                if b is not None and a.quality == "ok" and b.quality == "ok":
-                    relative.append(abs(b.position - a.position) * step)
-        result["offsets"]["photo_render_relative_to_rim"] = {
-            "median": float(np.median(relative)) if relative else float("nan"),
-            "p95": float(np.percentile(relative, 95)) if relative else float("nan"), "count": len(relative)}
+        own = polar.standard_grids(camera, cd, render_rim.affine_to(photo_rim)[:2])
+        result["offsets"]["photo_render_relative_to_rim"] = _offsets_relative_to_rim(pred, grids, own, photo, render)
     else:
         problems.append("CD: the rim ellipse was not found in " + " and ".join(
             name for name, rim in (("the photo", photo_rim), ("the render", render_rim)) if rim is None))
-    if not cd.top_dispersive:
-        messages.append("CD: the scene's polycarbonate top is not dispersive (the mean index over 360-830 nm): the "
-                        "orders' directions in air are exact (the grating under it uses the same index), but the "
-                        "top's refraction and Fresnel transmission are the mean index's, which may shift the render's "
-                        "colours by 2-4 nm against a real CD's; the prediction uses the same top")
-    unsaturated = result["offsets"]["prediction_photo"]["count"]
-    if unsaturated < MIN_PREDICTION_EDGES and photo.clipped.any():
-        messages.append(f"CD: the prediction is compared with the photo on {unsaturated} band edges only: the photo's bands "
-                        "saturate (a saturated band's edge is not a half-maximum edge); photo and render are compared "
-                        "through the photo's saturation instead")
-    photo_quality = result["edge_quality"]["photo"]
-    ok_photo = photo_quality.get("ok", 0) + photo_quality.get("clipped", 0)  # a saturated band is visible
-    if ok_photo < MIN_OK_EDGES:
-        problems.append(f"CD: no fringes visible in the photo where the grating equation puts them ({ok_photo} band "
-                        f"edges of quality ok; {result['edge_quality']['photo']})")
+    _cd_notes(result, cd, photo, messages, problems)
     spread, band = _prediction_spread(spec, fitted, grids, measured["edges"]["prediction"])
     result["prediction_uncertainty"] = spread if spread else "the calibration gives no standard deviations"
     result["_band"] = band
@@ -424,6 +441,53 @@ def _photo(inputs: Inputs, messages: list[str]) -> tuple[images.Photo, images.Ph
     return recorded, recorded
 
 
+def _error_maps(photo: np.ndarray, aligned: np.ndarray, photo_display: np.ndarray, render_display: np.ndarray,
+                masks: dict[str, np.ndarray], messages: list[str]) -> tuple[dict[str, np.ndarray], float, str]:
+    """The error maps (relative error, CIEDE2000 and, where installed, FLIP), the display exposure
+    that brings the walls to mid grey, and FLIP's note. ``photo`` and ``aligned`` (the render in
+    the photo's units) in camera RGB, the displays in linear sRGB."""
+    walls = np.zeros(photo.shape[:2], bool)
+    for name in images.WALL_REGIONS:
+        walls |= masks.get(name, False)
+    wall_level = float(np.median(photo_display[walls].mean(axis=1))) if walls.any() else float(np.median(photo_display))
+    exposure = metrics.MID_GREY / max(wall_level, 1e-12)
+    maps = {"relative error": metrics.relative_error(photo, aligned, float(np.median(photo[walls])) if walls.any()
+                                                     else float(np.median(photo))),
+            "CIEDE2000": metrics.ciede2000(photo_display, render_display, exposure)}
+    flip_map, flip_note = metrics.flip(photo_display * exposure, render_display * exposure)
+    if flip_map is not None:
+        maps["FLIP"] = flip_map
+    else:
+        messages.append(f"FLIP: {flip_note}")
+    return maps, exposure, flip_note
+
+
+def _headline_offsets(cd: dict[str, Any]) -> dict[str, Any]:
+    """report.json's headline offsets, taken from the CD's entry (None and count 0 where not measured)."""
+    offsets = cd.get("offsets", {})
+    headline = {"fringe_offset_px": offsets.get("photo_render", {"median": None, "p95": None, "count": 0})}
+    if "photo_render_unclipped" in offsets:
+        headline["fringe_offset_unclipped_px"] = offsets["photo_render_unclipped"]
+    headline["prediction_offset_px"] = {"photo": offsets.get("prediction_photo"), "render": offsets.get("prediction_render")}
+    hue_offsets = (cd.get("hue") or {}).get("offsets", {})
+    headline["hue_offset_px"] = hue_offsets.get("photo_render", {"median": None, "p95": None, "count": 0})
+    return headline
+
+
+def _fringe_rows(cd: dict[str, Any]) -> tuple[list[dict], list[dict]]:
+    """fringes.csv's rows (every edge found: band edges, then hue crossings) and the page's
+    photo-render pairs."""
+    edge_rows: list[dict] = []
+    pair_rows: list[dict] = []
+    if "_measured" in cd:
+        for group in (cd["_measured"]["edges"], cd["_measured"]["hue"]["edges"]):  # band edges, then hue crossings
+            for name, edges in group.items():
+                for kind, e in edges:
+                    edge_rows += _edge_rows(name, kind, [e])
+        pair_rows = _pair_rows(cd["_measured"]["pairs"]["photo_render"] + cd["_measured"]["hue"]["pairs"]["photo_render"])
+    return edge_rows, pair_rows
+
+
 def build_report(inputs: Inputs) -> dict[str, Any]:
     """Write DIR/report.json, DIR/fringes.csv and DIR/report.html; returns report.json's content."""
     started = time.perf_counter()
@@ -442,19 +506,7 @@ def build_report(inputs: Inputs) -> dict[str, Any]:
 
     matrix = images.display_matrix(spec)
     photo_display, render_display = images.to_display(photo.rgb, matrix), images.to_display(aligned, matrix)
-    walls = np.zeros(photo.rgb.shape[:2], bool)
-    for name in images.WALL_REGIONS:
-        walls |= masks.get(name, False)
-    wall_level = float(np.median(photo_display[walls].mean(axis=1))) if walls.any() else float(np.median(photo_display))
-    exposure = metrics.MID_GREY / max(wall_level, 1e-12)
-    maps = {"relative error": metrics.relative_error(photo.rgb, aligned, float(np.median(photo.rgb[walls])) if walls.any()
-                                                     else float(np.median(photo.rgb))),
-            "CIEDE2000": metrics.ciede2000(photo_display, render_display, exposure)}
-    flip_map, flip_note = metrics.flip(photo_display * exposure, render_display * exposure)
-    if flip_map is not None:
-        maps["FLIP"] = flip_map
-    else:
-        messages.append(f"FLIP: {flip_note}")
+    maps, exposure, flip_note = _error_maps(photo.rgb, aligned, photo_display, render_display, masks, messages)
     limits = {"relative error": RELATIVE_MAX, "CIEDE2000": DELTA_E_MAX, "FLIP": FLIP_MAX}
     statistics = metrics.region_statistics(maps, masks)
 
@@ -472,21 +524,8 @@ def build_report(inputs: Inputs) -> dict[str, Any]:
         "metrics": {"per_region": statistics, "flip": flip_note, "limits_shown": limits},
         "cd": cd, "problems": problems, "messages": messages,
     }
-    offsets = cd.get("offsets", {})
-    report["fringe_offset_px"] = offsets.get("photo_render", {"median": None, "p95": None, "count": 0})
-    if "photo_render_unclipped" in offsets:
-        report["fringe_offset_unclipped_px"] = offsets["photo_render_unclipped"]
-    report["prediction_offset_px"] = {"photo": offsets.get("prediction_photo"), "render": offsets.get("prediction_render")}
-    hue_offsets = (cd.get("hue") or {}).get("offsets", {})
-    report["hue_offset_px"] = hue_offsets.get("photo_render", {"median": None, "p95": None, "count": 0})
-
-    edge_rows, pair_rows = [], []
-    if "_measured" in cd:
-        for group in (cd["_measured"]["edges"], cd["_measured"]["hue"]["edges"]):  # band edges, then hue crossings
-            for name, edges in group.items():
-                for kind, e in edges:
-                    edge_rows += _edge_rows(name, kind, [e])
-        pair_rows = _pair_rows(cd["_measured"]["pairs"]["photo_render"] + cd["_measured"]["hue"]["pairs"]["photo_render"])
+    report |= _headline_offsets(cd)
+    edge_rows, pair_rows = _fringe_rows(cd)
     report["seconds"] = time.perf_counter() - started
 
     inputs.out.mkdir(parents=True, exist_ok=True)
