@@ -17,11 +17,29 @@
   = theta), averaged over the pixel's footprint. Tolerance 1 % per pixel: the
   small-light approximation is off by about (n + 4) (size / distance)^2 / 4, under 0.3 %
   for n <= 3; stratified sampling leaves about 0.1 % noise (measured largest errors:
-  0.14 % for n = 0, 0.30 % for n = 3). The scalar run, 6 x 6 pixels at 64 spp: 3 %.
+  0.14 % for n = 0, 0.30 % for n = 3). The scalar run, 6 x 6 pixels at 64 spp: 6 %.
 * n = 0 through the plugin renders the same Cornell-like scene as Mitsuba's area light
-  within noise (mean within 1 %, pixels within 5 sigma of their difference's spread).
+  within noise (mean within 1 %, pixels within 6 sigma of their difference's spread).
 * The scene file's ``emission_profile`` reaches the built scene, which renders with the
   path and direct integrators; bad profiles are rejected in test_scene_render.py.
+
+Noise allowed and false alarms (issue 23); only Monte Carlo noise (no photo), measured
+over seeds on this machine, Gaussian tails (means of >= 64 samples; pixel values' excess
+kurtosis 0.03, skewness 0.5, and a difference of two renders is symmetric), union bounds:
+* sampling: 6 means of 200,000 samples; the 1 % bound is at least 7.5 standard errors
+  after the quadrature's bias (cos^4, off-axis: 0.12 % standard error, 0.10 % bias):
+  under 1e-13. A 1.5 % bias in the emitted irradiance fails it.
+* floor, 144 pixels x 2 profiles: pixel noise 0.05-0.14 % (40 seeds), bias under 0.13 %;
+  the worst pixel sits 6.5 standard errors inside 1 %: 3e-11 for the file. A 1.5 % error
+  in a cos^n profile's pixels (or any error in n, ~40 % at the floor's edge) fails it.
+* scalar, 36 pixels: pixel noise up to 0.83 % at 6 x 6 and 64 spp (measured with the
+  same sampler in llvm); 6 % is 6.9 standard errors past the 0.3 % bias: 2e-10 (3 %, as
+  before, was 3.2 standard errors: about 1 false alarm in 50 runs). A 6 % error fails it.
+* builtin vs plugin: the image means' relative difference has a spread of 0.19 % (30 seed
+  pairs), 1 % is 5.2 standard errors: 2e-7; 256 pixels at 6 sigma: 256 x 2 Q(6) = 5e-7
+  (5 sigma gave 1.5e-4; the largest over 30 pairs x 256 pixels was 4.6). A 1.5 % bias in
+  the plugin's radiance fails the mean; a 20 % error in one pixel fails the pixels.
+  With the same seed the plugin equals the area light to round-off (deterministic).
 """
 
 import math
@@ -186,7 +204,7 @@ def test_cos_power_zero_equals_the_builtin_area_light(mitsuba_variant):
     b, _ = _floor_render(mi, 0.0, builtin=False, res=16, spp=64, light_size=0.2, box=True, seed=4)
     assert b.mean() == pytest.approx(a.mean(), rel=0.01)
     diff = (a - b).ravel()
-    assert np.max(np.abs(diff)) < 5 * diff.std() + 1e-6
+    assert np.max(np.abs(diff)) < 6 * diff.std() + 1e-6  # 256 pixels: 256 x 2 Q(6) = 5e-7 false alarms
     # With the same seed the plugin draws the same samples as Mitsuba's area light and
     # gives its image to float round-off (it is area.cpp's algorithm for a uniform texture).
     c, _ = _floor_render(mi, 0.0, builtin=True, res=16, spp=64, light_size=0.2, box=True, seed=4)
@@ -202,7 +220,7 @@ def test_scalar_variant(tmp_path):
             "print(floor_check(3.0, res=6, spp=64))\n")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=tmp_path, timeout=300, check=False)
     assert out.returncode == 0, out.stderr
-    assert float(out.stdout.split()[-1]) < 0.03
+    assert float(out.stdout.split()[-1]) < 0.06  # 6.9 x the pixels' noise (0.83 %) past the 0.3 % bias
 
 
 def test_scene_file_profile_builds_and_renders(mitsuba_variant):
