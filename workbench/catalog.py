@@ -14,6 +14,10 @@ from dataclasses import dataclass
 from importlib import resources
 from pathlib import Path
 
+import numpy as np
+
+from workbench.core.errors import UserInputError
+
 DEFAULT_CAMERA = "Nikon 5100 (NPL)"  # renderer.scene's default sensitivities
 KINDS = ("structures", "scenes", "materials", "cameras")
 
@@ -44,19 +48,19 @@ def _first_comment(text: str) -> str:
 
 
 def _structures() -> list[Entry]:
-    from rcwa.structure import BUILTIN_STRUCTURES
+    from rcwa.structure import BUILTIN_STRUCTURES  # deferred: rcwa.structure pulls in scipy (start-up time)
 
     return [Entry(n, _toml_description("rcwa.structures", n)) for n in BUILTIN_STRUCTURES]
 
 
 def _scenes() -> list[Entry]:
-    from renderer.scene import BUILTIN_SCENES
+    from renderer.scene import BUILTIN_SCENES  # deferred: the renderer pulls in scipy (start-up time)
 
     return [Entry(n, _toml_description("renderer.scenes", n)) for n in BUILTIN_SCENES]
 
 
 def _materials() -> list[Entry]:
-    from rcwa.materials import BUILTIN_MATERIALS
+    from rcwa.materials import BUILTIN_MATERIALS  # deferred: rcwa.materials pulls in scipy (start-up time)
 
     entries = []
     for name in BUILTIN_MATERIALS:
@@ -66,7 +70,7 @@ def _materials() -> list[Entry]:
 
 
 def _cameras() -> list[Entry]:
-    import colour
+    import colour  # deferred: start-up time
 
     names = sorted(colour.MSDS_CAMERA_SENSITIVITIES)
     return [Entry(n, "measured RGB spectral sensitivities (colour-science)" + (", the default" if n == DEFAULT_CAMERA else ""))
@@ -86,8 +90,7 @@ def table_info(path: str | Path) -> dict:
     or unfinished table is reported (``integrity``) rather than refused, since finding
     out is why one asks.
     """
-    from rcwa.table import open_table, read_table_metadata
-    from workbench.core.errors import UserInputError
+    from rcwa.table import open_table, read_table_metadata  # deferred: rcwa.table pulls in scipy (start-up time)
 
     path = Path(path)
     meta = read_table_metadata(path)
@@ -117,14 +120,12 @@ def _planned(path: Path, settings: dict) -> dict | None:
     """A planned table (rcwa.table.NodePlan): how many nodes hold the table's orders, the others' orders."""
     if not settings.get("planned_nodes_sha256"):
         return None
-    import numpy as np
-
-    from rcwa.table import PLANNED_NODES
+    from rcwa.table import PLANNED_NODES  # deferred: as in table_info
 
     solved: int | None = None
     total: int | None = None
     try:
-        import zarr
+        import zarr  # deferred: start-up time
 
         mask = np.asarray(zarr.open_array(str(path / PLANNED_NODES), mode="r")[:], bool)
         solved, total = int(mask.sum()), int(mask.size)

@@ -18,6 +18,10 @@ from __future__ import annotations
 
 import time
 
+from datasets_synthetic.synth import synth
+from workbench.score import format_score, score_run
+from workbench.verify import VerifySettings, format_summary, verify
+
 DEMO_SCENE = "cornell_cd"
 DEMO_DATASET = "out/demo/dataset"
 DEMO_RUN = "out/demo/run"
@@ -26,10 +30,6 @@ DEMO_PHOTOS = ("view0.dng",)  # the first photo only (see the docstring)
 
 
 def run_demo() -> int:
-    from datasets_synthetic.synth import synth
-    from workbench.score import format_score, score_run
-    from workbench.verify import VerifySettings, format_summary, verify
-
     started = time.perf_counter()
     print(f"1/3 the default synthetic dataset: workbench synth {DEMO_SCENE} --seed {DEMO_SEED} (draft) "
           f"-> {DEMO_DATASET}", flush=True)

@@ -25,8 +25,10 @@ from typing import Any
 import numpy as np
 
 from calibration.pose_study import centre_error_mm, expected_exposure_scale, fov_deg, rotation_error_deg
+from calibration.response import response_rms
 from workbench.core.errors import UserInputError
 from workbench.core.files import atomic_write_text
+from workbench.verify_run import read_record
 
 SCORE_FORMAT = "workbench-score"
 WORST_KEYS = ("rotation_deg", "centre_mm", "fov_deg", "principal_point_pct", "exposure_light_pct", "response_rms_pct")
@@ -35,8 +37,6 @@ WORST_KEYS = ("rotation_deg", "centre_mm", "fov_deg", "principal_point_pct", "ex
 def calibration_errors(result: dict, truth: dict) -> dict[str, Any]:
     """calibration.json's ``result`` against truth.json's ``truth`` (module docstring): the worst
     photo's value of each error, and ``per_photo`` ones."""
-    from calibration.response import response_rms
-
     c, t = result["camera"], truth["camera"]
     per_photo: dict[str, dict[str, Any]] = {}
     for photo in sorted(c["world_to_camera"]):
@@ -114,8 +114,6 @@ def _check_truth(truth: dict, path: Path, photos: list[str]) -> None:
 
 def score_run(run: str | Path, truth_path: str | Path) -> dict[str, Any]:
     """Compare RUN's calibration and reports with the truth; writes and returns RUN/score.json's content."""
-    from workbench.verify import read_record
-
     root, truth_path = Path(run), Path(truth_path)
     record = read_record(root)
     if record is None:

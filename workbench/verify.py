@@ -15,7 +15,7 @@ report         reports.report: each photo against its render, its clipped highli
 
 The tables stage builds whole tables: calibration re-renders the scene from many
 cameras (renderer.fit), and a whole table in the cache serves the render's plan too
-(renderer.build.table_plan), so the plan stage's planned fractions and costs are what a
+(renderer.tables.table_plan), so the plan stage's planned fractions and costs are what a
 render of the scene's camera alone would need, recorded for the user (RUN/plan/plan.txt).
 
 RUN/scene.toml is the scene as the run uses it: the user's scene with every CD's and
@@ -27,44 +27,48 @@ per pixel (2045) and paper tables; the paper's 978 x 734 frame is a dataset's
 (``workbench synth --preset full``).
 
 A stage's key is the SHA-256 of its input files' bytes, its settings and the workbench
-version. A stage runs in ``RUN/.staging/NAME`` (marked with its key) and, once complete,
-the folder is moved into place in one rename, carrying the key in ``.stage-key``: a
-finished stage is one whose folder holds its current key, and is skipped. A killed run
-leaves the staging folder; the next run with the same key keeps it (a render resumes
-from its saved passes and finished photos, the report from its finished photos, the
-table build from its finished chunks in the cache; the calibration, one optimisation,
-starts again) and a changed key clears it. RUN/run.json records the settings, versions, each stage's
-key, status, estimate and timings, and the summary. verify never reads truth.json
-(``workbench score`` does, workbench.score).
+version; a finished stage is one whose folder holds its current key, and is skipped
+(workbench.verify_run: the run's folder, its record, the staging of each stage and the
+lock). A killed run leaves the staging folder; the next run with the same key keeps it
+(a render resumes from its saved passes and finished photos, the report from its
+finished photos, the table build from its finished chunks in the cache; the calibration,
+one optimisation, starts again) and a changed key clears it. RUN/run.json records the
+settings, versions, each stage's key, status, estimate and timings, and the summary.
+verify never reads truth.json (``workbench score`` does, workbench.score).
 """
 
 from __future__ import annotations
 
-import hashlib
 import json
 import os
-import shutil
 import time
-from collections.abc import Callable, Iterator
-from contextlib import contextmanager
-from dataclasses import asdict, dataclass, field
+import tomllib
 from pathlib import Path
 from typing import Any
 
-from workbench.core.errors import UserInputError
-from workbench.core.files import atomic_write_text, file_sha256
-from workbench.core.version import __version__ as workbench_version
-from workbench.core.version import versions
+import numpy as np
+import tomli_w
+from PIL import Image
+from tqdm import tqdm
 
-RUN_FORMAT = "workbench-verify"
-STAGES = ("plan", "tables", "calibration", "render", "report")
+from calibration.dataset import calibrate_dataset, dataset_files
+from calibration.decode import is_raw
+from rcwa.structure import BUILTIN_STRUCTURES
+from rcwa.table import build_table
+from renderer.planner import format_plan, plan_scene
+from renderer.render import render
+from renderer.scene import CDSpec, GratingSpec, SceneSpec, load_scene
+from renderer.tables import table_plan
+from reports.report import Inputs, build_report
+from workbench.core.errors import UserInputError
+from workbench.core.executor import DaskExecutor
+from workbench.core.files import atomic_write_text
+from workbench.verify_run import PRESETS, STAGES, Run, VerifySettings, open_run, read_record, run_lock, run_stage
+
+__all__ = ["STAGES", "VerifySettings", "format_summary", "open_run", "read_record", "run_lock", "verify"]
+
 DATASET_FOLDERS = ("photos", "brackets", "calibration")  # all calibration reads; never truth.json
-PRESETS: dict[str, dict[str, Any]] = {"draft": {"tables": "draft", "spp": 256}, "paper": {"tables": "paper", "spp": 2045}}
 PAPER_RESOLUTION = (978, 734)  # the paper's frame (renderer.render's paper preset)
-KEY_FILE = ".stage-key"  # in a finished stage's folder: the key it was made for
-DONE_FILE = ".stage-done"  # in a staging folder whose work finished (moved into place next)
-VERSIONED = ("numpy", "scipy", "mitsuba", "drjit", "opencv", "rawpy", "nlopt", "zarr")
-OWN_NAMES = (*STAGES, ".staging", "scene.toml", "run.json")  # what a run writes in RUN; --force removes only these
 # The scene's image aspect may differ from the photos' by its resolution's rounding: one pixel
 # of 245 (cornell_cd: 326 x 245 for a 25 x 18.8 mm sensor) is 0.4 %; a different camera is off by far more.
 ASPECT_TOLERANCE = 0.01
@@ -77,74 +81,18 @@ SECONDS_RENDER_LOAD = 2.5  # building the Mitsuba scene, per photo
 SECONDS_PER_REPORT = 6.0  # one photo's report (masks, fringes, error maps, page)
 
 
-@dataclass(frozen=True)
-class VerifySettings:
-    """What a run is asked to do; ``scheduler`` and ``progress`` change how, not what."""
-
-    preset: str = "draft"
-    spp: int | None = None  # render samples per pixel (default: the preset's)
-    seed: int = 0  # the render's seed
-    integrator: str = "path"
-    mode: str = "improved"
-    photos: tuple[str, ...] = ()  # photo file names to render and report (default: every photo)
-    board: tuple[int, int] | None = None  # checkerboard inner corners (default: calibration's)
-    square_mm: float | None = None
-    scheduler: str | None = field(default=None, compare=False)
-    progress: bool = field(default=True, compare=False)
-
-    @property
-    def render_spp(self) -> int:
-        return int(self.spp if self.spp is not None else PRESETS[self.preset]["spp"])
-
-    def to_json(self) -> dict[str, Any]:
-        data = asdict(self)
-        data["photos"], data["board"] = list(self.photos), list(self.board) if self.board else None
-        return data | {"render_spp": self.render_spp, "table_preset": PRESETS[self.preset]["tables"]}
-
-
-@dataclass
-class _Run:
-    """The run's folder, its record (run.json) and what every stage reads."""
-
-    root: Path
-    record: dict[str, Any]
-    dataset: Path
-    photos: list[Path]
-    size: tuple[int, int]
-    settings: VerifySettings
-    executor: Any = None
-
-    @property
-    def scene(self) -> Path:
-        return self.root / "scene.toml"
-
-    def save(self) -> None:
-        self.record["updated"] = time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime())
-        atomic_write_text(self.root / "run.json", json.dumps(self.record, indent=2) + "\n")
-
 
 # ---------------------------------------------------------------- inputs
 
 
-def stage_key(name: str, files: dict[str, Path], settings: dict[str, Any]) -> str:
-    """SHA-256 over the stage's name, each input file's name and bytes, its settings and the version."""
-    request = {"stage": name, "files": {k: file_sha256(p) for k, p in sorted(files.items())}, "settings": settings,
-               "version": workbench_version}
-    return hashlib.sha256(json.dumps(request, sort_keys=True).encode()).hexdigest()
-
-
 def photo_size(path: Path) -> tuple[int, int]:
     """(width, height) of a photo as calibration decodes it (raw: LibRaw's visible size)."""
-    from calibration.decode import is_raw
-
     try:
         if is_raw(path):
-            import rawpy
+            import rawpy  # deferred: LibRaw's binding, for raw photos only (start-up time)
 
             with rawpy.imread(str(path)) as raw:
                 return int(raw.sizes.width), int(raw.sizes.height)
-        from PIL import Image
-
         with Image.open(path) as image:
             return image.size
     except Exception as exc:  # noqa: BLE001 (LibRaw and Pillow raise many kinds for an unreadable file)
@@ -153,8 +101,6 @@ def photo_size(path: Path) -> tuple[int, int]:
 
 
 def _selected_photos(dataset: Path, wanted: tuple[str, ...]) -> list[Path]:
-    from calibration.dataset import dataset_files
-
     photos = dataset_files(dataset)["photos"]  # refuses a dataset without photos, naming photos/
     if not wanted:
         return photos
@@ -168,8 +114,6 @@ def _selected_photos(dataset: Path, wanted: tuple[str, ...]) -> list[Path]:
 
 def _check_sizes(dataset: Path, scene_source: str, scene_size: tuple[int, int]) -> tuple[int, int]:
     """The photos' common size, checked against each other and against the scene camera's aspect."""
-    from calibration.dataset import dataset_files
-
     photos = dataset_files(dataset)["photos"]
     sizes = {p: photo_size(p) for p in photos}
     first = photos[0]
@@ -187,17 +131,12 @@ def _check_sizes(dataset: Path, scene_source: str, scene_size: tuple[int, int]) 
     return width, height
 
 
-def run_scene_text(spec, table_preset: str) -> str:
+def run_scene_text(spec: SceneSpec, table_preset: str) -> str:
     """The scene file the run uses: ``spec``'s with every computed table at ``table_preset``
     (a table the scene names by path is kept) and structure and table paths absolute."""
-    import tomllib
-
-    import tomli_w
-
-    from rcwa.structure import BUILTIN_STRUCTURES
-
     data = tomllib.loads(spec.text)
-    for key, elements in (("cd", spec.cds), ("grating", spec.gratings)):
+    sections: tuple[tuple[str, tuple[CDSpec | GratingSpec, ...]], ...] = (("cd", spec.cds), ("grating", spec.gratings))
+    for key, elements in sections:
         for entry, element in zip(data.get(key, []), elements, strict=True):
             structure = element.structure
             if structure not in BUILTIN_STRUCTURES and Path(structure).exists():
@@ -211,141 +150,11 @@ def run_scene_text(spec, table_preset: str) -> str:
     return header + tomli_w.dumps(data)
 
 
-# ---------------------------------------------------------------- the run's folder
-
-
-def _new_record(identity: dict[str, str], settings: VerifySettings) -> dict[str, Any]:
-    return {"format": RUN_FORMAT, "identity": identity, "status": "running", "settings": settings.to_json(),
-            "versions": versions(*VERSIONED),
-            "started": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()), "stages": {}}
-
-
-def read_record(root: Path) -> dict[str, Any] | None:
-    """RUN/run.json when a verify run wrote it, else None."""
-    try:
-        record = json.loads((root / "run.json").read_text())
-    except (OSError, ValueError):
-        return None
-    return record if isinstance(record, dict) and record.get("format") == RUN_FORMAT else None
-
-
-def _remove_own(root: Path) -> None:
-    for name in OWN_NAMES:
-        path = root / name
-        if path.is_dir():
-            shutil.rmtree(path)
-        elif path.exists():
-            path.unlink()
-
-
-def open_run(root: Path, identity: dict[str, str], settings: VerifySettings, force: bool) -> dict[str, Any]:
-    """The record to carry on with: this run's (resumed), or a new one. Another run's folder,
-    or a folder of files no run wrote, is refused unless ``force``."""
-    if root.exists() and not root.is_dir():
-        raise UserInputError("is a file, not a folder", field="--out", expected="a folder for the run", got=str(root))
-    root.mkdir(parents=True, exist_ok=True)
-    record = read_record(root)
-    if record is None:
-        present = sorted(p.name for p in root.iterdir())
-        if present and not force:
-            raise UserInputError(f"the folder holds files no verify run wrote: {', '.join(present[:6])}"
-                                 f"{' ...' if len(present) > 6 else ''}", file=root,
-                                 expected="a new or empty folder, or --force to write the run beside them")
-        _remove_own(root)
-        return _new_record(identity, settings)
-    if record.get("identity") != identity:
-        if not force:
-            other = record.get("identity", {})
-            raise UserInputError(f"the folder holds another run (dataset {other.get('dataset')}, scene "
-                                 f"{other.get('scene')})", file=root / "run.json", field="identity",
-                                 expected=f"a run of dataset {identity['dataset']} with scene {identity['scene']}, "
-                                 "a new folder, or --force to replace it")
-        _remove_own(root)
-        return _new_record(identity, settings)
-    record.update(status="running", settings=settings.to_json())
-    record["versions"] = versions(*VERSIONED)
-    return record
-
-
-def _clear(path: Path) -> None:
-    if path.is_dir():
-        shutil.rmtree(path)
-    elif path.exists():
-        path.unlink()
-
-
-def _marker(path: Path) -> str | None:
-    try:
-        return path.read_text().strip()
-    except OSError:
-        return None
-
-
-def run_stage(run: _Run, name: str, inputs: dict[str, Path], settings: dict[str, Any], estimate_s: float,
-              work: Callable[[Path], dict[str, Any]], intact: Callable[[Path], bool] = lambda folder: True) -> dict:
-    """Run one stage unless its folder already holds its key (see the module's docstring); returns
-    the stage's entry in run.json."""
-    key = stage_key(name, inputs, settings)
-    final, staging = run.root / name, run.root / ".staging" / name
-    entry = run.record["stages"].setdefault(name, {})
-    if _marker(final / KEY_FILE) == key and (final / "stage.json").is_file() and intact(final):
-        entry.update(status="done", key=key, skipped=True, result=json.loads((final / "stage.json").read_text()))
-        run.save()
-        _say(run, f"{name}: up to date (key {key[:12]}), skipped")
-        return entry
-    if _marker(staging / KEY_FILE) != key:
-        _clear(staging)  # another key's work, or none: start afresh
-    resumed = staging.is_dir()
-    staging.mkdir(parents=True, exist_ok=True)
-    atomic_write_text(staging / KEY_FILE, key)
-    entry.clear()
-    entry.update(status="running", key=key, estimate_s=round(estimate_s, 1), resumed=resumed,
-                 inputs=sorted(inputs), settings=settings)
-    run.save()
-    _say(run, f"{name}: {'resuming' if resumed else 'running'} (estimate ~{_duration(estimate_s)})")
-    started = time.perf_counter()
-    if _marker(staging / DONE_FILE) == key:
-        result = json.loads((staging / "stage.json").read_text())
-    else:
-        result = work(staging)
-        atomic_write_text(staging / "stage.json", json.dumps(result, indent=2, default=str) + "\n")
-        atomic_write_text(staging / DONE_FILE, key)
-    _move_into_place(staging, final)
-    entry.update(status="done", seconds=round(time.perf_counter() - started, 2), skipped=False, result=result)
-    run.save()
-    return entry
-
-
-def _move_into_place(staging: Path, final: Path) -> None:
-    """The finished staging folder becomes RUN/NAME in one rename (an older one is moved aside first)."""
-    old = staging.with_name(staging.name + ".old")
-    _clear(old)
-    if final.exists():
-        os.replace(final, old)
-    os.replace(staging, final)
-    (final / DONE_FILE).unlink(missing_ok=True)
-    _clear(old)
-
-
-def _say(run: _Run, message: str) -> None:
-    if run.settings.progress:
-        from tqdm import tqdm
-
-        tqdm.write(f"verify: {message}")
-
-
-def _duration(seconds: float) -> str:
-    return f"{seconds:.0f} s" if seconds < 120 else f"{seconds / 60:.1f} min"
-
-
 # ---------------------------------------------------------------- stages
 
 
-def _stage_plan(run: _Run) -> dict:
+def _stage_plan(run: Run) -> dict:
     def work(folder: Path) -> dict[str, Any]:
-        from renderer.planner import format_plan, plan_scene
-        from renderer.scene import load_scene
-
         plan = plan_scene(load_scene(run.scene))
         atomic_write_text(folder / "plan.json", json.dumps(plan.to_json(), indent=2, default=_json_default) + "\n")
         atomic_write_text(folder / "plan.txt", format_plan(plan) + "\n")
@@ -356,24 +165,17 @@ def _stage_plan(run: _Run) -> dict:
     return run_stage(run, "plan", {"scene.toml": run.scene}, {}, SECONDS_PLAN, work)
 
 
-def _elements(spec) -> list[tuple[str, Any]]:
+def _elements(spec: SceneSpec) -> list[tuple[str, CDSpec | GratingSpec]]:
     return [(f"cd[{i}]", cd) for i, cd in enumerate(spec.cds)] + [(f"grating[{i}]", g) for i, g in enumerate(spec.gratings)]
 
 
-def _stage_tables(run: _Run, plan: dict) -> dict:
-    from renderer.tables import table_plan
-    from renderer.scene import load_scene
-
+def _stage_tables(run: Run, plan: dict) -> dict:
     spec = load_scene(run.scene)
     plans = {where: table_plan(element, where, str(run.scene)) for where, element in _elements(spec)}
     estimate = sum(e["seconds_whole"] for e in plan.get("result", {}).get("elements", [])
                    if not plans[e["element"]].path.exists())
 
     def work(folder: Path) -> dict[str, Any]:
-        from tqdm import tqdm
-
-        from rcwa.table import build_table
-
         tables = {}
         for where, table in tqdm(plans.items(), desc="tables", unit="table", disable=not run.settings.progress):
             if table.settings is None:  # a table the scene names: checked when the scene is built
@@ -402,9 +204,7 @@ def _dataset_inputs(dataset: Path) -> dict[str, Path]:
     return files
 
 
-def _stage_calibration(run: _Run) -> dict:
-    from calibration.dataset import dataset_files
-
+def _stage_calibration(run: Run) -> dict:
     files = _dataset_inputs(run.dataset)
     options: dict[str, Any] = {}
     if run.settings.board is not None:
@@ -414,8 +214,6 @@ def _stage_calibration(run: _Run) -> dict:
     estimate = SECONDS_CALIBRATION_BASE + SECONDS_PER_POSE * len(dataset_files(run.dataset)["photos"])
 
     def work(folder: Path) -> dict[str, Any]:
-        from calibration.dataset import calibrate_dataset
-
         record = calibrate_dataset(run.dataset, run.scene, folder, progress=run.settings.progress, **options)
         return {"residuals_rms_px": {name: r.get("rms_px") for name, r in record["residuals"].items()},
                 "intrinsics_rms_px": record.get("intrinsics", {}).get("rms_px")}
@@ -425,7 +223,7 @@ def _stage_calibration(run: _Run) -> dict:
                      lambda folder: (folder / "calibration.json").is_file())
 
 
-def _stage_render(run: _Run) -> dict:
+def _stage_render(run: Run) -> dict:
     scenes = {p.name: run.root / "calibration" / "scenes" / f"{p.stem}.toml" for p in run.photos}
     s = run.settings
     settings = {"preset": s.preset, "spp": s.render_spp, "seed": s.seed, "integrator": s.integrator, "mode": s.mode,
@@ -433,8 +231,6 @@ def _stage_render(run: _Run) -> dict:
     estimate = len(scenes) * (SECONDS_RENDER_LOAD + SECONDS_PER_SAMPLE * run.size[0] * run.size[1] * s.render_spp)
 
     def work(folder: Path) -> dict[str, Any]:
-        from renderer.render import render
-
         renders = {}
         for name, scene in scenes.items():
             info = render(scene, folder / f"{Path(name).stem}.exr", preset=s.preset, spp=s.render_spp,
@@ -466,7 +262,7 @@ def _bracket_frames(dataset: Path) -> tuple[Path, ...]:
     return tuple(sorted(p for p in folder.iterdir() if p.is_file())) if folder.is_dir() else ()
 
 
-def _stage_report(run: _Run) -> dict:
+def _stage_report(run: Run) -> dict:
     renders = {p.name: run.root / "render" / f"{p.stem}.exr" for p in run.photos}
     calibration = run.root / "calibration" / "calibration.json"
     brackets = _bracket_frames(run.dataset)
@@ -474,10 +270,6 @@ def _stage_report(run: _Run) -> dict:
               | {f"brackets/{p.name}": p for p in brackets} | {"calibration.json": calibration, "scene.toml": run.scene})
 
     def work(folder: Path) -> dict[str, Any]:
-        from tqdm import tqdm
-
-        from reports.report import Inputs, build_report
-
         reports = {}
         for photo in tqdm(run.photos, desc="report", unit="photo", disable=not run.settings.progress):
             out = folder / photo.stem
@@ -495,8 +287,6 @@ def _stage_report(run: _Run) -> dict:
 
 
 def _json_default(value: Any) -> Any:
-    import numpy as np
-
     if isinstance(value, np.ndarray):
         return value.tolist()
     if isinstance(value, np.generic):
@@ -510,8 +300,6 @@ def _json_default(value: Any) -> Any:
 def verify(dataset: str | Path, scene: str | Path, out: str | Path, settings: VerifySettings | None = None, *,
            force: bool = False) -> dict[str, Any]:
     """Run (or resume, or skip) every stage; returns run.json's content with its ``summary``."""
-    from renderer.scene import load_scene
-
     settings = settings or VerifySettings()
     if settings.preset not in PRESETS:
         raise UserInputError("unknown preset", field="--preset", expected=f"one of {sorted(PRESETS)}", got=settings.preset)
@@ -526,28 +314,9 @@ def verify(dataset: str | Path, scene: str | Path, out: str | Path, settings: Ve
         return _verify_locked(root, dataset, scene, spec, photos, size, identity, settings, force)
 
 
-@contextmanager
-def run_lock(root: Path) -> Iterator[None]:
-    """One verify run at a time in RUN: an ``flock`` (filelock) on ``.RUN.verify.lock`` beside it, taken without
-    waiting; a second run into the same folder is refused while the first holds it."""
-    from filelock import FileLock, Timeout
-
-    root.parent.mkdir(parents=True, exist_ok=True)
-    lock = FileLock(str(root.parent / f".{root.name}.verify.lock"))
-    try:
-        lock.acquire(timeout=0)
-    except Timeout:
-        raise UserInputError("another verify run is writing into this folder now", file=root,
-                             expected="to wait until it has finished, or another --out") from None
-    try:
-        yield
-    finally:
-        lock.release()
-
-
-def _verify_locked(root: Path, dataset: Path, scene: str | Path, spec, photos: list[Path], size: tuple[int, int],
+def _verify_locked(root: Path, dataset: Path, scene: str | Path, spec: SceneSpec, photos: list[Path], size: tuple[int, int],
                    identity: dict[str, str], settings: VerifySettings, force: bool) -> dict[str, Any]:
-    run = _Run(root, open_run(root, identity, settings, force), dataset, photos, size, settings)
+    run = Run(root, open_run(root, identity, settings, force), dataset, photos, size, settings)
     atomic_write_text(run.scene, run_scene_text(spec, PRESETS[settings.preset]["tables"]))
     run.save()
     started = time.perf_counter()
@@ -576,15 +345,13 @@ def _verify_locked(root: Path, dataset: Path, scene: str | Path, spec, photos: l
     return run.record
 
 
-def _executor(scheduler: str | None):
+def _executor(scheduler: str | None) -> DaskExecutor | None:
     if not scheduler:
         return None
-    from workbench.core.executor import DaskExecutor
-
     return DaskExecutor(scheduler).__enter__()
 
 
-def run_summary(run: _Run) -> dict[str, Any]:
+def run_summary(run: Run) -> dict[str, Any]:
     """Where the reports are, each photo's fringe offsets, the calibration's residuals."""
     calibration = json.loads((run.root / "calibration" / "calibration.json").read_text())
     reports = run.record["stages"]["report"]["result"]

@@ -1,5 +1,5 @@
 """``workbench study rcwa|render|calibrate``: accuracy-versus-time studies (rcwa.study, renderer.study,
-calibration.study)."""
+calibration.pose_study)."""
 
 from __future__ import annotations
 
