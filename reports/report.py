@@ -49,6 +49,7 @@ from reports import fringes, images, metrics, page, polar
 from reports.camera_draws import CAMERA_STD_KEYS, draw_cameras
 from reports.camera_file import FittedCamera, check_scene, read_camera, read_response
 from reports.exposure_merge import merge_highlights
+from reports.fringe_plot import BAND_SIGMAS, fringe_plot
 from reports.hue import HUE_LEVELS_NM, find_hue_crossings, hue_scale
 from reports.prediction import CDGeometry, Prediction, cd_bbox, cd_geometry, predict
 from reports.rim import Rim, fit_rim
@@ -61,7 +62,6 @@ FLIP_MAX = 1.0
 RELATIVE_MAX = 1.0
 DELTA_E_MAX = 20.0
 UNCERTAINTY_DRAWS = 4  # cameras drawn within the calibration's standard deviations (about 1.7 s each at 640 x 480)
-BAND_SIGMAS = 2.0  # the plotted band: the predicted edge +- this many RMS spreads (about 95 %)
 MIN_OK_EDGES = 3  # fewer good edges in the photo than this: "no fringes visible"
 MIN_PREDICTION_EDGES = 5  # fewer unsaturated photo edges than this: the prediction-photo median is said to rest on few
 OFFSET_LABELS = {"photo_render": "photo vs render", "prediction_photo": "prediction vs photo",
@@ -322,52 +322,6 @@ def analyse_cd(spec, fitted: FittedCamera, photo: images.Photo, render: np.ndarr
     return result
 
 
-def _band_bars(measured: dict, band: dict[tuple, float], cd_radius_px: float) -> list[tuple[float, float, float, float]]:
-    """(azimuth deg, radius px, azimuth half-width deg, radius half-width px) of the prediction's
-    uncertainty band at each predicted edge: along the profile, +- BAND_SIGMAS RMS spreads."""
-    bars = []
-    for kind, e in measured["edges"]["prediction"]:
-        width = band.get(e.key())
-        if width is None or not np.isfinite(e.position):
-            continue
-        half = BAND_SIGMAS * width
-        if kind == "circle":  # along the circle: px to degrees of azimuth at this radius
-            bars.append((e.coordinate, e.label * cd_radius_px, float(np.degrees(half / max(e.label * cd_radius_px, 1e-6))), 0.0))
-        else:
-            bars.append((e.label, e.coordinate * cd_radius_px, 0.0, half))
-    return bars
-
-
-def _fringe_plot(measured: dict, cd_radius_px: float, band: dict[tuple, float] | None = None) -> str:
-    import matplotlib  # deferred: start-up time
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    fig, ax = plt.subplots(figsize=(7.5, 3.6), dpi=80)
-    styles = {"prediction": ("k", "."), "photo": ("tab:blue", "o"), "render": ("tab:orange", "x")}
-    for name, (colour, marker) in styles.items():
-        points = [(e.coordinate if kind == "circle" else e.label, (e.label if kind == "circle" else e.coordinate) * cd_radius_px)
-                  for kind, e in measured["edges"][name] if np.isfinite(e.position) and e.quality in ("ok", "overlap", "clipped")]
-        if points:
-            azimuth, radius = np.array(points).T
-            ax.scatter(azimuth, radius, s=9 if marker != "." else 4, c=colour, marker=marker, label=name,
-                       linewidths=0.8, alpha=0.8)
-    bars = _band_bars(measured, band or {}, cd_radius_px)
-    if bars:
-        x, y, dx, dy = np.array(bars).T
-        ax.errorbar(x, y, xerr=dx, yerr=dy, fmt="none", ecolor="0.5", elinewidth=0.8, capsize=0,
-                    label=f"prediction +- {BAND_SIGMAS:g} sigma (calibration)")
-    ax.set_xlabel("azimuth on the CD (deg)")
-    ax.set_ylabel("radius (px, rim = %.0f)" % cd_radius_px)
-    ax.set_title("band edges: radius against azimuth")
-    ax.legend(loc="upper right", fontsize=8)
-    fig.tight_layout()
-    uri = page.svg_data_uri(fig)
-    plt.close(fig)
-    return uri
-
-
 def _csv_text(rows: list[dict]) -> str:
     if not rows:
         return ""
@@ -560,7 +514,7 @@ def _page(report, inputs: Inputs, photo_display, render_display, exposure, maps,
                                                    f"(equivalent wavelength {(cd.get('hue') or {}).get('levels_nm')} nm)")
     if "_measured" in cd:
         radius_px = cd["_radius_px"]
-        plot = _fringe_plot(cd["_measured"], radius_px, cd.get("_band"))
+        plot = fringe_plot(cd["_measured"], radius_px, cd.get("_band"))
         fringe_html += f"<div><img alt='fringe radius against azimuth' src='{plot}'></div>"
         fringe_html += "<div class='scroll'>" + page.table(pair_rows, caption="photo vs render, edge by edge") + "</div>"
         rim = cd.get("rim", {})
