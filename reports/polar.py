@@ -2,7 +2,7 @@
 
 A polar grid is a set of points on the grating plane, ``centre + rho R (cos phi e1 +
 sin phi e2)`` (rho: the fraction of the outer radius R, phi: the azimuth from the CD's
-frame axis e1, renderer.build.frame_to), projected into the image with the camera's
+frame axis e1, renderer.placement.frame_to), projected into the image with the camera's
 lens model (renderer.camera.CameraModel.project, distortion included). Photo, render
 and prediction are all sampled on the same grid, so a fringe found at the same grid
 position is at the same image position, and a difference in grid coordinates is a
