@@ -16,6 +16,23 @@
 * Unbiased along whole paths: with a constant index the plugin renders the same image as
   Mitsuba's dielectric within noise (its transmissions still terminate wavelengths, and
   a path through a sphere does so twice).
+
+Noise allowed and false alarms (issue 23); only Monte Carlo noise, measured from the data:
+* mean weight: the standard error of each wavelength's mean from its 200,000 samples
+  (weights 0 or up to 4: the mean is binomial-like, Gaussian at this n); Z_WEIGHT = 5.5
+  on 4 wavelengths x 5 cases: 20 x 2 Q(5.5) = 7.6e-7 per run (5 gave 1.1e-5). Standard
+  errors 0.1-0.4 %: an energy bias of 2.5 % (1 % in the totally-reflecting case) fails it.
+* sphere: Z_RENDER = 6 standard errors of the mean pixel difference between the two
+  renders (seeds 1, 2; box filter, independent sampler: pixels independent; the error from
+  the pixels' spread, so Student-t with 143-575 dof), on the whole image and 3 regions:
+  2 P(|t_143| > 6) = 1.5e-8, times 3 for the pixels' skewness (0.7; Edgeworth), 4
+  comparisons: 2e-7 per run. The whole image's mean was held to 2 %, while its relative
+  difference between seed pairs spreads by 1.3 % (16 pairs; largest 3.0 %): about 1 false
+  alarm in 8 runs; it is now the same noise-scaled check as the regions'. Smallest defect
+  caught (checked by scaling the plugin's render): a 10 % bias over the image (8 %
+  reaches 5.8 standard errors), a 15 % darker sphere (10 % reaches 4.8); at 24 x 24 and
+  128 spp the noise allows no less. A dropped path at the sphere's second interface
+  darkens it far more.
 * The scene switch: dispersion = false gives Mitsuba's dielectric at the mean index.
 * scalar_spectral (a subprocess): the same Snell angles and weights, and a finite render.
 """
@@ -28,6 +45,8 @@ import pytest
 from rcwa.materials import material_from_spec
 
 BK7 = material_from_spec("n-bk7")
+Z_WEIGHT = 5.5  # standard errors of a mean weight: 20 x 2 Q(5.5) = 7.6e-7 false alarms per run
+Z_RENDER = 6.0  # standard errors of a mean pixel difference: 4 comparisons, 2e-7 per run
 
 
 def _fresnel(cos_i, eta):
@@ -124,7 +143,7 @@ def test_mean_weight_is_one(mitsuba_variant, theta, wavelengths):
     bs, w = bsdf.sample(ctx, si, mi.Float(rng.random(n)), mi.Point2f(0.5, 0.5))
     w = np.array(w)
     mean, err = w.mean(axis=1), w.std(axis=1) / math.sqrt(n)
-    assert np.all(np.abs(mean - 1) < 5 * err + 1e-6), (mean, err)
+    assert np.all(np.abs(mean - 1) < Z_WEIGHT * err + 1e-6), (mean, err)
     transmitted = np.array(bs.wo)[2] * math.cos(math.radians(theta)) < 0
     if theta == 180.0 - 41.1:
         t = w[:, transmitted]
@@ -159,10 +178,9 @@ def test_constant_index_renders_like_mitsubas_dielectric(mitsuba_variant):
     constant = material_from_spec(1.5)
     a = _sphere_scene(mi, {"type": "dielectric", "int_ior": 1.5, "ext_ior": 1.0}, seed=1)
     b = _sphere_scene(mi, bsdf_dict(constant), seed=2)
-    assert b.mean() == pytest.approx(a.mean(), rel=0.02)
-    for region in (np.s_[6:18, 6:18], np.s_[:6, :], np.s_[18:, :]):  # the sphere; above; below it
+    for region in (np.s_[:, :], np.s_[6:18, 6:18], np.s_[:6, :], np.s_[18:, :]):  # all; the sphere; above; below it
         diff = (a - b)[region].ravel()
-        assert abs(diff.mean()) < 5 * diff.std() / math.sqrt(diff.size), region
+        assert abs(diff.mean()) < Z_RENDER * diff.std() / math.sqrt(diff.size), region
 
 
 def test_dispersion_switch_and_index_table(mitsuba_variant):
