@@ -43,8 +43,8 @@ def stack_methods() -> Iterable[str]:
     return STACK_METHODS
 
 
-FACTORIZATION_CHOICES = RegistryNames(factorization_rules)  # auto, li, nv, laurent
-STACK_CHOICES = RegistryNames(stack_methods)  # etm, smatrix
+FACTORIZATION_CHOICES = RegistryNames(factorization_rules)
+STACK_CHOICES = RegistryNames(stack_methods)
 
 
 def add_parser(commands: argparse._SubParsersAction) -> None:
