@@ -301,6 +301,7 @@ def _write_chunk(out: Path, store, index: int, arrays: dict[str, np.ndarray], se
 
 
 def chunk_hash(arrays: dict[str, np.ndarray]) -> str:
+    """SHA-256 of one chunk's arrays (float32 bytes, by array name): what progress.json records."""
     h = hashlib.sha256()
     for name in sorted(arrays):
         h.update(name.encode())
@@ -313,6 +314,7 @@ def _atomic_write_json(path: Path, data) -> None:
 
 
 def read_progress(out: Path) -> dict:
+    """progress.json: the finished chunks' checksums and seconds ({} when missing or unreadable)."""
     try:
         return json.loads((out / "progress.json").read_text())
     except (OSError, json.JSONDecodeError):
@@ -320,6 +322,7 @@ def read_progress(out: Path) -> dict:
 
 
 def read_meta(out: Path) -> dict | None:
+    """The table's attributes from its zarr.json (None when missing or unreadable)."""
     try:
         return json.loads((out / "zarr.json").read_text()).get("attributes", {})
     except (OSError, json.JSONDecodeError, AttributeError):
