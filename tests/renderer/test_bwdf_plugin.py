@@ -6,8 +6,9 @@
   arithmetic), out-of-range values are refused on ``update``.
 * ``to_string`` names every setting; the class docstring's example runs.
 * ``BSDFContext`` is honoured. A disabled component (reflection 0, transmission 1) is never
-  sampled; paper mode's choice over the enabled one is uniform (chi-square, p > 1e-3,
-  fixed seed); and the expected weight per wavelength with reflection alone plus that
+  sampled; paper mode's choice over the enabled one is uniform (chi-square, p > 1e-8,
+  fixed seed: 2 components, 2e-8 false alarms per run, issue 23; it was 2e-3 at 1e-3); and the expected
+  weight per wavelength with reflection alone plus that
   with transmission alone equals that with both (the estimator stays unbiased per
   component). Importance transport differs from radiance transport only on transmitted
   lobes, by the n^2 law's (n_cam / n_light)^2: sample by sample in paper mode (1e-5,
@@ -30,6 +31,7 @@ from scipy.stats import chisquare
 import rcwa
 from rcwa.table import build_table, settings_for
 
+P_MIN = 1e-8  # a chi-square p-value under this fails: the false-alarm rate per comparison (issue 23)
 WAVELENGTHS = (460.0, 520.0, 580.0, 640.0)
 SUBSTRATE_INDEX = 1.5
 STRATA = 200_000
@@ -228,7 +230,7 @@ def test_paper_mode_chooses_uniformly_within_the_enabled_component(see_through_t
         orders = np.rint((-n_light * wo[0, valid] - wi[0]) * 800.0 / WAVELENGTHS[hero]).astype(int)
         kept, counts = np.unique(orders, return_counts=True)
         assert set(kept) <= {-2, -1, 0, 1, 2} and len(kept) >= 3
-        assert chisquare(counts).pvalue > 1e-3  # uniform over the propagating kept orders
+        assert chisquare(counts).pvalue > P_MIN  # uniform over the propagating kept orders
         # Each of the 5 kept orders takes 1/5 of the samples; the rest do not propagate.
         assert (~valid).sum() == pytest.approx(n * (5 - len(kept)) / 5, rel=0.05, abs=50)
 
