@@ -6,6 +6,12 @@ libllvm19, which ``make`` installs) and crashes with LLVM 15, which Debian 12 al
 the workbench therefore looks for libLLVM itself, newest first, skips versions known not
 to work, sets ``DRJIT_LIBLLVM_PATH`` before drjit loads, and falls back to the scalar
 spectral variant with one clear warning when it finds none.
+
+Dr.Jit's thread pool splits a render's samples by its size, and the film's sums then run in
+another order: the same seed renders other bytes with 1, 3, 4 or 8 threads (measured on a
+cornell_cd crop at 64 spp; 1 and 2 agreed there by chance). ``WORKBENCH_RENDER_THREADS=N``
+pins the pool, so renders are the same bytes on any machine; the test suite sets it
+(tests/conftest.py). Unset, Dr.Jit uses every core.
 """
 
 from __future__ import annotations
@@ -16,6 +22,8 @@ import os
 import re
 from collections.abc import Mapping
 from pathlib import Path
+
+from workbench.core.errors import UserInputError
 
 LOG = logging.getLogger("workbench.renderer")
 
@@ -32,6 +40,8 @@ SEARCH_GLOBS = (
     "/usr/lib/llvm-*/lib/libLLVM*.so*",
     "/usr/local/lib/libLLVM*.so*",
 )
+
+THREADS_VARIABLE = "WORKBENCH_RENDER_THREADS"
 
 _chosen: str | None = None
 
@@ -83,7 +93,7 @@ def set_variant(preferred: str = PREFERRED_VARIANT) -> str:
             variant = FALLBACK_VARIANT
         else:
             os.environ["DRJIT_LIBLLVM_PATH"] = path
-    import mitsuba as mi
+    import mitsuba as mi  # deferred: DRJIT_LIBLLVM_PATH must be set before drjit loads; start-up time
 
     try:
         mi.set_variant(variant)
@@ -93,5 +103,19 @@ def set_variant(preferred: str = PREFERRED_VARIANT) -> str:
         LOG.warning("Mitsuba's %s variant failed to start (%s); using %s.", variant, exc, FALLBACK_VARIANT)
         variant = FALLBACK_VARIANT
         mi.set_variant(variant)
+    _pin_threads()
     _chosen = variant
     return variant
+
+
+def _pin_threads(environ: Mapping[str, str] | None = None) -> int | None:
+    """Dr.Jit's thread count from ``WORKBENCH_RENDER_THREADS``, when set (else left alone)."""
+    text = (os.environ if environ is None else environ).get(THREADS_VARIABLE, "").strip()
+    if not text:
+        return None
+    if not text.isdigit() or int(text) < 1:
+        raise UserInputError("must be a whole number of threads, 1 or more", field=THREADS_VARIABLE, got=text)
+    import drjit as dr  # deferred: start-up time (loaded with mitsuba just before)
+
+    dr.set_thread_count(int(text))
+    return int(text)

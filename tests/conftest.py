@@ -8,6 +8,14 @@ once. Entries are named by content and checked by checksum when reused (rcwa.tab
 renderer.meshes), and concurrent runs are safe (file locks). With ``--basetemp`` the cache
 lives inside that folder instead (and starts empty). Tests that need an empty cache of
 their own set WORKBENCH_CACHE to a tmp_path folder with monkeypatch.
+
+Thread counts. Dr.Jit's renders depend on its thread count (renderer/variant.py), so the
+suite pins it to RENDER_THREADS through WORKBENCH_RENDER_THREADS, set before any test runs
+and inherited by the subprocesses and dask workers tests start: a seed renders the same
+bytes on a 2-core CI machine and on a 16-core laptop, loaded or not. OpenBLAS is left to the
+user's OPENBLAS_NUM_THREADS (the suite passes with 1 and 2): the RCWA core pins it to one
+thread inside its own threads, and the BLAS-dependent thresholds carry margins measured over
+thread counts and kernels (docs/testing.md).
 """
 
 import os
@@ -16,6 +24,9 @@ from pathlib import Path
 import pytest
 
 from workbench.core.cache import ENVIRONMENT_VARIABLE
+
+RENDER_THREADS = "2"
+os.environ.setdefault("WORKBENCH_RENDER_THREADS", RENDER_THREADS)  # a developer's own value wins
 
 
 @pytest.fixture(scope="session", autouse=True)
