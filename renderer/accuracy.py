@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from workbench.core.errors import UserInputError
 from workbench.core.timing import timed
 
 RELMSE_EPS = 1e-2
@@ -52,8 +53,8 @@ def element_mask(mi, scene_d: dict) -> np.ndarray:
 def element_crop(mi, spec, margin: int = 2) -> tuple[tuple[list[int], list[int]], np.ndarray]:
     """((offset, size) of the film region the scene's diffractive elements cover, their
     mask over that region). Raises UserInputError when the camera sees none."""
+    # deferred: pulls in the RCWA core and cv2, and renderer.study (imported by `workbench --help`) imports this module
     from renderer.mitsuba_scene import scene_dict
-    from workbench.core.errors import UserInputError
 
     d, _ = scene_dict(mi, spec, spp=1)
     hit = element_mask(mi, d)
@@ -69,7 +70,7 @@ def element_crop(mi, spec, margin: int = 2) -> tuple[tuple[list[int], list[int]]
 
 def load_cropped(mi, spec, mode: str, crop, *, delta: float | None = None, spp: int = 64):
     """The scene in ``mode``, its film cropped; ``delta`` sets paper mode's Delta."""
-    from renderer.mitsuba_scene import scene_dict
+    from renderer.mitsuba_scene import scene_dict  # deferred: as in element_crop
 
     d, _ = scene_dict(mi, spec, spp=spp, mode=mode)
     if delta is not None:

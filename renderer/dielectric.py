@@ -61,6 +61,7 @@ from renderer.delta_lobes import (
     choose_hero,
     select,
 )
+from renderer.scene import SPECTRAL_RANGE_NM
 
 INDEX_STEP_NM = 1.0
 
@@ -184,8 +185,6 @@ def _number(props: mi.Properties, key: str, default: float | None = None) -> flo
 def index_curve(material, step_nm: float = INDEX_STEP_NM) -> tuple[np.ndarray, np.ndarray]:
     """A material's real index on a regular grid over the renderer's spectral range
     (renderer.scene.SPECTRAL_RANGE_NM); held constant beyond the material's data range."""
-    from renderer.scene import SPECTRAL_RANGE_NM
-
     lo, hi = SPECTRAL_RANGE_NM
     grid = np.linspace(lo, hi, round((hi - lo) / step_nm) + 1)
     covered = grid if material.wavelength_range_nm is None else np.clip(grid, *material.wavelength_range_nm)

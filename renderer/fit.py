@@ -15,9 +15,11 @@ import math
 
 import numpy as np
 
-from renderer.camera import CameraModel
+from renderer.camera import CameraModel, PinholePlan
+from renderer.mitsuba_scene import scene_dict
 from renderer.render import with_resolution
-from renderer.scene import load_scene
+from renderer.scene import SceneSpec, load_scene
+from renderer.variant import set_variant
 
 FIT_RESOLUTION = (160, 120)
 FIT_SPP = 16
@@ -30,16 +32,10 @@ class FitRenderer:
         """``scene``: a built-in name, a TOML path, or a parsed renderer.scene.SceneSpec.
         ``extra_objects``: Mitsuba dicts by key, added to the scene (e.g. a calibration
         board); ``move(key, to_world)`` repositions one in place."""
-        from renderer.variant import set_variant
-
         set_variant()
-        import mitsuba as mi
-
-        from renderer.mitsuba_scene import scene_dict
+        import mitsuba as mi  # deferred: after set_variant, and start-up time
 
         self.mi = mi
-        from renderer.scene import SceneSpec
-
         spec = scene if isinstance(scene, SceneSpec) else load_scene(scene)
         self.spec = with_resolution(spec, resolution)
         d, built = scene_dict(mi, self.spec, spp=spp, mode=mode)
@@ -91,8 +87,6 @@ class FitRenderer:
         self.params.update()
 
     def render(self, seed: int = 0) -> np.ndarray:
-        from renderer.camera import PinholePlan
-
         # Mitsuba's stub types seed as mi.UInt32, yet mi.render takes a Python int (its own default is 0).
         wide = np.array(self.mi.render(self.scene, self.params, seed=seed))  # type: ignore[arg-type]
         plan = PinholePlan(self.wide_size[0], self.wide_size[1], self.focal, 0.0, self.camera.mitsuba_to_world())

@@ -376,14 +376,16 @@ def _camera_sides(hit: ElementHit, origin: np.ndarray) -> list[_SideRays]:
     return out
 
 
-def _channels(rays: _SideRays, see_through: bool) -> list[tuple[str, bool]]:
-    """(table, transmitted) for the tables the rays of one side read: reflection on their
-    side, and transmission from the other side for a see-through element."""
-    if rays.name == "below" and not see_through:
-        return []
-    channels = [("R" if rays.name == "above" else "R_below", False)]
-    if see_through:
-        channels.append(("T_below" if rays.name == "above" else "T", True))
+def _channels(sides: list[_SideRays], see_through: bool) -> list[tuple[_SideRays, str, bool]]:
+    """(rays, table, transmitted) for each table the rays of each side read: reflection on
+    their side, and transmission from the other side for a see-through element."""
+    channels = []
+    for rays in sides:
+        if rays.name == "below" and not see_through:
+            continue
+        channels.append((rays, "R" if rays.name == "above" else "R_below", False))
+        if see_through:
+            channels.append((rays, "T_below" if rays.name == "above" else "T", True))
     return channels
 
 
@@ -392,13 +394,12 @@ def _lookups(spec: SceneSpec, hit: ElementHit, table: _ElementTable, sides: list
     """The nodes the camera's rays read: over sides, tables, sampled wavelengths and kept orders."""
     shape = (len(table.wavelengths), len(table.grid_theta), len(table.grid_phi))
     found = _Lookups({name: np.zeros(shape, bool) for name in TABLE_NAMES})
-    for rays in sides:
-        for table_name, transmitted in _channels(rays, table.see_through):
-            for chunk, lam in samples:
-                n_cam, n_light = _refractive_indices(table.structure, lam, rays.name, transmitted, hit.top)
-                for m, n in table.kept:
-                    _mark_order(found, found.masks[table_name][chunk], spec, hit, table, rays, (m, n), lam, n_cam,
-                                n_light, above=(rays.name == "above") != transmitted)
+    for rays, table_name, transmitted in _channels(sides, table.see_through):
+        for chunk, lam in samples:
+            n_cam, n_light = _refractive_indices(table.structure, lam, rays.name, transmitted, hit.top)
+            for order in table.kept:
+                _mark_order(found, found.masks[table_name][chunk], spec, hit, table, rays, order, lam, n_cam, n_light,
+                            above=(rays.name == "above") != transmitted)
     return found
 
 

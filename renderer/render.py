@@ -15,13 +15,19 @@ import json
 import math
 import os
 import time
-from dataclasses import replace
+from collections.abc import Iterator
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
+import cv2
 import numpy as np
+from tqdm import tqdm
 
+from renderer.mitsuba_scene import scene_dict
 from renderer.scene import SceneSpec, load_scene
+from renderer.tables import table_keys
+from renderer.variant import set_variant
 from workbench.core.errors import UserInputError
 from workbench.core.files import atomic_write as _atomic
 from workbench.core.files import atomic_write_text, file_sha256
@@ -47,16 +53,25 @@ def with_resolution(spec: SceneSpec, resolution: tuple[int, int] | None) -> Scen
 
 def render_pass(spec: SceneSpec, pass_spp: int, integrator: str, mode: str, pass_seed: int, plan: bool = True) -> np.ndarray:
     """One pass on a dask worker: build the scene there (tables come from the cache) and render."""
-    from renderer.variant import set_variant
-
     set_variant()
-    import mitsuba as mi
-
-    from renderer.mitsuba_scene import scene_dict
+    import mitsuba as mi  # deferred: after set_variant, and start-up time
 
     scene_d, _ = scene_dict(mi, spec, spp=pass_spp, integrator=integrator, mode=mode, plan=plan)
     # Mitsuba's stub types seed as UInt32; a Python int is what it takes at run time
     return np.array(mi.render(mi.load_dict(scene_d), seed=pass_seed))  # type: ignore[arg-type]
+
+
+@dataclass(frozen=True)
+class _Passes:
+    """A render's passes: the scene, the settings each pass renders it with, and how many."""
+
+    spec: SceneSpec
+    pass_spp: int
+    integrator: str
+    mode: str
+    seed: int
+    plan: bool
+    count: int
 
 
 def render(scene: str | Path, out: str | Path, *, preset: str = "draft", spp: int | None = None,
@@ -75,12 +90,8 @@ def render(scene: str | Path, out: str | Path, *, preset: str = "draft", spp: in
     ``plan`` (the default): the tables are planned for this camera (renderer.planner,
     renderer.mitsuba_scene.scene_dict); False builds whole tables, for comparison.
     """
-    from tqdm import tqdm
-
-    from renderer.variant import set_variant
-
     spp, pass_spp, spec, out = _checked_request(scene, out, preset, spp, resolution, integrator, mode, seed)
-    passes = math.ceil(spp / pass_spp)
+    passes = _Passes(spec, pass_spp, integrator, mode, seed, plan, math.ceil(spp / pass_spp))
     key = _request_key(spec, spp, pass_spp, integrator, mode, seed, plan)
     partial = out.with_name(out.name + ".partial.npz")
     finished = _finished_render(out, key)
@@ -88,58 +99,65 @@ def render(scene: str | Path, out: str | Path, *, preset: str = "draft", spp: in
         return finished
     _refuse_to_overwrite(out, partial, key, force)
     variant = set_variant()
-    import mitsuba as mi
-
-    from renderer.mitsuba_scene import scene_dict
+    import mitsuba as mi  # deferred: after set_variant, and start-up time
 
     started = time.perf_counter()
     scene_d, built = scene_dict(mi, spec, spp=pass_spp, integrator=integrator, mode=mode, plan=plan, progress=progress)
     total, done = _resume(partial, key)
-    bar = tqdm(total=passes, initial=done, unit="pass", disable=not progress, desc=f"render {spec.name}")
+    bar = tqdm(total=passes.count, initial=done, unit="pass", disable=not progress, desc=f"render {spec.name}")
     pass_seconds = []
-    if executor is None:
-        loaded = mi.load_dict(scene_d)
-        # Mitsuba's stub types seed as UInt32; a Python int is what it takes at run time
-        images = ((p, timed(lambda p=p: np.array(mi.render(loaded, seed=pass_seed(seed, p)))))  # type: ignore[arg-type]
-                  for p in range(done, passes))
-    else:
-        futures = {p: executor.submit(timed, render_pass, spec, pass_spp, integrator, mode, pass_seed(seed, p), plan)
-                   for p in range(done, passes)}
-        images = ((p, futures[p].result()) for p in range(done, passes))
-    for p, (image, seconds) in images:
+    for p, (image, seconds) in _pass_images(mi, scene_d, passes, done, executor):
         total = image if total is None else total + image
         _atomic_npz(partial, total=total, done=p + 1, key=key)
         pass_seconds.append(seconds)
         bar.update(1)
     bar.close()
-    mean = total / passes
-    rgb = spec.camera.model.warp(mean, built["plan"]) * spec.camera.exposure
+    rgb = spec.camera.model.warp(total / passes.count, built["plan"]) * spec.camera.exposure
     if not np.all(np.isfinite(rgb)):
         raise RuntimeError("the render produced non-finite values")
     out.parent.mkdir(parents=True, exist_ok=True)
     _atomic(out, lambda tmp: mi.Bitmap(rgb.astype(np.float32), mi.Bitmap.PixelFormat.RGB).write(str(tmp)))
-    preview = out.with_suffix(".png")
-    _atomic(preview, lambda tmp: _write_preview(rgb, tmp))
-    sidecar = out.with_suffix(".json")
-    info = {
+    _atomic(out.with_suffix(".png"), lambda tmp: _write_preview(rgb, tmp))
+    info = _sidecar(out, key, preset, passes, variant, built["tables"], time.perf_counter() - started, pass_seconds, done)
+    atomic_write_text(out.with_suffix(".json"), json.dumps(info, indent=2))
+    partial.unlink(missing_ok=True)
+    return info | {"served": False}
+
+
+def _pass_images(mi, scene_d: dict, passes: _Passes, done: int, executor) -> Iterator[tuple[int, tuple[np.ndarray, float]]]:
+    """(pass, (image, seconds)) for the passes after the ``done`` ones, here or on ``executor``'s workers."""
+    if executor is None:
+        loaded = mi.load_dict(scene_d)
+        # Mitsuba's stub types seed as UInt32; a Python int is what it takes at run time
+        return ((p, timed(lambda p=p: np.array(mi.render(loaded, seed=pass_seed(passes.seed, p)))))
+                for p in range(done, passes.count))
+    futures = {p: executor.submit(timed, render_pass, passes.spec, passes.pass_spp, passes.integrator, passes.mode,
+                                  pass_seed(passes.seed, p), passes.plan)
+               for p in range(done, passes.count)}
+    return ((p, futures[p].result()) for p in range(done, passes.count))
+
+
+def _sidecar(out: Path, key: str, preset: str, passes: _Passes, variant: str, tables: list[str], seconds: float,
+             pass_seconds: list[float], resumed: int) -> dict:
+    """The render's JSON sidecar: the request, the EXR's SHA-256, the settings, versions, timings, the camera."""
+    spec, model = passes.spec, passes.spec.camera.model
+    return {
         "format": SIDECAR_FORMAT, "request_key": key, "output_sha256": file_sha256(out),
         "scene": spec.name, "scene_source": spec.source, "scene_sha256": hashlib.sha256(spec.text.encode()).hexdigest(),
-        "output": str(out), "preview": str(preview), "preset": preset, "spp": passes * pass_spp, "passes": passes,
-        "resolution": [spec.camera.model.width, spec.camera.model.height], "integrator": integrator, "mode": mode,
-        "seed": seed, "variant": variant, "planned_tables": plan, "tables": built["tables"],
-        "seconds_total": time.perf_counter() - started,
-        "seconds_per_pass": pass_seconds, "resumed_passes": done,
+        "output": str(out), "preview": str(out.with_suffix(".png")), "preset": preset,
+        "spp": passes.count * passes.pass_spp, "passes": passes.count,
+        "resolution": [model.width, model.height], "integrator": passes.integrator, "mode": passes.mode,
+        "seed": passes.seed, "variant": variant, "planned_tables": passes.plan, "tables": tables,
+        "seconds_total": seconds,
+        "seconds_per_pass": pass_seconds, "resumed_passes": resumed,
         "versions": versions("mitsuba", "drjit", "numpy"),
         "units": "linear camera RGB (integral of radiance x camera sensitivity, times exposure)",
-        "camera": {"width": spec.camera.model.width, "height": spec.camera.model.height, "fx": spec.camera.model.fx,
-                   "fy": spec.camera.model.fy, "cx": spec.camera.model.cx, "cy": spec.camera.model.cy,
-                   "dist": list(spec.camera.model.dist), "world_to_camera": spec.camera.model.world_to_camera.tolist(),
+        "camera": {"width": model.width, "height": model.height, "fx": model.fx,
+                   "fy": model.fy, "cx": model.cx, "cy": model.cy,
+                   "dist": list(model.dist), "world_to_camera": model.world_to_camera.tolist(),
                    "sensitivities": spec.camera.sensitivities, "exposure": spec.camera.exposure,
                    "response": spec.camera.response.to_json()},
     }
-    atomic_write_text(sidecar, json.dumps(info, indent=2))
-    partial.unlink(missing_ok=True)
-    return info | {"served": False}
 
 
 def pass_seed(seed: int, index: int) -> int:
@@ -191,8 +209,6 @@ def _request_key(spec: SceneSpec, spp: int, pass_spp: int, integrator: str, mode
     keys (their content, wherever the cache is; planned for the camera or whole) and the
     workbench version.
     """
-    from renderer.tables import table_keys
-
     request = {"scene": spec.text, "w": spec.camera.model.width, "h": spec.camera.model.height, "spp": spp,
                "pass": pass_spp, "integrator": integrator, "mode": mode, "seed": seed, "tables": table_keys(spec),
                "planned_tables": plan, "version": workbench_version}
@@ -245,8 +261,6 @@ def _refuse_to_overwrite(out: Path, partial: Path, key: str, force: bool) -> Non
 
 
 def _write_preview(rgb: np.ndarray, path: Path) -> None:
-    import cv2
-
     scale = np.percentile(rgb, 99.5) or 1.0
     srgb = np.clip(rgb / scale, 0, 1) ** (1 / 2.2)
     if not cv2.imwrite(str(path), (srgb[..., ::-1] * 255 + 0.5).astype(np.uint8)):

@@ -52,6 +52,8 @@ from typing import Any
 
 import numpy as np
 
+from rcwa.materials import material_from_spec
+from rcwa.structure import BUILTIN_STRUCTURES
 from renderer.camera import CameraModel, look_at
 from renderer.response import ResponseCurve
 from workbench.core import validation as v
@@ -249,8 +251,6 @@ def _parse_cd(d: Any, where: str, base_dir: Path | None) -> CDSpec:
 
 
 def _structure_reference(value: Any, where: str, base_dir: Path | None) -> str:
-    from rcwa.structure import BUILTIN_STRUCTURES
-
     structure = str(value)
     if structure in BUILTIN_STRUCTURES:
         return structure
@@ -348,8 +348,6 @@ def _parse_glass(d: Any, where: str) -> GlassSpec:
     size_key = "size" if shape == "cube" else "radius"
     size = v.number(v.required(d, size_key, f"{where}."), f"{where}.{size_key}", positive=True)
     material = d.get("material", "n-bk7")
-    from rcwa.materials import material_from_spec
-
     try:
         material_from_spec(material)
     except UserInputError as exc:
@@ -389,7 +387,7 @@ def _parse_camera(d: Any) -> CameraSpec:
     dist = v.vector(d.get("dist", [0.0] * 5), "camera.dist", 5)
     offset = v.vector(d.get("principal_offset_px", [0.0, 0.0]), "camera.principal_offset_px", 2)
     sens = str(d.get("sensitivities", "Nikon 5100 (NPL)"))
-    import colour
+    import colour  # deferred: start-up time
 
     if sens not in colour.MSDS_CAMERA_SENSITIVITIES:
         raise UserInputError("unknown camera sensitivities", field="camera.sensitivities",

@@ -22,8 +22,12 @@ from dataclasses import asdict, dataclass
 from pathlib import Path
 
 import numpy as np
+from tqdm import tqdm
 
+from renderer import accuracy
+from renderer.variant import set_variant
 from workbench.core.files import atomic_write_csv, atomic_write_text
+from workbench.core.plots import new_figure, save_figure
 from workbench.core.version import versions
 
 
@@ -48,15 +52,12 @@ def run_render_study(scene: str | Path, out: str | Path, cfg: RenderStudyConfig 
 
     ``progress``: a progress bar over the renders (references, each mode's spp steps,
     paper mode's Delta values, the furnace test)."""
-    from tqdm import tqdm
-
-    from renderer.variant import set_variant
-
     started = time.perf_counter()
     variant = set_variant()
+    # deferred: mitsuba and the BWDF after set_variant; these pull in mitsuba, the RCWA core and cv2, and
+    # `workbench --help` imports this module
     import mitsuba as mi
 
-    from renderer import accuracy
     from renderer.bwdf import register
     from renderer.render import with_resolution
     from renderer.scene import load_scene
@@ -72,28 +73,8 @@ def run_render_study(scene: str | Path, out: str | Path, cfg: RenderStudyConfig 
     ref_a, _ = accuracy.timed_render(mi, ref_scene, seed=1001, spp=cfg.reference_spp)
     ref_b, _ = accuracy.timed_render(mi, ref_scene, seed=1002, spp=cfg.reference_spp)
     bar.update(2)
-    ref = ((ref_a + ref_b) / 2)[mask]
-
-    curve = []
-    for mode in ("paper", "improved"):
-        sc = accuracy.load_cropped(mi, spec, mode, crop)
-        accuracy.timed_render(mi, sc, seed=0, spp=cfg.spp_steps[0])  # compile
-        bar.update(1)
-        for spp in cfg.spp_steps:
-            image, seconds = accuracy.timed_render(mi, sc, seed=7, spp=spp)
-            e = accuracy.errors(image, ref_a, ref_b, mask)
-            curve.append({"mode": mode, "spp": spp, "seconds": seconds, "relative_rms_error": e["relative_rms_error"],
-                          "relative_mse": e["relative_mse"]})
-            bar.update(1)
-
-    bias = []
-    for delta in cfg.deltas:
-        sc = accuracy.load_cropped(mi, spec, "paper", crop, delta=delta)
-        image, _ = accuracy.timed_render(mi, sc, seed=5, spp=cfg.delta_spp)
-        bias.append({"delta": delta, "mean_relative_error": float(image[mask].mean() / ref.mean() - 1),
-                     "chromaticity_shift": float(np.linalg.norm(_chromaticity(image[mask]) - _chromaticity(ref)))})
-        bar.update(1)
-
+    curve = _error_curve(mi, spec, crop, (ref_a, ref_b), mask, cfg, bar)
+    bias = _delta_bias(mi, spec, crop, ((ref_a + ref_b) / 2)[mask], mask, cfg, bar)
     energy = _furnace_energies(mi, out, cfg.furnace_samples)
     bar.update(1)
     bar.close()
@@ -107,11 +88,40 @@ def run_render_study(scene: str | Path, out: str | Path, cfg: RenderStudyConfig 
     return data
 
 
-def _furnace_energies(mi, out: Path, samples: int) -> list[dict]:
-    import drjit as dr
+def _error_curve(mi, spec, crop, references: tuple[np.ndarray, np.ndarray], mask: np.ndarray, cfg: RenderStudyConfig,
+                 bar) -> list[dict]:
+    """Each mode's error against the references (renderer.accuracy.errors) and wall time, per spp step."""
+    curve = []
+    for mode in ("paper", "improved"):
+        sc = accuracy.load_cropped(mi, spec, mode, crop)
+        accuracy.timed_render(mi, sc, seed=0, spp=cfg.spp_steps[0])  # compile
+        bar.update(1)
+        for spp in cfg.spp_steps:
+            image, seconds = accuracy.timed_render(mi, sc, seed=7, spp=spp)
+            e = accuracy.errors(image, *references, mask)
+            curve.append({"mode": mode, "spp": spp, "seconds": seconds, "relative_rms_error": e["relative_rms_error"],
+                          "relative_mse": e["relative_mse"]})
+            bar.update(1)
+    return curve
 
-    import rcwa
-    from rcwa.table import build_table, settings_for
+
+def _delta_bias(mi, spec, crop, ref: np.ndarray, mask: np.ndarray, cfg: RenderStudyConfig, bar) -> list[dict]:
+    """Paper mode's mean radiance error and chromaticity shift against the reference ``ref``, per Delta."""
+    bias = []
+    for delta in cfg.deltas:
+        sc = accuracy.load_cropped(mi, spec, "paper", crop, delta=delta)
+        image, _ = accuracy.timed_render(mi, sc, seed=5, spp=cfg.delta_spp)
+        bias.append({"delta": delta, "mean_relative_error": float(image[mask].mean() / ref.mean() - 1),
+                     "chromaticity_shift": float(np.linalg.norm(_chromaticity(image[mask]) - _chromaticity(ref)))})
+        bar.update(1)
+    return bias
+
+
+def _furnace_energies(mi, out: Path, samples: int) -> list[dict]:
+    import drjit as dr  # deferred: start-up time
+
+    import rcwa  # deferred: as run_render_study's imports
+    from rcwa.table import build_table, settings_for  # deferred: as above
 
     s = rcwa.Structure.from_dict({"period": [0.6], "superstrate": "air", "substrate": "air", "layers": [
         {"thickness": 0.08, "material": "air", "shapes": [{"material": {"n": 1.3}, "x": [0.0, 0.3]}]}]})
@@ -134,7 +144,6 @@ def _furnace_energies(mi, out: Path, samples: int) -> list[dict]:
 
 
 def _plot(curve, bias, out: Path) -> None:
-    from workbench.core.plots import new_figure, save_figure
 
     fig, axes = new_figure()
     for mode in ("paper", "improved"):
