@@ -19,8 +19,8 @@ import time
 
 from rcwa.table import build_table
 from renderer.planner import plan_scene, planned_nodes
-from renderer.tables import table_plan
 from renderer.scene import load_scene
+from renderer.tables import table_plan
 from workbench.core.cache import ENVIRONMENT_VARIABLE
 
 SCENES = ("cornell_cd", "cornell_cd_view2", "grating2d_gold")

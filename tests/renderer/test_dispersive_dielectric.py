@@ -186,8 +186,8 @@ def test_constant_index_renders_like_mitsubas_dielectric(mitsuba_variant):
 def test_dispersion_switch_and_index_table(mitsuba_variant):
     import mitsuba as mi
 
-    from renderer.mitsuba_scene import scene_dict
     from renderer.dielectric import bsdf_dict, mean_index
+    from renderer.mitsuba_scene import scene_dict
     from renderer.scene import load_scene, parse_scene
 
     off = bsdf_dict(BK7, dispersion=False)

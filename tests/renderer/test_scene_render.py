@@ -48,10 +48,10 @@ def test_patch_colour_equals_spectral_integration(mitsuba_variant):
     import colour
     import mitsuba as mi
 
-    from renderer.mitsuba_scene import sensor_dict
-    from renderer.spectra import irregular
     from renderer.camera import CameraModel, look_at
+    from renderer.mitsuba_scene import sensor_dict
     from renderer.scene import CameraSpec, cornell_data
+    from renderer.spectra import irregular
 
     refl = cornell_data()["reflectance"]
     led = colour.SDS_ILLUMINANTS["LED-B3"]
@@ -135,9 +135,9 @@ def test_direct_light_equals_the_analytic_irradiance(mitsuba_variant, profile):
     import mitsuba as mi
 
     from renderer.mitsuba_scene import light_dict, scene_dict
-    from renderer.spectra import camera_sensitivities, light_spectrum
     from renderer.render import with_resolution
     from renderer.scene import cornell_data
+    from renderer.spectra import camera_sensitivities, light_spectrum
 
     text = BASE.replace('emission_profile = "lambertian"', f"emission_profile = {profile}")
     spec = with_resolution(parse_scene(text, source="cornell_cd", base_dir=None), PHYSICS_RESOLUTION)
