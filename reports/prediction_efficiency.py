@@ -21,15 +21,16 @@ Why the efficiency (measured on cornell_cd, synthetic seed 0, 640 x 480, against
 with the truth camera; benchmarks/bench_report.py ``--parts weighting``): along a radius the
 lit wavelengths slide through the spectrum, about 5.5 nm per pixel, so a channel's band edge
 along a radius is where its spectral weight runs out, and that weight is S_c E eta: the
-first orders' efficiency falls from about 0.3 at 520-640 nm to 0.06-0.2 at 400 nm (the
-draft table, theta 10-30 deg). With geometry alone the render's radius edges sit 1.51 px
-nearer the centre than predicted (signed median; median |offset| 1.55 px; a 512 spp
-render, after the BWDF's superstrate_index fix: reports.prediction, the non-dispersive top); weighted, -0.37 px (median |offset|
-0.50 px), near the renders' own noise: two independent 256 spp renders differ by 0.52 px
-there. (Before that fix the render's orders carried a scaling error, and the weighted
-offset was +0.04 px: the two errors happened to cancel. What leaves -0.37 px is not known.) Along a circle a band ends where the
-light's rectangle ends (a geometric edge, in every wavelength at once), so there the
-weighting changes little (0.09-0.10 px either way).
+first orders' efficiency falls from about 0.3 at 520-640 nm to 0.06-0.2 at 400 nm (the draft
+table, theta 10-30 deg). With geometry alone the render's radius edges sit 1.51 px nearer
+the centre than predicted (signed median; median |offset| 1.55 px; a 512 spp render, after
+the BWDF's superstrate_index fix: reports.prediction, the non-dispersive top); weighted,
+-0.37 px (median |offset| 0.50 px), near the renders' own noise: two independent 256 spp
+renders differ by 0.52 px there. (Before that fix the render's orders carried a scaling
+error, and the weighted offset was +0.04 px: the two errors happened to cancel. What leaves
+-0.37 px is not known.) Along a circle a band ends where the light's rectangle ends (a
+geometric edge, in every wavelength at once), so there the weighting changes little
+(0.09-0.10 px either way).
 """
 
 from __future__ import annotations
