@@ -18,9 +18,10 @@ from __future__ import annotations
 
 import json
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
+from calibration.charuco import parse_charuco
 from workbench.core.errors import UserInputError
 
 BOARD_FILE = "board.json"
@@ -48,8 +49,6 @@ class BoardSpec:
         """calibration.charuco.CharucoSpec, or None for a checkerboard."""
         if self.kind != "charuco":
             return None
-        from calibration.charuco import parse_charuco
-
         return parse_charuco(f"{self.dictionary},{self.marker_mm}", where="dictionary")
 
     def describe(self) -> str:
@@ -139,6 +138,4 @@ def resolve_board(calibration_folder: Path, board: tuple[int, int] | None, squar
     if not changes:
         return spec
     flags = tuple({"size": "--board", "square_mm": "--square-mm"}[k] for k in changes)
-    from dataclasses import replace
-
     return replace(spec, **changes, overridden=flags, source=f"{path}, overridden by {' and '.join(flags)}")

@@ -114,7 +114,7 @@ def decode(path: str | Path, *, response: ResponseLike = None, demosaic: str = "
 
 
 def _decode_raw(path: Path, demosaic: str) -> DecodedImage:
-    import rawpy
+    import rawpy  # deferred: start-up time
 
     try:
         with rawpy.imread(str(path)) as raw:
@@ -155,7 +155,7 @@ def _decode_raw(path: Path, demosaic: str) -> DecodedImage:
 def _libraw_develop(raw, demosaic: str) -> np.ndarray:
     """LibRaw's demosaicing, scaled to (raw - black) / (white - black), float32. LibRaw writes 16-bit integers by
     truncation, so half a code is added back (except at 0 and at full scale) to keep the values unbiased."""
-    import rawpy
+    import rawpy  # deferred: start-up time
 
     algorithm = getattr(rawpy.DemosaicAlgorithm, demosaic.upper())
     codes = raw.postprocess(demosaic_algorithm=algorithm, use_camera_wb=False, use_auto_wb=False,
@@ -237,7 +237,7 @@ def _decode_image(path: Path, response: ResponseLike) -> DecodedImage:
 
 def _read_with_openimageio(path: Path) -> tuple[np.ndarray, list[str], int | None]:
     """(pixels (H, W, C) in the file's own type, channel names, the alpha channel's index or None)."""
-    import OpenImageIO as oiio
+    import OpenImageIO as oiio  # deferred: start-up time
 
     image = oiio.ImageInput.open(str(path))
     if image is None:
@@ -267,7 +267,7 @@ def load_response(response: ResponseLike) -> tuple[Callable[[np.ndarray], np.nda
         return None, None
     if callable(response):
         return response, getattr(response, "__name__", "a callable")
-    from renderer.response import ResponseCurve
+    from renderer.response import ResponseCurve  # deferred: pulls in scipy, and workbench --help imports this module
 
     if isinstance(response, dict):
         spec, where = response, "response"
@@ -325,7 +325,7 @@ def read_exif(path: str | Path) -> dict[str, Any]:
 
 
 def _exif_tifffile(path: Path) -> dict[str, Any]:
-    import tifffile
+    import tifffile  # deferred: start-up time (workbench --help imports this module)
 
     with tifffile.TiffFile(path) as tif:
         tags = tif.pages.first.tags
@@ -338,7 +338,7 @@ def _exif_tifffile(path: Path) -> dict[str, Any]:
 
 
 def _exif_pillow(path: Path) -> dict[str, Any]:
-    from PIL import Image
+    from PIL import Image  # deferred: start-up time (workbench --help imports this module)
 
     with Image.open(path) as image:
         exif = image.getexif()
@@ -351,7 +351,7 @@ def _exif_pillow(path: Path) -> dict[str, Any]:
 def versions() -> dict[str, str]:
     """Versions of what a decode depends on (recorded in every output), with the LibRaw
     inside rawpy."""
-    import rawpy
+    import rawpy  # deferred: start-up time
 
     return {**installed_versions("rawpy", "OpenImageIO", "numpy", "opencv"),
             "libraw": ".".join(map(str, rawpy.libraw_version))}
@@ -359,7 +359,7 @@ def versions() -> dict[str, str]:
 
 def write_exr(path: str | Path, decoded: DecodedImage) -> Path:
     """The decoded channels and the saturation mask as a float32 OpenEXR, metadata in its header; atomic."""
-    import OpenImageIO as oiio
+    import OpenImageIO as oiio  # deferred: start-up time
 
     path = Path(path)
     if path.suffix.lower() != ".exr":

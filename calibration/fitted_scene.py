@@ -19,6 +19,7 @@ from typing import Any
 
 import tomli_w
 
+from rcwa.structure import BUILTIN_STRUCTURES
 from renderer.camera import CameraModel
 from renderer.scene import SceneSpec
 
@@ -55,8 +56,6 @@ def fitted_scene_text(spec: SceneSpec, camera: CameraModel, exposure: float, not
 
 def _absolute(reference: str) -> str:
     """A path the scene resolved (relative to the scene's folder) made absolute; built-in names stay."""
-    from rcwa.structure import BUILTIN_STRUCTURES
-
     if reference in BUILTIN_STRUCTURES or not Path(reference).exists():
         return reference
     return os.path.abspath(reference)

@@ -27,6 +27,7 @@ from typing import Any
 
 import cv2
 import numpy as np
+from tqdm import tqdm
 
 from calibration.charuco import CharucoSpec, charuco_board, find_charuco_corners
 from calibration.corners import find_board_corners, validate_pattern
@@ -147,8 +148,6 @@ def _detect_views(paths: Sequence[Path], board_size: tuple[int, int], square_siz
                   charuco: CharucoSpec | None, image_size: tuple[int, int] | None,
                   progress: bool) -> tuple[list[_View], tuple[int, int]]:
     """Every view's corners, and the views' common size (width, height)."""
-    from tqdm import tqdm
-
     board = charuco_board(board_size, square_size_m, charuco) if charuco else None
     checker_points = None if charuco else board_points(board_size, square_size_m).astype(np.float32)
     size = image_size

@@ -64,11 +64,13 @@ import time
 from dataclasses import dataclass
 
 import cv2
+import nlopt
 import numpy as np
 
 from calibration.photo import Photo, mosaic_like
-from calibration.scene_model import SceneModel
+from calibration.scene_model import Circle, SceneModel
 from renderer.camera import CameraModel
+from renderer.mitsuba_scene import sensor_dict
 
 GUARD_SIGMA = 3.0       # an accepted step lies within this many of the edge fit's rotation standard deviations
 MIN_FALL = 0.02         # and lowers the cost by at least this share ...
@@ -108,8 +110,6 @@ def rotated(camera: CameraModel, delta_deg: np.ndarray) -> CameraModel:
 
 
 def _circle_polygon(camera: CameraModel, center: np.ndarray, normal: np.ndarray, radius: float) -> np.ndarray:
-    from calibration.scene_model import Circle
-
     points, _ = Circle("", center, normal, radius).points(np.linspace(0, 2 * np.pi, RIM_POINTS, endpoint=False))
     return camera.project(points)
 
@@ -147,8 +147,6 @@ class CroppedRender:
     fixed, so the warp's maps (renderer.camera.CameraModel.warp) are computed once."""
 
     def __init__(self, renderer, camera: CameraModel, region: np.ndarray, margin_px: float, spp: int) -> None:
-        from renderer.mitsuba_scene import sensor_dict
-
         self.renderer, self.camera, self.spp = renderer, camera, spp
         mi = renderer.mi
         renderer.set(camera=camera)
@@ -250,8 +248,6 @@ def refine_rotation(renderer, photo: Photo, model: SceneModel, camera: CameraMod
     """Minimise the fringe cost over the camera's rotation from ``camera`` (nlopt BOBYQA) and
     decide whether to take the step (module docstring). None when the photo shows too few
     CD pixels to compare."""
-    import nlopt
-
     tick = time.perf_counter()
     cost = FringeCost(renderer, photo, model, camera, scale, settings)
     if cost.pixels < MIN_CD_PIXELS:

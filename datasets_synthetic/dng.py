@@ -17,6 +17,7 @@ from fractions import Fraction
 from pathlib import Path
 
 import numpy as np
+import tifffile
 
 from workbench.core.files import atomic_write
 
@@ -54,8 +55,6 @@ def _flat(values, signed: bool) -> tuple[int, ...]:
 
 def write_dng(path: str | Path, raw: np.ndarray, meta: DngMetadata) -> Path:
     """Write a 2D uint16 Bayer mosaic as a DNG; returns the path."""
-    import tifffile
-
     raw = np.asarray(raw)
     if raw.ndim != 2 or raw.dtype != np.uint16:
         raise ValueError(f"raw must be a 2D uint16 mosaic, got {raw.dtype} {raw.shape}")

@@ -22,10 +22,12 @@ truth.json is exactly the one the JPEGs went through.
 from __future__ import annotations
 
 import math
+from fractions import Fraction
 from pathlib import Path
 
 import cv2
 import numpy as np
+from PIL import Image, TiffImagePlugin
 
 from renderer.response import ResponseCurve
 from workbench.core.files import atomic_write
@@ -62,10 +64,6 @@ def develop(raw: np.ndarray, sensor, response: ResponseCurve) -> np.ndarray:
 
 def write_jpeg(path: str | Path, rgb8: np.ndarray, *, exposure_time_s: float, iso: int, make: str, model: str) -> Path:
     """An 8-bit RGB image as a JPEG with EXIF Make, Model, ExposureTime and ISO (Pillow)."""
-    from fractions import Fraction
-
-    from PIL import Image, TiffImagePlugin
-
     exif = Image.Exif()
     exif[0x010F], exif[0x0110] = make, model
     sub = exif.get_ifd(0x8769)  # the Exif sub-IFD
@@ -78,7 +76,5 @@ def write_jpeg(path: str | Path, rgb8: np.ndarray, *, exposure_time_s: float, is
 
 def read_exposure_time(path: str | Path) -> float:
     """The ExposureTime a JPEG's EXIF holds, in seconds."""
-    from PIL import Image
-
     with Image.open(path) as image:
         return float(image.getexif().get_ifd(0x8769)[0x829A])

@@ -64,7 +64,7 @@ class SensorModel:
 # ColorMatrix1, XYZ to camera RGB under CalibrationIlluminant1 (D65). Both follow from the
 # camera's spectral sensitivities S_c(lambda), the renderer's data: a surface of spectral
 # reflectance rho lit by a spectrum E gives camera RGB c = integral E rho S_c dlambda
-# (the render's film, renderer.build.sensor_dict, integrates the same product).
+# (the render's film, renderer.mitsuba_scene.sensor_dict, integrates the same product).
 
 COLOUR_CHECKER = "ColorChecker N Ohta"   # colour-science's measured reflectances of the 24 patches
 CMFS = "CIE 1931 2 Degree Standard Observer"
@@ -97,7 +97,7 @@ def xyz_to_camera(wavelengths_nm: np.ndarray, sensitivities: np.ndarray) -> tupl
     camera's sensitivities are not a linear mix of the CIE 1931 colour matching functions,
     so no matrix is exact: the Luther condition), scaled as the DNG SDK scales its
     matrices, so that D65's white (Y = 1) maps to a camera RGB whose largest channel is 1."""
-    import colour
+    import colour  # deferred: start-up time (seconds)
 
     wl = np.asarray(wavelengths_nm, float)
     d65 = colour.SDS_ILLUMINANTS["D65"]

@@ -70,13 +70,22 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from scipy.spatial.transform import Rotation
+from tqdm import tqdm
 
 from datasets_synthetic.board import BOARD_KEY, Checkerboard, corners_visible, sample_pose
 from datasets_synthetic.dng import DngMetadata, write_dng
 from datasets_synthetic.jpeg import develop, hidden_response, write_jpeg
-from datasets_synthetic.sensor import SensorModel
+from datasets_synthetic.sensor import SensorModel, as_shot_neutral, xyz_to_camera
+from renderer.fit import FitRenderer
+from renderer.render import with_resolution
+from renderer.scene import load_scene
+from renderer.spectra import camera_sensitivities, irregular, light_spectrum
+from renderer.tables import table_keys
 from workbench.core.errors import UserInputError
 from workbench.core.files import atomic_write, atomic_write_text
+from workbench.core.version import __version__ as workbench_version
+from workbench.core.version import versions
 
 PRESETS = {
     "draft": {"resolution": (640, 480), "spp": 64, "views": 2, "calibration_views": 20, "calibration_spp": 16},
@@ -101,8 +110,6 @@ def hidden_camera(camera, rng: np.random.Generator):
     """The scene camera perturbed: rotation up to ~2 deg, translation ~2 cm, FOV ~2 deg,
     principal point ~1 % of the width, a mild distortion.
     """
-    from scipy.spatial.transform import Rotation
-
     T = camera.world_to_camera.copy()
     dR = Rotation.from_rotvec(np.radians(rng.normal(0.0, 1.0, 3))).as_matrix()
     origin = -T[:3, :3].T @ T[:3, 3] + rng.normal(0.0, 0.01, 3)
@@ -122,8 +129,6 @@ def orbit(camera, yaw_deg: float, pitch_deg: float):
     """The same camera moved around the point its optical axis meets the floor (y = 0), or
     the point 1 m ahead when it looks level: a second photograph of the same scene.
     """
-    from scipy.spatial.transform import Rotation
-
     cam_to_world = np.linalg.inv(camera.world_to_camera)
     origin, axis = cam_to_world[:3, 3], cam_to_world[:3, 2]
     distance = -origin[1] / axis[1] if axis[1] < -0.05 else 1.0
@@ -206,8 +211,6 @@ def _say(message: str) -> None:
 
 def _checked_request(scene: str, out: str | Path, seed: int, preset: str) -> tuple[Any, dict, Path]:
     """(scene spec, preset settings, absolute output path), or a UserInputError before anything is written."""
-    from renderer.scene import load_scene
-
     if preset not in PRESETS:
         raise UserInputError("unknown preset", field="--preset", expected=f"one of {sorted(PRESETS)}", got=preset)
     if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or not 0 <= seed < 2**32:
@@ -224,9 +227,6 @@ def _checked_request(scene: str, out: str | Path, seed: int, preset: str) -> tup
 
 def _request_key(spec, seed: int, preset: str, settings: dict) -> str:
     """What a dataset is of: the scene's text and tables, seed, preset, workbench version."""
-    from renderer.tables import table_keys
-    from workbench.core.version import __version__ as workbench_version
-
     request = {"scene": spec.text, "tables": table_keys(spec), "seed": seed, "preset": preset,
                "settings": {k: list(v) if isinstance(v, tuple) else v for k, v in settings.items()},
                "version": workbench_version}
@@ -401,11 +401,6 @@ def _remove(path: Path) -> None:
 def _generate(spec, scene: str, out: Path, renders: _RenderStore, seed: int, preset: str, p: dict,
               progress: bool) -> dict:
     """Render and write the whole dataset into ``out`` (the staging folder); the truth."""
-    from tqdm import tqdm
-
-    from renderer.fit import FitRenderer
-    from renderer.render import with_resolution
-
     started = time.perf_counter()
     shutil.rmtree(out, ignore_errors=True)  # a half-written dataset of a killed run
     for sub in ("photos", "brackets", "calibration"):
@@ -423,24 +418,11 @@ def _generate(spec, scene: str, out: Path, renders: _RenderStore, seed: int, pre
     timings: dict[str, float] = {}
 
     tick = time.perf_counter()
-    fit = FitRenderer(hidden, resolution=p["resolution"], spp=p["spp"])
-    fit.set(light_power_scale=light_scale)
-    view0 = None
-    for k in range(p["views"]):
-        view_camera = camera if k == 0 else orbit(camera, rng_views.choice([-1, 1]) * rng_views.uniform(6, 12),
-                                                   rng_views.uniform(-3, 3))
-        fit.set(camera=view_camera)
-        rgb = renders.get(f"view{k}", partial(fit.render, seed=_frame_seed(seed, k)))
-        exposure_s = _auto_exposure(rgb, sensor) * exposure_scale
-        writer.capture("photos", f"view{k}", rgb, exposure_s, view_camera, rng_noise)
-        if k == 0:
-            view0 = (rgb, exposure_s)
-        bar.update()
+    rgb, exposure_s = _photos(hidden, camera, p, light_scale, exposure_scale, seed, writer, rng_views, rng_noise, bar,
+                              renders)
     timings["photos_s"] = time.perf_counter() - tick
 
     tick = time.perf_counter()
-    assert view0 is not None, "the presets have at least one view"
-    rgb, exposure_s = view0
     for ev in BRACKET_EV:
         writer.capture("brackets", f"ev{ev:+d}", rgb, exposure_s * 2.0**ev, camera, rng_noise, jpeg=True)
     timings["brackets_s"] = time.perf_counter() - tick
@@ -454,7 +436,39 @@ def _generate(spec, scene: str, out: Path, renders: _RenderStore, seed: int, pre
         writer.capture("brackets", f"ev{ev:+d}", rgb, exposure_s * 2.0**ev, camera, rng_noise, jpeg=True)
     bar.close()
 
-    truth = {
+    truth = _truth(spec, seed, preset, camera, writer, response, light_scale, exposure_scale, board, poses)
+    atomic_write_text(out / "truth.json", json.dumps(truth, indent=2))
+    timings["total_s"] = time.perf_counter() - started
+    _write_run_record(out, scene, seed, preset, p, timings, renders.reused)
+    return truth
+
+
+def _photos(hidden, camera, p: dict, light_scale: float, exposure_scale: float, seed: int, writer: _Writer,
+            rng_views, rng_noise, bar, renders: _RenderStore) -> tuple[np.ndarray, float]:
+    """The views of the scene (photos/): view0 from the hidden camera, the others orbiting
+    it; view0's render and exposure time, which the brackets re-expose."""
+    fit = FitRenderer(hidden, resolution=p["resolution"], spp=p["spp"])
+    fit.set(light_power_scale=light_scale)
+    view0 = None
+    for k in range(p["views"]):
+        view_camera = camera if k == 0 else orbit(camera, rng_views.choice([-1, 1]) * rng_views.uniform(6, 12),
+                                                   rng_views.uniform(-3, 3))
+        fit.set(camera=view_camera)
+        rgb = renders.get(f"view{k}", partial(fit.render, seed=_frame_seed(seed, k)))
+        exposure_s = _auto_exposure(rgb, writer.sensor) * exposure_scale
+        writer.capture("photos", f"view{k}", rgb, exposure_s, view_camera, rng_noise)
+        if k == 0:
+            view0 = (rgb, exposure_s)
+        bar.update()
+    assert view0 is not None, "the presets have at least one view"
+    return view0
+
+
+def _truth(spec, seed: int, preset: str, camera, writer: _Writer, response, light_scale: float, exposure_scale: float,
+           board: Checkerboard, poses: dict[str, np.ndarray]) -> dict:
+    """truth.json's content (module docstring)."""
+    sensor = writer.sensor
+    return {
         "format": MARKER, "seed": seed, "preset": preset, "scene": spec.name,
         "camera": {"width": camera.width, "height": camera.height, "fx": camera.fx, "fy": camera.fy,
                    "cx": camera.cx, "cy": camera.cy, "dist": list(camera.dist),
@@ -469,18 +483,12 @@ def _generate(spec, scene: str, out: Path, renders: _RenderStore, seed: int, pre
         "brackets": {"of": "view0.dng", "ev": list(ALL_BRACKET_EV)},
         "sensor": dataclasses.asdict(sensor) | {"white_level": sensor.white_level} | writer.colour,
     }
-    atomic_write_text(out / "truth.json", json.dumps(truth, indent=2))
-    timings["total_s"] = time.perf_counter() - started
-    _write_run_record(out, scene, seed, preset, p, timings, renders.reused)
-    return truth
 
 
 def _calibration_set(hidden, camera, board: Checkerboard, p: dict, light_scale: float, seed: int, writer: _Writer,
                      rng_board, rng_noise, bar, renders: _RenderStore) -> dict[str, np.ndarray]:
     """Board views from view0's camera, its flash on: seeded poses in which nothing hides the board."""
-    import mitsuba as mi
-
-    from renderer.fit import FitRenderer
+    import mitsuba as mi  # deferred: start-up time
 
     first = sample_pose(board, camera, rng_board, view=0)
     fit = FitRenderer(hidden, resolution=(camera.width, camera.height), spp=p["calibration_spp"],
@@ -517,10 +525,7 @@ def colour_tags(spec) -> dict:
     scene camera's RGB of a white diffuse surface under the scene light's spectrum (the
     ceiling light's and the flash's, which share it), G = 1; ``color_matrix``, XYZ to camera
     RGB under D65 (ColorMatrix1), row-major. From the camera's spectral sensitivities, the
-    renderer's own data (renderer.build)."""
-    from datasets_synthetic.sensor import as_shot_neutral, xyz_to_camera
-    from renderer.spectra import camera_sensitivities, light_spectrum
-
+    renderer's own data (renderer.spectra)."""
     curves = camera_sensitivities(spec.camera.sensitivities)
     wl = np.unique(np.concatenate([w for w, _ in curves]))
     sensitivities = np.stack([np.interp(wl, w, s, left=0.0, right=0.0) for w, s in curves])
@@ -541,8 +546,6 @@ def _flash(spec, camera) -> dict:
     light on the board (80 W/m^2 at 0.5 m, against about 25 W/m^2 at 35 cm from the
     10 W ceiling light).
     """
-    from renderer.spectra import irregular, light_spectrum
-
     wl, s = light_spectrum(spec.light.spectrum)
     centre = np.linalg.inv(camera.world_to_camera)[:3, 3]
     return {"type": "point", "position": centre.tolist(), "intensity": irregular(wl, s * FLASH_W_PER_SR / np.trapezoid(s, wl))}
@@ -553,8 +556,6 @@ def _write_run_record(out: Path, scene: str, seed: int, preset: str, settings: d
     """run.json: settings, timings, versions, and every file the run wrote (size, SHA-256),
     which is what ``--force`` may replace.
     """
-    from workbench.core.version import versions
-
     record = {"format": MARKER, "command": "workbench synth", "scene": scene, "seed": seed, "preset": preset,
               "settings": settings, "timings": timings, "resumed_renders": resumed_renders,
               "versions": versions("mitsuba", "drjit", "numpy"),
