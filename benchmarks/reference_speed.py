@@ -11,7 +11,7 @@ eigen-solves of a seeded 61 x 61 matrix (the RCWA core's floor) and a numpy imag
 (calibration and reports), single-threaded through threadpoolctl so that neither the
 number of cores nor a second BLAS thread moves it. Its best of ``REPEATS`` is taken (the
 least disturbed by other processes). ``REFERENCE_S_AT_BARS`` is what it took on the machine
-where the bars were set (2-core Xeon, measured 2026-12-02 with
+where the bars were set (2-core Xeon, best of three quiet runs on 2026-12-02 with
 ``python -m benchmarks.reference_speed``): a bar of B seconds there is B / that many
 reference units anywhere.
 """
@@ -24,7 +24,7 @@ from dataclasses import dataclass
 import numpy as np
 
 REPEATS = 5
-REFERENCE_S_AT_BARS = 0.2  # the reference workload's best time on the machine the bars were set on
+REFERENCE_S_AT_BARS = 0.142  # the reference workload's best time on the machine the bars were set on
 
 
 def _workload() -> float:
