@@ -1,6 +1,6 @@
 """How rendering accuracy is measured on a scene's diffractive elements.
 
-Shared by ``workbench study render`` (renderer.study) and the benchmarks. The film is
+Shared by ``workbench study render`` (renderer.render_study) and the benchmarks. The film is
 cropped to the pixels whose primary ray hits a CD (or its polycarbonate top) or a
 grating, so every sample is spent where the comparison is made. Two independent
 references A and B give the reference's own noise: for an image I,
@@ -53,7 +53,7 @@ def element_mask(mi, scene_d: dict) -> np.ndarray:
 def element_crop(mi, spec, margin: int = 2) -> tuple[tuple[list[int], list[int]], np.ndarray]:
     """((offset, size) of the film region the scene's diffractive elements cover, their
     mask over that region). Raises UserInputError when the camera sees none."""
-    # deferred: pulls in the RCWA core and cv2, and renderer.study (imported by `workbench --help`) imports this module
+    # deferred: pulls in the RCWA core and cv2, and renderer.render_study (imported by `workbench --help`) imports this module
     from renderer.mitsuba_scene import scene_dict
 
     d, _ = scene_dict(mi, spec, spp=1)

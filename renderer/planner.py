@@ -53,7 +53,7 @@ from rcwa import symmetry
 from rcwa.structure import Structure
 from rcwa.symmetry import MirrorSymmetry
 from rcwa.table import NodePlan, TableSettings, kept_indices, table_symmetry, transmits
-from renderer.checks import visible_range
+from renderer.camera_coverage import visible_range
 from renderer.placement import frame_to
 from renderer.scene import CD_TOP_THICKNESS_M, CDSpec, GratingSpec, SceneSpec
 from renderer.spectra import camera_sensitivities, on_common_grid

@@ -52,6 +52,7 @@ from typing import Any
 
 import numpy as np
 
+from rcwa.factorization import FACTORIZATION_RULES
 from rcwa.materials import material_from_spec
 from rcwa.structure import BUILTIN_STRUCTURES
 from renderer.camera import CameraModel, look_at
@@ -269,6 +270,12 @@ def _normal(value: Any, where: str) -> tuple[float, float, float]:
     return tuple(normal / np.linalg.norm(normal))
 
 
+def _one_of(names) -> str:
+    """``a, b, c or d``: a list of names as the error messages word it."""
+    names = list(names)
+    return ", ".join(names[:-1]) + f" or {names[-1]}" if len(names) > 1 else "".join(names)
+
+
 TABLE_OPTIONS = {  # a scene's ``table = {...}``: the options of ``workbench rcwa table`` (rcwa.table.settings_for)
     "preset": "draft, paper or fine",
     "theta_step": "degrees, > 0", "phi_step": "degrees, > 0",
@@ -277,12 +284,12 @@ TABLE_OPTIONS = {  # a scene's ``table = {...}``: the options of ``workbench rcw
     "keep": "stored orders: an odd integer N (1D) or [NX, NY] (2D), at most `orders`",
     "pol": "unpolarized, s, p or all",
     "reflection_only": "true or false", "both_sides": "true or false", "use_symmetry": "true or false",
-    "factorization": "auto, li, nv or laurent",
+    "factorization": _one_of(FACTORIZATION_RULES),  # the registry's names: "auto, li, nv or laurent"
     "theta_range": "[LO, HI] in degrees", "phi_range": "[LO, HI] in degrees",
     "path": "a table built with `workbench rcwa table` (a .zarr folder)",
 }
 _TABLE_CHOICES = {"preset": ("draft", "paper", "fine"), "pol": ("unpolarized", "s", "p", "all"),
-                  "factorization": ("auto", "li", "nv", "laurent")}
+                  "factorization": tuple(FACTORIZATION_RULES)}
 
 
 def _table_options(value: Any, where: str, base_dir: Path | None = None) -> dict:

@@ -3,7 +3,7 @@
 A CD's or grating's efficiency table is the one its ``table = { path = ... }`` names
 (checked: finished, intact, built for the element's structure), or else built through the
 table cache (workbench.core.cache, ``tables/``, named by the request's content hash) when
-missing; either is checked to cover where the camera sees (renderer.checks). A table
+missing; either is checked to cover where the camera sees (renderer.camera_coverage). A table
 planned for one camera (renderer.planner) holds the nodes its rays read solved in full; a
 finished planned table whose exact nodes include another plan's serves that plan too.
 """
@@ -28,7 +28,7 @@ from rcwa.table import (
     request_key,
     settings_for,
 )
-from renderer.checks import require_table_covers_camera
+from renderer.camera_coverage import require_table_covers_camera
 from renderer.scene import SceneSpec
 from renderer.spectra import Curves, on_common_grid
 from workbench.core.cache import entry_path

@@ -74,7 +74,7 @@ import numpy as np
 from rcwa.materials import material_from_spec
 from rcwa.structure import load_structure
 from renderer.camera import CameraModel
-from renderer.checks import visible_range
+from renderer.camera_coverage import visible_range
 from renderer.placement import frame_to
 from renderer.planner import hits_light, incident_directions, plane_hits, source_rays
 from renderer.scene import CD_TOP_THICKNESS_M, SPECTRAL_RANGE_NM, CDSpec, SceneSpec

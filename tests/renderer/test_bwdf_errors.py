@@ -5,7 +5,7 @@ import pytest
 
 import rcwa
 from rcwa.table import build_table, settings_for
-from renderer.checks import SENSITIVITY_THRESHOLD, require_table_covers_camera, visible_range
+from renderer.camera_coverage import SENSITIVITY_THRESHOLD, require_table_covers_camera, visible_range
 from workbench.core.errors import UserInputError
 
 

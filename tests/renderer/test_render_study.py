@@ -23,7 +23,7 @@ import json
 
 import pytest
 
-from renderer.study import RenderStudyConfig, run_render_study
+from renderer.render_study import RenderStudyConfig, run_render_study
 
 TOLERANCE_ENERGY = 0.01  # 50 000 furnace samples: the mean's standard error is a few 1e-3
 PAPER_ENERGY_BAND = (0.95, 1.1)  # measured 1.028; a broken weight (a lost N_tot, 4 or 2 factor) lands far outside

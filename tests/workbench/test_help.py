@@ -60,8 +60,8 @@ def test_version(capsys: pytest.CaptureFixture[str]) -> None:
 
 @pytest.mark.parametrize("quiet", [False, True])
 @pytest.mark.parametrize(("argv", "module", "function", "result"), [
-    (["study", "rcwa", "cd"], "rcwa.study", "run_study", {"presets": []}),
-    (["study", "render", "cornell_cd"], "renderer.study", "run_render_study", {"energy": []}),
+    (["study", "rcwa", "cd"], "rcwa.table_study", "run_study", {"presets": []}),
+    (["study", "render", "cornell_cd"], "renderer.render_study", "run_render_study", {"energy": []}),
 ])
 def test_the_studies_show_progress_unless_quiet(argv, module, function, result, quiet, tmp_path, monkeypatch) -> None:
     """The studies run for minutes: the command asks them for a progress bar, --quiet turns it off."""

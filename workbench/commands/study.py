@@ -1,4 +1,4 @@
-"""``workbench study rcwa|render|calibrate``: accuracy-versus-time studies (rcwa.study, renderer.study,
+"""``workbench study rcwa|render|calibrate``: accuracy-versus-time studies (rcwa.table_study, renderer.render_study,
 calibration.pose_study)."""
 
 from __future__ import annotations
@@ -7,7 +7,7 @@ import argparse
 from collections.abc import Callable
 
 import rcwa
-import renderer.study
+import renderer.render_study
 from workbench.commands.arguments import STRUCTURE_HELP, positive_numbers
 from workbench.core.errors import UserInputError
 
@@ -60,7 +60,7 @@ def run(args: argparse.Namespace) -> int:
 
 
 def run_rcwa(args: argparse.Namespace) -> int:
-    from rcwa.study import run_study  # deferred: pulls in scipy and shapely (start-up time)
+    from rcwa.table_study import run_study  # deferred: pulls in scipy and shapely (start-up time)
 
     structure = rcwa.load_structure(args.structure)
     if structure.dimension != 1:
@@ -77,7 +77,7 @@ def run_rcwa(args: argparse.Namespace) -> int:
 
 
 def run_render(args: argparse.Namespace) -> int:
-    data = renderer.study.run_render_study(args.scene, args.out, progress=not args.quiet)
+    data = renderer.render_study.run_render_study(args.scene, args.out, progress=not args.quiet)
     print(f"wrote {args.out}/study_render.json, the CSV files and study_render.png/.svg")
     for e in data["energy"]:
         print(f"furnace energy, {e['mode']} mode: {e['energy']:.4f}")

@@ -1,4 +1,4 @@
-"""`workbench study rcwa` (rcwa/study.py): what its files hold and whether its curves and
+"""`workbench study rcwa` (rcwa/table_study.py): what its files hold and whether its curves and
 recommendations are right.
 
 The study runs once on the CD at a small configuration (seconds). Asserted, each with its
@@ -29,7 +29,7 @@ import numpy as np
 import pytest
 
 import rcwa
-from rcwa.study import StudyConfig, interpolation_study, run_study, truncation_study
+from rcwa.table_study import StudyConfig, interpolation_study, run_study, truncation_study
 from tests.rcwa.helpers import nk, structure
 
 # On the CD at these directions the 161-harmonic reference itself is 2.4e-4 from a
@@ -164,7 +164,7 @@ def test_recommended_settings_meet_their_target(cd_study):
 def test_a_step_that_does_not_divide_90_covers_the_whole_azimuth_range():
     """A 20 deg grid ends at 80 deg unless 90 is appended; off-grid test points up to 90
     deg must still be interpolated (a regression: scipy refused them as out of bounds)."""
-    from rcwa.study import StudyConfig, interpolation_study
+    from rcwa.table_study import StudyConfig, interpolation_study
     from tests.rcwa.helpers import lamellar
 
     cfg = StudyConfig(wavelengths_nm=(550.0,), interpolation_orders=11, keep=3, steps_deg=(20.0,), test_points=50)
@@ -175,7 +175,7 @@ def test_a_step_that_does_not_divide_90_covers_the_whole_azimuth_range():
 def test_a_see_through_cells_interpolation_error_is_not_hidden_by_r_plus_t():
     """For a lossless cell where only order 0 propagates R0 + T0 = 1 everywhere, so scoring
     their sum would report no interpolation error; R and T are scored apart."""
-    from rcwa.study import StudyConfig, interpolation_study
+    from rcwa.table_study import StudyConfig, interpolation_study
     from tests.rcwa.helpers import lamellar
 
     sub_wavelength = lamellar(period=0.3, fill=(0.0, 0.15))  # 0.3 um < 550 nm / 1.5: only the zero orders propagate
