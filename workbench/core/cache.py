@@ -29,6 +29,8 @@ from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
 
+from filelock import FileLock, Timeout
+
 ENVIRONMENT_VARIABLE = "WORKBENCH_CACHE"
 KINDS = ("tables", "meshes")
 
@@ -77,8 +79,6 @@ def entry_lock(entry: str | os.PathLike[str], *, notify: Callable[[str], None] |
     """Hold ``entry``'s lock for the block. When another process holds it, ``notify`` (by
     default a line on stderr) says so once and the call waits until it is released.
     """
-    from filelock import FileLock, Timeout
-
     lock_file = lock_path(Path(entry))
     lock_file.parent.mkdir(parents=True, exist_ok=True)
     lock = FileLock(str(lock_file))
@@ -96,8 +96,6 @@ def entry_lock(entry: str | os.PathLike[str], *, notify: Callable[[str], None] |
 
 def is_locked(entry: Path) -> bool:
     """Whether a running process holds ``entry``'s lock now."""
-    from filelock import FileLock, Timeout
-
     lock_file = lock_path(entry)
     if not lock_file.exists():
         return False
@@ -178,7 +176,6 @@ def clear(root: Path | None = None) -> tuple[list[CacheEntry], list[CacheEntry]]
 
 
 def _remove_unless_locked(entry: Path, lock_file: Path) -> bool:
-    from filelock import FileLock, Timeout
 
     lock = FileLock(str(lock_file))
     try:

@@ -23,7 +23,7 @@ class DaskExecutor:
     """
 
     def __init__(self, scheduler: str | None = None, workers: int | None = None) -> None:
-        from distributed import Client, LocalCluster
+        from distributed import Client, LocalCluster  # deferred: start-up time (only --scheduler/--workers need it)
 
         self._cluster = None
         if scheduler:

@@ -6,7 +6,9 @@ DNG photos, truth files all go through here).
 
 from __future__ import annotations
 
+import csv
 import hashlib
+import io
 import os
 from collections.abc import Callable
 from pathlib import Path
@@ -38,9 +40,6 @@ def atomic_write_text(path: str | Path, text: str, *, sync: bool = False) -> Pat
 
 def atomic_write_csv(path: str | Path, rows: list[dict]) -> Path:
     """Rows of dicts as CSV (columns: every key, sorted), written atomically."""
-    import csv
-    import io
-
     buffer = io.StringIO()
     writer = csv.DictWriter(buffer, fieldnames=sorted({k for r in rows for k in r}), lineterminator="\n")
     writer.writeheader()

@@ -5,10 +5,12 @@ from __future__ import annotations
 from functools import partial
 from pathlib import Path
 
+from workbench.core.files import atomic_write
+
 
 def new_figure(panels: int = 2, size=(11, 4.2)):
     """A headless matplotlib figure with ``panels`` side-by-side axes."""
-    import matplotlib
+    import matplotlib  # deferred: start-up time (half a second; only studies and reports plot)
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
@@ -18,9 +20,7 @@ def new_figure(panels: int = 2, size=(11, 4.2)):
 
 def save_figure(fig, axes, out: Path, stem: str) -> None:
     """Grid and legend on every panel, then ``stem``.png and ``stem``.svg in ``out``."""
-    import matplotlib.pyplot as plt
-
-    from workbench.core.files import atomic_write
+    import matplotlib.pyplot as plt  # deferred: start-up time
 
     for ax in axes:
         ax.grid(True, which="both", alpha=0.3)
