@@ -35,14 +35,15 @@ NOISY_ACCURACY_PX = 0.35  # with noise of 0.2 (a quarter of the contrast) per pi
 REAL = Path(__file__).resolve().parents[2].parent / "shared" / "data" / "real"
 
 
-def _view(tilt: float, roll: float, noise: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
-    """A rasterized board (float, 0.05 dark, 0.8 light) and its true corners, row by row."""
+def _view(tilt: float, roll: float, noise: float = 0.0, seed: int = 0) -> tuple[np.ndarray, np.ndarray]:
+    """A rasterized board (float, 0.05 dark, 0.8 light), with Gaussian noise of std `noise`
+    drawn from `seed`, and its true corners, row by row."""
     K = np.array([[300.0, 0, SIZE[0] / 2], [0, 300.0, SIZE[1] / 2], [0, 0, 1]])
     R, t = look_at_board(tilt, 0.0, roll, 14.0, (4.0, 2.5))
     H = board_homography(K, R, t)
     grey = checkerboard_view(H, PATTERN, SIZE, SUPERSAMPLE)
     if noise:
-        grey = grey + np.random.default_rng(0).normal(0.0, noise, grey.shape)
+        grey = grey + np.random.default_rng(seed).normal(0.0, noise, grey.shape)
     return grey, true_corners(H, PATTERN)
 
 
@@ -84,17 +85,55 @@ def test_any_image_form_gives_the_same_corners():
         assert _rms(result.corners, reference.reshape(-1, 2)) < SAME_PX, name
 
 
+NOISY_SEEDS = range(8)    # 0.15 s each
+
+
 def test_fallback_detector_finds_a_noisy_board():
-    grey, truth = _view(35.0, -10.0, noise=0.2)
-    grey8 = np.rint(255 * np.clip(grey, 0, 1)).astype(np.uint8)
-    classic, _ = cv2.findChessboardCorners(grey8, PATTERN, flags=cv2.CALIB_CB_ADAPTIVE_THRESH | cv2.CALIB_CB_NORMALIZE_IMAGE)
-    assert not classic  # the first detector fails here ...
-    result = find_board_corners(grey, PATTERN)
-    assert result.found and result.detector.startswith("findChessboardCornersSB")  # ... a fallback does not
-    assert _rms(result.corners, truth) < NOISY_ACCURACY_PX  # and its (reversed) order is findChessboardCorners'
-    subpix = cv2.cornerSubPix(grey8, result.corners.copy(), (5, 5), (-1, -1),
-                              (cv2.TERM_CRITERIA_EPS | cv2.TERM_CRITERIA_COUNT, 50, 1e-4))
-    assert _rms(result.corners, truth) < _rms(subpix, truth)
+    """Where findChessboardCorners fails (noise of 0.2 per pixel), the fallback
+    (findChessboardCornersSB) finds the board, in findChessboardCorners' order, and its
+    refined corners beat cornerSubPix's; judged over 8 noise seeds, not one.
+
+    Noise: the per-pixel Gaussian noise only (the board is rasterized exactly). Over 1000
+    noise seeds (issue 23) one seed's checks failed in 13: RMS
+    0.309 +- 0.0145 px (max 0.362, >= 0.35 in 9), RMS minus cornerSubPix's 0.101 +- 0.036
+    px (<= 0 in 2), findChessboardCorners found the board in 2, the fallback missed it in 1:
+    1.3e-2 false alarms per run. Over 8 seeds, 4 comparisons:
+    * findChessboardCorners fails on at least half the seeds: it finds the board with
+      p = 2e-3 per seed (99 % upper bound 8.4e-3), so 5 or more of 8 (binomial) 1.8e-12
+      (2.3e-9 at the upper bound);
+    * the fallback finds the board on at least 5 of 8: it misses with p = 1e-3 (upper
+      6.6e-3), so 4 or more misses 7e-11 (1.3e-7 at the upper bound; "7 of 8" would be
+      2.8e-5, 1.2e-3 at the upper bound);
+    * mean RMS over the found seeds < 0.35 px: 8.0 SE of the 8-seed mean (SE 0.0051 px),
+      Gaussian 6e-16; the RMS is skewed (0.43), the Chernoff bound with the 1000 seeds'
+      empirical moment-generating function is 4e-12;
+    * mean (cornerSubPix's RMS - ours) > 0: 8.0 SE (0.0127 px), Gaussian 8e-16 (Chernoff 2e-15).
+    False alarms per run: 7e-11 at the measured rates, < 1.4e-7 at the upper bounds.
+    Defects still caught: no fallback (found on 0 of 8); the fallback's corners left in
+    findChessboardCornersSB's own order (checked: mean RMS 127 px); an error added to each
+    corner that raises the mean RMS by 0.05 px, e.g. a 0.2 px shift (checked: 0.298 -> 0.367 px); a
+    refinement no better than cornerSubPix's (mean difference 0, 8 SE below the measured).
+    """
+    rms, better, classic_found, fallback_found = [], [], 0, 0
+    for seed in NOISY_SEEDS:
+        grey, truth = _view(35.0, -10.0, noise=0.2, seed=seed)
+        grey8 = np.rint(255 * np.clip(grey, 0, 1)).astype(np.uint8)
+        classic, _ = cv2.findChessboardCorners(grey8, PATTERN, flags=cv2.CALIB_CB_ADAPTIVE_THRESH | cv2.CALIB_CB_NORMALIZE_IMAGE)
+        classic_found += bool(classic)
+        result = find_board_corners(grey, PATTERN)
+        if not (result.found and result.detector.startswith("findChessboardCornersSB")):
+            continue
+        fallback_found += 1
+        subpix = cv2.cornerSubPix(grey8, result.corners.copy(), (5, 5), (-1, -1),
+                                  (cv2.TERM_CRITERIA_EPS | cv2.TERM_CRITERIA_COUNT, 50, 1e-4))
+        rms.append(_rms(result.corners, truth))   # its (reversed) order is findChessboardCorners'
+        better.append(_rms(subpix, truth) - rms[-1])
+    print(f"classic found {classic_found}, fallback {fallback_found} of {len(NOISY_SEEDS)}; "
+          f"RMS {np.mean(rms):.4f} px, cornerSubPix minus ours {np.mean(better):.4f} px")
+    assert classic_found <= len(NOISY_SEEDS) // 2   # the first detector fails here ...
+    assert fallback_found >= 5                      # ... a fallback does not
+    assert np.mean(rms) < NOISY_ACCURACY_PX
+    assert np.mean(better) > 0
 
 
 @pytest.mark.parametrize("tilt, roll", [(35.0, -10.0), (50.0, 20.0)])
