@@ -167,7 +167,8 @@ def _slope_standard_errors(times: list[float], size: tuple[int, int], pattern: s
             patch = (slice(r * h // 2 + 4, (r + 1) * h // 2 - 4), slice(c * w // 3 + 4, (c + 1) * w // 3 - 4))
             for ch in range(3):
                 mask = channel[patch] == ch
-                relative[n, k, ch] = np.sqrt(var[patch][mask].mean() / mask.sum()) / (mean[patch][mask].mean() - sensor.black_level)
+                signal = mean[patch][mask].mean() - sensor.black_level
+                relative[n, k, ch] = np.sqrt(var[patch][mask].mean() / mask.sum()) / signal
     return np.sqrt(np.einsum("t,tkc->kc", weight ** 2, relative ** 2)).reshape(-1)
 
 
