@@ -2,12 +2,12 @@
 
 ``make bench`` prints the curves (benchmarks/bench_convergence.py):
 
-* a metallic lamellar grating in TM (the structure of Li & Haggans 1993 / Granet & Guizal
-  1996, JOSA A 13, 1019, Table 1: index 0.22 + 6.71i, period = wavelength = 1 um, 30 deg,
-  ridge width 0.5 um, depth 0.1 um), where Li's inverse rule converges far faster than the
-  Laurent rule (Li 1996, JOSA A 13, 1870, Fig. 3; Lalanne & Morris 1996);
+* a metallic lamellar grating in TM (the structure of [Li 1993] / [Granet 1996, Table 1]:
+  index 0.22 + 6.71i, period = wavelength = 1 um, 30 deg, ridge width 0.5 um, depth
+  0.1 um), where Li's inverse rule converges far faster than the Laurent rule
+  ([Li 1996, Fig. 3]; [Lalanne 1996]);
 * the paper's 2D gold block (built-in ``gold2d``): zero-order transmission at 550 nm,
-  normal incidence, for the Li 1997, normal-vector and Laurent rules.
+  normal incidence, for the [Li 1997], normal-vector and Laurent rules.
 """
 
 from __future__ import annotations

@@ -8,18 +8,17 @@ signature ``FactorizationRule``, are chosen by name in ``FACTORIZATION_RULES``:
 
 * ``laurent``: ``Exx = Eyy = [[eps]]`` (the classical, slowly converging choice; kept so
   the difference can be measured).
-* ``li``: 1D: Li's inverse rule ``Exx = [[1/eps]]^{-1}``, ``Eyy = [[eps]]`` (Li 1996,
-  JOSA A 13, 1870, Theorems 1-2 and Eq. 37; Lalanne & Morris 1996, Granet & Guizal 1996).
-  2D: Li 1997 (JOSA A 14, 2758, Eqs. 38-39): ``Exx`` applies the inverse rule along x
+* ``li``: 1D: Li's inverse rule ``Exx = [[1/eps]]^{-1}``, ``Eyy = [[eps]]``
+  ([Li 1996, Theorems 1-2 and Eq. 37]; [Lalanne 1996], [Granet 1996]).
+  2D: [Li 1997, Eqs. 38-39]: ``Exx`` applies the inverse rule along x
   inside each y-slab and the Laurent rule along y; ``Eyy`` the reverse. Exact for shapes
   that are unions of axis-aligned rectangles; circles and polygons are cut into
   ``LI_STAIRCASE_SLABS`` slabs (a staircase) along the Laurent direction.
-* ``nv``: the normal vector method (Schuster, Ruoff, Kerwien, Rafler & Osten 2007, JOSA A
-  24, 2880, Eqs. 15-18; Götz et al. 2008, Opt. Express 16, 17295): with a unit field n(r)
+* ``nv``: the normal vector method ([Schuster 2007, Eqs. 15-18]; [Götz 2008]): with a unit field n(r)
   normal to every material boundary, ``Exx = E - Delta [[nx nx]]``, ``Exy = -Delta
   [[nx ny]]``, ``Eyy = E - Delta [[ny ny]]``, ``Delta = [[eps]] - [[1/eps]]^{-1}``. In 1D
   n = x everywhere and it is the same as ``li``.
-* ``auto``: ``li`` in 1D and for 2D cells made only of rectangles (where Li 1997 is the
+* ``auto``: ``li`` in 1D and for 2D cells made only of rectangles (where [Li 1997] is the
   correct rule in both directions), ``nv`` for 2D cells with circles or polygons.
 """
 
@@ -76,8 +75,8 @@ def laurent_rule(layer: Layer, period: tuple[float, ...], eps_of: Callable, h: H
 
 
 def li_rule(layer: Layer, period: tuple[float, ...], eps_of: Callable, h: HarmonicIndices) -> PermittivityMatrices:
-    """Li's inverse rule. 1D: ``Exx = [[1/eps]]^{-1}``, ``Eyy = [[eps]]`` (Li 1996, JOSA A
-    13, 1870, Theorems 1-2 and Eq. 37). 2D: Li 1997 (JOSA A 14, 2758, Eqs. 38-39), ``Exx``
+    """Li's inverse rule. 1D: ``Exx = [[1/eps]]^{-1}``, ``Eyy = [[eps]]`` ([Li 1996,
+    Theorems 1-2 and Eq. 37]). 2D: [Li 1997, Eqs. 38-39], ``Exx``
     the inverse rule along x inside each y-slab and the Laurent rule along y, ``Eyy`` the
     reverse (_li_slabbed)."""
     if len(period) == 1:
@@ -88,8 +87,7 @@ def li_rule(layer: Layer, period: tuple[float, ...], eps_of: Callable, h: Harmon
 
 
 def nv_rule(layer: Layer, period: tuple[float, ...], eps_of: Callable, h: HarmonicIndices) -> PermittivityMatrices:
-    """The normal vector method (Schuster, Ruoff, Kerwien, Rafler & Osten 2007, JOSA A 24,
-    2880, Eqs. 15-18; Götz et al. 2008, Opt. Express 16, 17295): ``Exx = E - Delta [[nx
+    """The normal vector method ([Schuster 2007, Eqs. 15-18]; [Götz 2008]): ``Exx = E - Delta [[nx
     nx]]``, ``Exy = Eyx = -Delta [[nx ny]]``, ``Eyy = E - Delta [[ny ny]]``, ``Delta = [[eps]]
     - [[1/eps]]^{-1}``, the products symmetrized. In 1D n = x everywhere: Li's inverse rule."""
     if len(period) == 1:
@@ -110,7 +108,7 @@ def nv_rule(layer: Layer, period: tuple[float, ...], eps_of: Callable, h: Harmon
 
 
 def auto_rule(layer: Layer, period: tuple[float, ...], eps_of: Callable, h: HarmonicIndices) -> PermittivityMatrices:
-    """``li`` in 1D and for 2D cells made only of rectangles (where Li 1997 is the correct
+    """``li`` in 1D and for 2D cells made only of rectangles (where [Li 1997] is the correct
     rule in both directions), ``nv`` for 2D cells with circles or polygons (resolve_rule)."""
     return FACTORIZATION_RULES[resolve_rule("auto", len(period), (layer,))](layer, period, eps_of, h)
 
@@ -151,7 +149,7 @@ def permittivity_matrices(
 
 
 def _inverse_rule_1d(layer: Layer, period: float, eps_of: Callable, m: np.ndarray) -> PermittivityMatrices:
-    """Li 1996's inverse rule of a 1D layer: ``Exx = [[1/eps]]^{-1}``, ``Eyy = [[eps]]``."""
+    """The inverse rule [Li 1996, Eq. 37] of a 1D layer: ``Exx = [[1/eps]]^{-1}``, ``Eyy = [[eps]]``."""
     E, inverse = lamellar_toeplitz(layer, period, eps_of, m, inverse=True)
     assert inverse is not None  # asked for: inverse=True
     return PermittivityMatrices(E, np.linalg.inv(inverse), E)
@@ -160,7 +158,7 @@ def _inverse_rule_1d(layer: Layer, period: float, eps_of: Callable, m: np.ndarra
 def lamellar_toeplitz(layer: Layer, period: float, eps_of: Callable, m: np.ndarray,
                       inverse: bool = True) -> tuple[np.ndarray, np.ndarray | None]:
     """``[[eps]]`` and, with ``inverse``, ``[[1/eps]]`` of a 1D layer for harmonics ``m = -M..M``
-    (Li 1996, JOSA A 13, 1870, Eq. 3 for the Toeplitz matrices; Li's inverse rule is ``Exx =
+    ([Li 1996, Eq. 3] for the Toeplitz matrices; Li's inverse rule is ``Exx =
     [[1/eps]]^-1``, which the solver leaves to the core: rcwa/cpp/sweep.hpp,
     ``LayerInput::inverse_rule``). Built by the core from the profile (rcwa/cpp/profile.hpp,
     the closed-form interval transforms of rcwa.fourier); without ``inverse`` the second
@@ -247,7 +245,7 @@ def _slab_edges(layer: Layer, length: float, axis: int) -> np.ndarray:
 
 
 def _li_slabbed(layer: Layer, period, eps_of: Callable, h: HarmonicIndices, axis: int) -> np.ndarray:
-    """Li 1997: inverse rule along ``axis`` inside each slab, Laurent across the slabs.
+    """[Li 1997, Eqs. 38-39]: inverse rule along ``axis`` inside each slab, Laurent across the slabs.
 
     axis = 0 gives Exx (slabs stacked along y, inverse rule along x); axis = 1 gives Eyy.
     """
@@ -319,7 +317,7 @@ def _normal_products(layer: Layer, period: tuple[float, float], gx_max: int, gy_
     """Fourier coefficients of nx^2, nx ny, ny^2 of the normal-vector field.
 
     n(r) is the gradient of the distance to the nearest material boundary, i.e. the unit
-    vector from the nearest boundary point to r (Götz et al. 2008, Sec. 3): normal to
+    vector from the nearest boundary point to r ([Götz 2008, Sec. 3]): normal to
     every boundary, radial around corners, continuous except on the medial axis, where
     the tensor n n^T of equally near boundary points is averaged (so a symmetric cell
     gets a symmetric field). Sampled at the centres of an NV_GRID x NV_GRID grid and
@@ -347,7 +345,7 @@ def _boundary_candidates(layer: Layer, period, points: np.ndarray):
     A polygon's boundary is taken from the union of its periodic images, so an edge that
     meets its own image (a rectangle spanning the whole period in y has its top edge on
     its image's bottom edge) is no material boundary and does not pull the normal field:
-    in a y-invariant cell every boundary is then normal to x, and Schuster et al. 2007's
+    in a y-invariant cell every boundary is then normal to x, and [Schuster 2007]'s
     rule reduces to Li's 1D inverse rule (tests/rcwa/test_invariance.py). Coordinates are
     snapped to 1e-9 of the period first, so images that should touch do touch exactly.
     """

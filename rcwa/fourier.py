@@ -2,19 +2,19 @@
 
 Conventions (workbench.core.conventions): a periodic function is
 ``f(r) = sum_g c(g) exp(+i g.G r)`` with ``c(g) = (1/A) int_cell f(r) exp(-i g.G r) dr``.
-Harmonic ``m`` of a field has ``k_m = k_inc - m G`` (Lange et al. 2021, Eq. 2 sign), so the
+Harmonic ``m`` of a field has ``k_m = k_inc - m G`` ([Lange 2021, Eq. 2] sign), so the
 product ``f E`` has, at harmonic ``m``, ``sum_n c(n - m) E_n``: the convolution matrix is
-``C[m, n] = c(n - m)`` (Li 1996, JOSA A 13, 1870, Eq. 3, with the order sign flipped).
+``C[m, n] = c(n - m)`` ([Li 1996, Eq. 3], with the order sign flipped).
 
 Shape transforms are exact (closed forms), never a raster:
 * interval: ``int_a^b exp(-i q x) dx``;
 * rectangle: the product of two interval transforms;
-* circle: ``2 pi R^2 J1(|q| R) / (|q| R)`` times the centre's phase (Bracewell, The Fourier
-  Transform and its Applications, 3rd ed., Ch. 13, the 'jinc' pair);
+* circle: ``2 pi R^2 J1(|q| R) / (|q| R)`` times the centre's phase ([Bracewell 2000, Ch. 13],
+  the 'jinc' pair);
 * polygon: by the divergence theorem, ``int_P exp(-i q.r) dA = (i/|q|^2) sum_edges
   (q.n_j) L_j exp(-i q.M_j) sinc(q.D_j / 2)``, with edge length ``L_j``, outward normal
-  ``n_j``, midpoint ``M_j`` and edge vector ``D_j`` (Lee & Mittra 1983, IEEE Trans.
-  Antennas Propag. 31, 99, Eq. 8, written with the unnormalized sinc(x) = sin(x)/x).
+  ``n_j``, midpoint ``M_j`` and edge vector ``D_j`` ([Lee 1983, Eq. 8], written
+  with the unnormalized sinc(x) = sin(x)/x).
 """
 
 from __future__ import annotations

@@ -16,30 +16,26 @@ published, with the full citation in its header.
 ===========================  ============================================  ==================  ============
 name (aliases)               source                                        model               range (nm)
 ===========================  ============================================  ==================  ============
-air                          vacuum value, as Lange et al. 2021, Sec. 3    constant n = 1      all
-polycarbonate (pc)           Sultanova et al. 2009 [1]; Sellmeier fit      Sellmeier, k = 0    360-1052 (*)
-aluminum (aluminium, al)     Rakic et al. 1998 [2], LD parameters          Lorentz-Drude       206.6-12398
-gold (au)                    Johnson & Christy 1972 [3], Table I           tabulated, PCHIP    187.9-1937
-silver (ag)                  Johnson & Christy 1972 [3], Table I           tabulated, PCHIP    187.9-1937
-silicon (si)                 Green 2008 [4], Table 1, 300 K                tabulated, PCHIP    250-1450
-fused_silica (silica, sio2)  Malitson 1965 [5]                             Sellmeier, k = 0    210-3710
-n-bk7 (bk7)                  SCHOTT N-BK7 data sheet [6]                   Sellmeier, k = 0    300-2500
+air                          vacuum value, as [Lange 2021, Sec. 3]         constant n = 1      all
+polycarbonate (pc)           [Sultanova 2009]; Sellmeier fit (1)           Sellmeier, k = 0    360-1052 (*)
+aluminum (aluminium, al)     [Rakic 1998], LD parameters (2)               Lorentz-Drude       206.6-12398
+gold (au)                    [Johnson 1972, Table I] (3)                   tabulated, PCHIP    187.9-1937
+silver (ag)                  [Johnson 1972, Table I] (3)                   tabulated, PCHIP    187.9-1937
+silicon (si)                 [Green 2008, Table 1], 300 K                  tabulated, PCHIP    250-1450
+fused_silica (silica, sio2)  [Malitson 1965], 20 degC                      Sellmeier, k = 0    210-3710
+n-bk7 (bk7)                  SCHOTT N-BK7 data sheet, [SCHOTT TIE-29] (4)  Sellmeier, k = 0    300-2500
 ===========================  ============================================  ==================  ============
 
 (*) measured 436.8-1052 nm; 360-436.8 nm extrapolates the Sellmeier fit (its single UV pole
 at 146 nm lies far below polycarbonate's intrinsic absorption edge near 290 nm). Air's true
-n - 1 ~ 2.8e-4 (Ciddor, Appl. Opt. 35, 1566 (1996)) is neglected, as in the paper.
+n - 1 ~ 2.8e-4 [Ciddor 1996] is neglected, as in the paper. The works are listed, by key, in
+docs/references.md:
 
-[1] N. Sultanova, S. Kasarova, I. Nikolov, Acta Phys. Pol. A 116, 585-587 (2009); one-term
-    Sellmeier fit to its indices by M. N. Polyanskiy (refractiveindex.info database).
-[2] A. D. Rakic, A. B. Djurisic, J. M. Elazar, M. L. Majewski, Appl. Opt. 37, 5271-5283
-    (1998): Lorentz-Drude model and its parameter table for Al (fit range 0.1-6 eV).
-[3] P. B. Johnson, R. W. Christy, Phys. Rev. B 6, 4370-4379 (1972), n and k against photon
-    energy 0.64-6.60 eV.
-[4] M. A. Green, Sol. Energy Mater. Sol. Cells 92, 1305-1310 (2008).
-[5] I. H. Malitson, J. Opt. Soc. Am. 55, 1205-1208 (1965), 20 degC.
-[6] SCHOTT optical glass data sheet / Zemax catalogue 2017-01-20b; Sellmeier form of SCHOTT
-    TIE-29 (2005). k = 0: SCHOTT's transmittance data give k < 6e-8 over 360-830 nm.
+(1) a one-term Sellmeier fit to its indices [Polyanskiy 2024] (refractiveindex.info).
+(2) the Lorentz-Drude model and its parameter table for Al (fit range 0.1-6 eV).
+(3) n and k against photon energy 0.64-6.60 eV.
+(4) the Zemax catalogue 2017-01-20b; Sellmeier form of [SCHOTT TIE-29]. k = 0: SCHOTT's
+    transmittance data give k < 6e-8 over 360-830 nm.
 
 User-given materials (``material_from_spec``)
 ---------------------------------------------
@@ -50,10 +46,9 @@ User-given materials (``material_from_spec``)
   strictly increasing, ``n > 0`` and ``k >= 0``. Its range is its first to last wavelength.
 
 Tabulated data (built-in or CSV) are interpolated in wavelength, ``n`` and ``k``
-separately, by a monotone piecewise cubic (PCHIP, Fritsch & Carlson, SIAM J. Numer. Anal.
-17, 238 (1980)). PCHIP never overshoots between two samples, so it keeps ``k >= 0`` and
-invents no spurious wiggles in sparse tables such as Johnson & Christy's, while being
-smoother than linear interpolation.
+separately, by a monotone piecewise cubic (PCHIP, [Fritsch 1980]). PCHIP never overshoots
+between two samples, so it keeps ``k >= 0`` and invents no spurious wiggles in sparse tables
+such as Johnson & Christy's, while being smoother than linear interpolation.
 
 Example
 -------
@@ -92,7 +87,7 @@ __all__ = [
 ]
 
 HC_EV_NM = 1239.841984
-"""h c / e in eV nm (CODATA 2018, exact SI constants): wavelength_nm = HC_EV_NM / energy_ev."""
+"""h c / e in eV nm ([CODATA 2018], exact SI constants): wavelength_nm = HC_EV_NM / energy_ev."""
 
 BUILTIN_MATERIALS: tuple[str, ...] = (
     "air",
@@ -146,11 +141,9 @@ class ConstantIndex:
 class Sellmeier:
     """Sellmeier formula ``n^2 = 1 + sum_i B_i lambda^2 / (lambda^2 - C_i)``, ``k = 0``.
 
-    ``lambda`` in micrometres and ``C_i`` in um^2: the form of Malitson, J. Opt. Soc. Am.
-    55, 1205 (1965) (there with ``C_i = lambda_i^2``) and of SCHOTT Technical Information
-    TIE-29 "Refractive index and dispersion" (2005), section "Sellmeier dispersion
-    equation". Valid only away from the poles ``lambda^2 = C_i``, i.e. inside the
-    material's data range.
+    ``lambda`` in micrometres and ``C_i`` in um^2: the form of [Malitson 1965] (there with
+    ``C_i = lambda_i^2``) and of [SCHOTT TIE-29], section "Sellmeier dispersion equation".
+    Valid only away from the poles ``lambda^2 = C_i``, i.e. inside the material's data range.
     """
 
     B: tuple[float, ...]
@@ -164,7 +157,7 @@ class Sellmeier:
 
 @dataclass(frozen=True)
 class LorentzDrude:
-    """Lorentz-Drude permittivity of a metal (Rakic et al., Appl. Opt. 37, 5271 (1998)).
+    """Lorentz-Drude permittivity of a metal [Rakic 1998].
 
     The paper's model is a free-electron (Drude) term plus ``k`` bound-electron (Lorentz)
     oscillators, with ``Omega_p = sqrt(f0) omega_p``::
@@ -200,7 +193,7 @@ class LorentzDrude:
 class Tabulated:
     """``n`` and ``k`` sampled at increasing wavelengths (nm), each interpolated by PCHIP.
 
-    PCHIP (Fritsch & Carlson, SIAM J. Numer. Anal. 17, 238 (1980)) is monotone between
+    PCHIP [Fritsch 1980] is monotone between
     neighbouring samples, so the interpolant stays within the sampled values and ``k``
     stays ``>= 0``. The final clip only removes round-off below zero.
     """

@@ -1,7 +1,7 @@
 """One RCWA solve: structure + wavelength + angles + truncation -> efficiencies.
 
-The method is the Fourier modal method / RCWA (Moharam & Gaylord 1981; stable
-formulation of Moharam, Grann, Pommet & Gaylord 1995, JOSA A 12, 1068 and 1077) with the
+The method is the Fourier modal method / RCWA ([Moharam 1981]; the stable formulation of
+[Moharam 1995a] and [Moharam 1995b]) with the
 factorization rules of rcwa.factorization, layer eigenmodes and the enhanced transmittance
 matrix stack in C++ (rcwa/cpp). This module converts units, validates the request, builds
 the Fourier matrices and turns the core's amplitudes and efficiencies into a result. Conventions:
@@ -60,8 +60,8 @@ _core.set_blas_threads(1)
 LOSSLESS_TOLERANCE = 1e-12
 MAX_THETA_DEG = 90.0
 # The stack methods by the names the command line and ``solve(stack=...)`` use (rcwa/cpp/stack.hpp):
-# the enhanced transmittance matrix (Moharam et al. 1995b) and Redheffer's star product of
-# layer scattering matrices (Rumpf 2011).
+# the enhanced transmittance matrix [Moharam 1995b] and Redheffer's star product of
+# layer scattering matrices [Rumpf 2011].
 STACK_METHODS: dict[str, _core.StackMethod] = {
     "etm": _core.StackMethod.ENHANCED_TRANSMITTANCE, "smatrix": _core.StackMethod.SCATTERING_MATRIX,
 }
@@ -161,9 +161,9 @@ def solve(
     pol: ``"s"``, ``"p"`` or ``"unpolarized"`` (the mean of s and p efficiencies).
     factorization: ``"auto"``, ``"li"``, ``"nv"`` or ``"laurent"`` (rcwa.factorization).
     stack: how layers are combined (rcwa/cpp/stack.cpp), both free of growing exponentials:
-        ``"etm"``, the enhanced transmittance matrix (Moharam et al. 1995b; one bottom-up
+        ``"etm"``, the enhanced transmittance matrix ([Moharam 1995b]; one bottom-up
         sweep, the default: half the time of the other for one-sided solves), or
-        ``"smatrix"``, Redheffer's star product of layer scattering matrices (Rumpf 2011).
+        ``"smatrix"``, Redheffer's star product of layer scattering matrices [Rumpf 2011].
         They agree to round-off (tests/rcwa/test_stack_methods.py).
     fast_paths: take the fast paths where they apply (this module's docstring lists them;
         ``SolveResult.fast_paths`` names what was used). False forces the general path (to
@@ -338,7 +338,7 @@ def _harmonics(period: tuple[float, ...], counts: tuple[int, ...], wl_um: float)
     """Retained harmonics and their offsets from the incident wave vector.
 
     The offsets are the orders' ``(kx, ky) / k0`` for a zero incident wave vector, by
-    workbench.core.conventions.order_kxy (the sign of Lange et al. 2021, Eq. 2), so that
+    workbench.core.conventions.order_kxy (the sign of [Lange 2021, Eq. 2]), so that
     harmonic i of a direction has ``kx0 + dkx[i]``, ``ky0 + dky[i]``.
     """
     ms = np.arange(counts[0]) - counts[0] // 2

@@ -24,14 +24,12 @@ constexpr double kComplexSymmetricGrowth = 1e6;
 // Eigen-decomposition of a complex symmetric matrix (the lower triangle is reduced; the
 // whole of A is used for the refinement and the residual check): reflectors
 // H = I - 2 v v^T / (v^T v) (complex orthogonal, H^T H = I) reduce A to a complex symmetric
-// tridiagonal T = Q^T A Q (Bar-On & Ryaboy 1997, "Fast diagonalization of large and dense
-// complex symmetric matrices", SIAM J. Sci. Comput. 18); T's eigenvalues by the implicit QL
-// algorithm (EISPACK's imtql1: Martin & Wilkinson 1968, Num. Math. 12, 377) in complex
-// arithmetic, its rotations c^2 + s^2 = 1 complex (as Cullum & Willoughby 1985, Lanczos
-// Algorithms for Large Symmetric Eigenvalue Computations, CMTQL1); its eigenvectors by
+// tridiagonal T = Q^T A Q [Bar-On 1997]; T's eigenvalues by the implicit QL
+// algorithm (EISPACK's imtql1: [Martin 1968]) in complex arithmetic, its rotations
+// c^2 + s^2 = 1 complex (as [Cullum 1985], CMTQL1); its eigenvectors by
 // inverse iteration on T (two steps; close eigenvalues' vectors orthogonalized in the
 // bilinear form), W = Q Y. Such reductions lose accuracy where the reflectors and rotations
-// grow (Schabauer et al. 2010, Procedia Computer Science 1, 437, measured it against
+// grow ([Schabauer 2010] measured it against
 // zggev); here one step of first-order refinement against A itself (refinement_step, with
 // L = W: a symmetric matrix's left eigenvectors are its right ones transposed) restores
 // residuals of ~1e-16 relative on the CD's matrices (zgeev's: ~5e-16). Columns of unit
@@ -45,8 +43,8 @@ std::optional<Eigen> eig_complex_symmetric(Mat A, double tolerance = kComplexSym
 // The refinement step above for M V = V diag(w) with left eigenvectors L (L^T M = diag(w)
 // L^T in exact arithmetic; L = V for a symmetric M), given M V: K = L^T M V, S = L^T V,
 // w_j = K_jj / S_jj (in `values`), and I + P, P_ij = (K_ij - w_j S_ij) / ((w_j - w_i) S_ii)
-// for i != j, the first-order correction V <- V (I + P) (Stewart & Sun 1990, Matrix
-// Perturbation Theory, Sec. V.2, in the two-sided form). Nothing where a correction exceeds
+// for i != j, the first-order correction V <- V (I + P) ([Stewart 1990,
+// Sec. V.2], in the two-sided form). Nothing where a correction exceeds
 // 1e-2 (a close pair).
 std::optional<Mat> refinement_step(const Mat& L, const Mat& V, const Mat& MV, CVec& values);
 // The same from [K S] (n x 2n) given, as for a pencil M v = w N v with M, N symmetric:

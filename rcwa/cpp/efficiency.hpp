@@ -11,8 +11,8 @@ namespace rcwa {
 
 // R, T and the power entering the substrate (`into`) of P points and K harmonics, each
 // P x K x 2 row-major (column 0: s incidence, 1: p incidence). s waves carry |a|^2 Re(kz),
-// p waves (h-normalized) |b|^2 Re(kz / eps) (Moharam, Grann, Pommet & Gaylord 1995, JOSA A
-// 12, 1068, Eqs. 16-17 (TE) and 35-36 (TM), in the s/p basis of stack.hpp); the incident s
+// p waves (h-normalized) |b|^2 Re(kz / eps) ([Moharam 1995a, Eqs. 16-17] (TE)
+// and [Moharam 1995a, Eqs. 35-36] (TM), in the s/p basis of stack.hpp); the incident s
 // wave carries Re(kz0) and the p wave Re(kz0 / eps_superstrate), kz0 the incident
 // harmonic's superstrate kz. T is zero over an absorbing substrate (nothing reaches
 // infinity there); `into` keeps the power that enters it. NaN amplitudes (a polarization

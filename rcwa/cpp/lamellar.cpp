@@ -6,9 +6,9 @@
 // and Q P = [[MA - ky^2, 0], [., MB - ky^2]],   MB = Exx (I - Kx Z Kx),
 // (MB' = (I - Kx Z Kx) Exx is similar to MB). So one family of modes has Ex = 0 (pure Ey,
 // eigenvectors WA of MA: TE-like) and the other has hx = 0 (pure hy, eigenvectors VB of
-// MB: TM-like); kz^2 = mu - ky^2 for both. This is the decoupling of Moharam, Grann,
-// Pommet & Gaylord 1995 (JOSA A 12, 1068, Eqs. 40-49, conical diffraction) written for
-// Li's inverse rule (Li 1996, JOSA A 13, 1870, Eq. 37: Exx = [[1/eps]]^{-1}). The
+// MB: TM-like); kz^2 = mu - ky^2 for both. This is the decoupling of
+// [Moharam 1995a, Eqs. 40-49] (conical diffraction) written for Li's inverse rule
+// ([Li 1996, Eq. 37]: Exx = [[1/eps]]^{-1}). The
 // eigenvectors do not depend on ky; only kz and the assembly below do.
 //   family A:  psi = [0; WA],                      phi = [-WA muA; ky Kx WA] / kzA
 //   family B:  psi = [(I - Kx Z Kx) VB; -ky Z Kx VB] / kzB,  phi = [0; VB]

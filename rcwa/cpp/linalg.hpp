@@ -120,9 +120,8 @@ std::optional<RealEigen> eig_symmetric_definite(RMat A, RMat B);
 // such as those of a neighbouring matrix in a sweep, by Newton's iteration on the
 // decomposition: with M = W^-1 A W (nearly diagonal), each step replaces W by W (I + P),
 // P_ij = M_ij / (M_jj - M_ii) for i != j, the first-order correction of perturbation
-// theory (Stewart & Sun 1990, Matrix Perturbation Theory, Sec. V.2; the simultaneous
-// form of the refinement of Dongarra, Moler & Wilkinson 1983, SIAM J. Numer. Anal. 20,
-// 23). Convergence is quadratic while the corrections are small. Returns nothing when
+// theory ([Stewart 1990, Sec. V.2]; the simultaneous form of the refinement of
+// [Dongarra 1983]). Convergence is quadratic while the corrections are small. Returns nothing when
 // the guess does not separate the eigenvalues (a correction above 1/4: near-degenerate
 // or crossing eigenvalues) or it does not converge in `max_steps`: use eig() then.
 std::optional<Eigen> eig_from_guess(const Mat& A, const Mat& guess, int max_steps = 6);

@@ -6,9 +6,10 @@
 // with (Kx, Ky diagonal; Z = [[eps]]^{-1}, the inverse of the Laurent matrix)
 //     P = [[Kx Z Ky, I - Kx Z Kx], [Ky Z Ky - I, -Ky Z Kx]]
 //     Q = [[-Kx Ky - Eyx, Kx^2 - Eyy], [Exx - Ky^2, Ky Kx + Exy]],
-// the PQ form of Liu & Fan 2012 (S4, Comput. Phys. Commun. 183, 2233, Eqs. 7-10) written
+// the PQ form of [Liu 2012, Eqs. 7-10] (S4) written
 // for an anisotropic effective permittivity [Exx Exy; Eyx Eyy] so that every Fourier
-// factorization rule (Laurent, Li 1996/1997, normal vector method) enters only through it.
+// factorization rule (Laurent, [Li 1996] / [Li 1997], normal vector method) enters only
+// through it.
 // A mode is psi = W e^{-+ i kz z}, phi = -+ V e^{-+ i kz z} with P Q W = W diag(kz^2) and
 // V = Q W diag(kz)^{-1}; the upper sign is the down-going wave (toward -z).
 #pragma once

@@ -1,5 +1,5 @@
 // TE and TM on N x N blocks (polarized.hpp): the enhanced transmittance matrix of
-// stack.cpp (Moharam, Pommet, Grann & Gaylord 1995, JOSA A 12, 1077, Eqs. 10-15) and its
+// stack.cpp ([Moharam 1995b, Eqs. 10-15]) and its
 // exact closure with the half-spaces, written for one polarization. Every formula is the
 // 2N x 2N one of stack.cpp restricted to the nonzero blocks, so the two agree to
 // round-off (tests/rcwa/test_fast_paths.py).
@@ -227,8 +227,8 @@ void solve_polarized(const StackProblem& pr, Polarization pol, const std::vector
 }
 
 void solve_polarized_direct(const StackProblem& pr, Polarization pol, const PolarizedModes& layer, StackSolution& out) {
-    // One layer of thickness d between the half-spaces (Moharam, Grann, Pommet & Gaylord
-    // 1995, JOSA A 12, 1068, Eqs. 11-15 (TE) and 30-34 (TM): the tangential fields matched
+    // One layer of thickness d between the half-spaces ([Moharam 1995a, Eqs. 11-15] (TE) and
+    // [Moharam 1995a, Eqs. 30-34] (TM): the tangential fields matched
     // at both interfaces). In the layer u = W (phi1 c1 + phi2 c2), v = V (-phi1 c1 + phi2 c2),
     // with phi1 = I at the top and X at the bottom, phi2 = X at the top and I at the bottom
     // (X = exp(i kz k0 d): both families decay away from where their amplitudes are given,

@@ -3,8 +3,8 @@
 //
 // With ky = 0 the s direction of every harmonic is +-y (sigma_i = sign(kx_i), or the
 // given s-hat where kx_i = 0) and p is +-x: the s (TE) field is (Ey, hx), the p (TM) field
-// (Ex, hy) (Moharam, Grann, Pommet & Gaylord 1995, JOSA A 12, 1068, Sec. 2 (TE) and 3
-// (TM); Li 1996, JOSA A 13, 1870, Eq. 37 for the TM matrix). A layer's modes for one
+// (Ex, hy) ([Moharam 1995a, Sec. 2] (TE) and [Moharam 1995a, Sec. 3] (TM); [Li 1996,
+// Eq. 37] for the TM matrix). A layer's modes for one
 // polarization are u = W c, v = V c (u the E component, v the h component above), the
 // blocks of the 2N x 2N W and V of modes.hpp that couple that polarization's components
 // to its family of modes: the other blocks are zero at ky = 0. The enhanced

@@ -17,7 +17,7 @@ struct ProfileSegment {
 // C[i, j] = c(m_j - m_i) for the harmonics m_i = i - M (i = 0..2M, `harmonics` = 2M + 1),
 // with c(g) = (1 / period) sum_s f(value_s) int_{x0_s}^{x1_s} exp(-i q x) dx, q = 2 pi g /
 // period, each integral in closed form, (x1 - x0) sinc(q (x1 - x0) / 2) exp(-i q (x0 + x1) / 2)
-// (workbench.core.conventions' order sign: Li 1996, JOSA A 13, 1870, Eq. 3 with the sign
+// (workbench.core.conventions' order sign: [Li 1996, Eq. 3] with the sign
 // of rcwa/fourier.py; the same sums as rcwa.fourier.profile_coefficients). f is the
 // identity, or 1 / value with `reciprocal` ([[1/eps]] of Li's inverse rule).
 Mat profile_toeplitz(const std::vector<ProfileSegment>& segments, double period, int harmonics, bool reciprocal);

@@ -1,6 +1,6 @@
 // Mirror-symmetry sectors (sectors.hpp): the sector bases, the layers' modes in them, and
-// the enhanced transmittance stack of stack.cpp (Moharam, Pommet, Grann & Gaylord 1995,
-// JOSA A 12, 1077, Eqs. 10-15) written for dense sector-sized operators. Every formula is
+// the enhanced transmittance stack of stack.cpp ([Moharam 1995b, Eqs. 10-15]) written for
+// dense sector-sized operators. Every formula is
 // the 2N x 2N one of stack.cpp sandwiched between the sector bases, so the two agree to
 // round-off (tests/rcwa/test_sectors.py).
 #include "sectors.hpp"

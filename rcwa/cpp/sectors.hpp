@@ -2,9 +2,8 @@
 // of each harmonic and its mirror image, one sector at a time, and only the sectors the
 // incident wave excites.
 //
-// The reduction is the group-theoretic one of Bai & Li ("Group-theoretic approach to the
-// enhancement of the Fourier modal method for crossed gratings: C2 symmetry case", JOSA A
-// 22, 654 (2005); the C4 case in J. Opt. A 7, doi:10.1088/1464-4258/7/12/012 (2005)): the
+// The reduction is the group-theoretic one of [Bai 2005a] (the C2 case; the C4 case in
+// [Bai 2005b]): the
 // problem is split into symmetry modes of the grating's group, each solved with the
 // unknowns its symmetry leaves, and the solutions superposed. Here the group is that of
 // the cell's mirrors ({e, sigma_x}, {e, sigma_y} or C2v = {e, sigma_x, sigma_y, C2}),

@@ -2,11 +2,11 @@
 // exponential (only X = e^{i kz d}, |X| <= 1, appears), so thick and lossy layers stay
 // stable:
 // * scattering matrices: each layer's S-matrix in a fictitious gap medium (zero thickness
-//   between every two layers), combined by the Redheffer star product (Rumpf 2011, PIER B
-//   35, 241, Eqs. 60-73). The gap medium is lossless with eps_gap = 1 + max kt^2, so
+//   between every two layers), combined by the Redheffer star product ([Rumpf 2011,
+//   Eqs. 60-73]). The gap medium is lossless with eps_gap = 1 + max kt^2, so
 //   every order propagates in it with kz >= 1: its basis never degenerates.
-// * enhanced transmittance matrix (Moharam, Pommet, Grann & Gaylord 1995, JOSA A 12,
-//   1077, Eqs. 10-15): the stack walked once from the substrate up.
+// * enhanced transmittance matrix ([Moharam 1995b, Eqs. 10-15]): the stack walked once
+//   from the substrate up.
 //
 // The half-spaces enter only through their outgoing waves, as tall 4N x 2N matrices whose
 // columns stay independent at kz = 0 (s waves normalized by E, p waves by h): an order
@@ -86,7 +86,7 @@ std::unique_ptr<LayerModes> gap_medium(const Harmonics& h) {
     return uniform_modes(h, cplx(1.0 + kt2, 0.0));
 }
 
-// One layer between gaps (Rumpf 2011, Eqs. 60-69 in our sign convention): with
+// One layer between gaps ([Rumpf 2011, Eqs. 60-69] in our sign convention): with
 // A = W^-1 W0 + V^-1 V0, B = W^-1 W0 - V^-1 V0 (W0 = I) and D = A - X B A^-1 X B,
 // S11 = S22 = D^-1 (X B A^-1 X A - B),  S12 = S21 = D^-1 X (A - B A^-1 B).
 SMatrix layer_smatrix(const LayerModes& m, double k0d, const LayerModes& gap) {
@@ -282,8 +282,8 @@ void solve_etm(const StackProblem& pr, const Basis& basis, StackSolution& out) {
 }
 
 // One layer between the half-spaces, its boundary conditions at both interfaces solved at
-// once, as for one grating layer in Moharam, Grann, Pommet & Gaylord 1995 (JOSA A 12, 1068,
-// Sec. 2, the tangential fields matched at z = 0 and z = d), here in the PQ form of
+// once, as for one grating layer in [Moharam 1995a, Sec. 2] (the
+// tangential fields matched at z = 0 and z = d), here in the PQ form of
 // modes.hpp with the half-spaces' rows of this file's header. With c_d the
 // down-going mode amplitudes at the top of the layer and c_u the up-going ones at its
 // bottom (so that only X = exp(i kz k0 d), |X| <= 1, appears), the field is

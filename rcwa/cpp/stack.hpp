@@ -44,11 +44,11 @@ struct StackSolution {
 CVec half_space_kz(const Harmonics& h, cplx eps);
 
 enum class StackMethod {
-    // Redheffer star product of layer scattering matrices (Redheffer 1961; Rumpf 2011,
-    // PIER B 35, 241, Eqs. 60-73; as in S4, Liu & Fan 2012). Gives both sides of the stack.
+    // Redheffer star product of layer scattering matrices ([Redheffer 1961]; [Rumpf 2011,
+    // Eqs. 60-73]; as in S4, [Liu 2012]). Gives both sides of the stack.
     ScatteringMatrix,
-    // Enhanced transmittance matrix (Moharam, Pommet, Grann & Gaylord 1995, JOSA A 12,
-    // 1077): one bottom-up sweep, about half the work for a one-sided solve.
+    // Enhanced transmittance matrix [Moharam 1995b]: one bottom-up sweep, about half the
+    // work for a one-sided solve.
     EnhancedTransmittance,
 };
 
@@ -76,9 +76,8 @@ void incident_fields(const StackProblem& problem, const Basis& basis, const CVec
 void reflected_amplitudes(const Basis& basis, const Mat& psi, const Mat& phi, const Mat& Finc, const Mat& Ginc, Mat& r);
 
 
-// The enhanced transmittance sweep (Moharam, Pommet, Grann & Gaylord 1995, JOSA A 12,
-// 1077, Eqs. 10-15), shared by the full stack (stack.cpp), one polarization on N x N
-// blocks (polarized.cpp) and one mirror-symmetry sector (sectors.cpp), which differ only
+// The enhanced transmittance sweep ([Moharam 1995b, Eqs. 10-15]), shared by the full stack
+// (stack.cpp), one polarization on N x N blocks (polarized.cpp) and one mirror-symmetry sector (sectors.cpp), which differ only
 // in how a layer's W, V and their inverses are applied. From the substrate up, layer k
 // (with f, g the field entering it from below) gets a = (W^-1 f - V^-1 g) / 2,
 // b = (W^-1 f + V^-1 g) / 2, X = exp(i kz k0 d) and X b a^-1 X, and passes up

@@ -4,7 +4,7 @@ A table holds, for the kept orders of a structure, the diffraction efficiencies 
 grid of wavelength x polar angle x azimuth of the incident light (rcwa conventions:
 (theta, phi) of the incident tangential wave vector), for reflection and, where the
 substrate lets light through, transmission; optionally also for light from below (the
-z-inverted structure, Lange et al. 2021, Sec. 2.2, for see-through elements).
+z-inverted structure, [Lange 2021, Sec. 2.2], for see-through elements).
 
 One job per module:
 

@@ -1,6 +1,6 @@
 """One chunk of a table: the efficiencies of the kept orders at one wavelength over the
 table's (theta, phi) grid, from rcwa.sweep; for light from above and, with ``both_sides``,
-from below (the z-inverted structure, Lange et al. 2021, Sec. 2.2, for see-through
+from below (the z-inverted structure, [Lange 2021, Sec. 2.2], for see-through
 elements).
 """
 
