@@ -5,7 +5,7 @@ Mitsuba's variant is chosen in one place, :mod:`renderer.variant`; no other modu
 
 Plugins (registered with Mitsuba by ``renderer.mitsuba_scene.register_plugins``)
     bwdf          the BWDF: a grating's diffraction orders from an RCWA efficiency table,
-                  ``type = "bwdf"`` (paper mode, Lange et al. 2021 Eqs. 2-5, and improved mode)
+                  ``type = "bwdf"`` (paper mode, [Lange 2021, Eqs. 2-5], and improved mode)
     dielectric    a dispersive smooth dielectric, ``type = "dispersive_dielectric"``
     emitter       a power-cosine area light, ``type = "cospower_area"``
     delta_lobes   what the two delta-lobe BSDFs share (hero wavelength, zero eval/pdf)

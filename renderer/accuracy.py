@@ -9,9 +9,8 @@ E|I - A|^2 = E|I - truth|^2 + E|A - truth|^2 and E|A - B|^2 = 2 E|A - truth|^2, 
 noise.
 
 Two error measures, both standard: the relative RMS error (RMS of I - truth over the
-mean of the truth), dominated by the brightest pixels, and the relative MSE of Rousselle
-et al. 2011 ("Adaptive sampling and reconstruction using greedy error minimization",
-ACM TOG 30(6), Sec. 6: mean over pixels of (I - truth)^2 / (truth^2 + eps), here
+mean of the truth), dominated by the brightest pixels, and the relative MSE of
+[Rousselle 2011, Sec. 6] (mean over pixels of (I - truth)^2 / (truth^2 + eps), here
 eps = 1e-2 times the mean squared truth), which weighs every pixel alike.
 """
 

@@ -3,12 +3,12 @@
 The parameters, their defaults and a usage example are in :class:`GratingBWDF`'s
 docstring; this one states the physics.
 
-Modes. ``"paper"`` reproduces Lange et al. 2021, Eqs. 2-5: one of the N_tot kept orders
+Modes. ``"paper"`` reproduces [Lange 2021, Eqs. 2-5]: one of the N_tot kept orders
 chosen uniformly, one of the ray's wavelengths at random (the hero), the incident
 direction from Eqs. 2-3, the Delta test (Eqs. 4-5) for the other wavelengths, each read at
 its own implied order, and the weight DE * N_tot / cos(theta_o) times pbrt's
-|cos(theta_i)| (pbrt-v3's f * |cos| / pdf). ``"improved"`` is hero-wavelength MIS
-(Wilkie et al. 2014) for delta lobes: the specular order, whose direction is the same at
+|cos(theta_i)| (pbrt-v3's f * |cos| / pdf, [Pharr 2016]). ``"improved"`` is hero-wavelength
+MIS [Wilkie 2014] for delta lobes: the specular order, whose direction is the same at
 every wavelength, is chosen with the mean of its efficiency over the ray's wavelengths and
 keeps all of them (weight DE_i(0) / q0 each); otherwise a diffracted order is chosen at the
 hero wavelength (by efficiency, mixed with a uniform share) and the other wavelengths are
@@ -28,7 +28,7 @@ two components, reflection (0) and transmission (1), for a camera above (superst
 side) or below: reflection from the camera's side and transmission from the other (R,
 T_below above; R_below, T below). The grating equation keeps the tangential wave vector
 across two indices, and a transmitted radiance scales by (n_c / n_l)^2 (the n^2 law of
-radiance; Veach 1997, Sec. 5.2) in radiance transport only; importance (adjoint)
+radiance; [Veach 1997, Sec. 5.2]) in radiance transport only; importance (adjoint)
 transport carries no such factor, as Mitsuba's ``dielectric``. Improved mode samples the
 orders of every enabled component by efficiency; paper mode tosses a fair coin between
 reflection and transmission (weight x2), as the paper's Sec. 2.2 does. A component that
@@ -87,14 +87,14 @@ CHANNELS = (Channel("R", "R_below", False, REFLECTION), Channel("T_below", "T", 
 
 def incident_k(k_out, order: float, wavelength_nm, period_um: float):
     """Tangential k (over k0) of the incident wave that ``order`` sends to tangential
-    ``k_out``: Eq. 2 of Lange et al. 2021 solved for k_inc, with the conventions' sign.
+    ``k_out``: [Lange 2021, Eq. 2] solved for k_inc, with the conventions' sign.
     """
     return k_out - ORDER_SIGN * order * wavelength_nm / (1000.0 * period_um)
 
 
 def implied_order(k_inc, k_out, wavelength_nm, period_um: float):
     """The (real) order that takes tangential ``k_inc`` to ``k_out`` at ``wavelength_nm``
-    (Eq. 4 of Lange et al. 2021: the order each of the ray's wavelengths implies).
+    ([Lange 2021, Eq. 4]: the order each of the ray's wavelengths implies).
     """
     return (k_out - k_inc) * (1000.0 * period_um) / (ORDER_SIGN * wavelength_nm)
 
@@ -156,7 +156,7 @@ class GratingBWDF(DeltaLobesBSDF):
        * - ``mode``
          - string
          - ``"improved"`` (hero-wavelength MIS, orders by efficiency) or ``"paper"``
-           (Lange et al. 2021, Eqs. 2-5: uniform orders, the Delta test).
+           ([Lange 2021, Eqs. 2-5]: uniform orders, the Delta test).
          - ``"improved"``
        * - ``mapping``
          - string
@@ -507,15 +507,15 @@ class GratingBWDF(DeltaLobesBSDF):
         None when reflection is disabled or not kept) leaves in the same direction at every
         wavelength, so it is chosen with a probability q0 that does not depend on the
         hero: the mean of its efficiency over the ray's wavelengths. Every wavelength then
-        keeps its own weight DE_i(0) / q0 (hero-wavelength MIS, Wilkie et al. 2014, Eq. 7,
+        keeps its own weight DE_i(0) / q0 (hero-wavelength MIS, [Wilkie 2014, Eq. 7],
         where all four strategies give this direction with the same probability).
         Otherwise (1 - q0) a diffracted lobe is chosen with probability (1 - a) DE /
         sum(DE) + a / (number of lobes with DE > 0) at the hero wavelength, a =
-        ``uniform_share``: a defensive mixture (Hesterberg 1995, Technometrics 37, 185)
+        ``uniform_share``: a defensive mixture [Hesterberg 1995]
         that keeps weak orders sampled when they carry a bright source, as the CD's
         rainbow of the ceiling light does; its direction depends on the wavelength, so the
         others are terminated and the hero is reweighted by their number (the delta-lobe
-        limit of the same MIS; pbrt-v4's TerminateSecondary).
+        limit of the same MIS; pbrt-v4's TerminateSecondary, [Pharr 2023]).
         ``lanes``: the specular order's efficiency at each wavelength (None without a
         specular candidate). Returns (chosen candidate, its probability, a function
         valid -> weight).

@@ -4,8 +4,8 @@ A Mitsuba spectral ray carries WAVELENGTHS_PER_RAY wavelengths. A lobe whose dir
 depends on the wavelength (a diffraction order, a refraction) follows one of them, the
 "hero", chosen uniformly from the first random number; what remains of that number is
 rescaled to [0, 1) for the next choice (the sample-reuse trick of pbrt-v4's
-SampledWavelengths::TerminateSecondary and of Veach's thesis, Sec. 2.5.2 on reusing
-samples). Delta lobes have no density for a given pair of directions, so eval and pdf
+SampledWavelengths::TerminateSecondary, [Pharr 2023], and of [Veach 1997, Sec. 2.5.2] on
+reusing samples). Delta lobes have no density for a given pair of directions, so eval and pdf
 are zero (Mitsuba's convention for delta BSDFs; its integrators reach them only through
 sample()).
 """

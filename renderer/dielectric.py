@@ -10,13 +10,13 @@ Physics. At a smooth interface with relative index eta = n_int / n_ext the unpol
 Fresnel reflectance is R = (R_s + R_p) / 2 with
     r_s = (cos_i - eta cos_t) / (cos_i + eta cos_t),  r_p = (eta cos_i - cos_t) / (eta cos_i + cos_t),
 and Snell's law sin_i = eta sin_t (for light arriving from inside, eta -> 1 / eta; R = 1
-beyond the critical angle); T = 1 - R (Born & Wolf, Principles of Optics, 7th ed.,
-Sec. 1.5.2; Pharr, Jakob & Humphreys, Physically Based Rendering, 4th ed., Sec. 9.3).
+beyond the critical angle); T = 1 - R ([Born 1999, Sec. 1.5.2];
+[Pharr 2023, Sec. 9.3]).
 Mitsuba's ``mi.fresnel`` evaluates exactly these, per wavelength here. A transmitted
 radiance is scaled by (n_ext / n_int)^2 in radiance transport (the n^2 law), as Mitsuba's
 ``dielectric`` does.
 
-Sampling (``sample``), the approach of pbrt-v4 (Pharr, Jakob & Humphreys, PBR 4th ed.:
+Sampling (``sample``), the approach of pbrt-v4 ([Pharr 2023]:
 its DielectricMaterial calls SampledWavelengths::TerminateSecondary when eta is not
 constant) and of renderer.bwdf's improved mode. ``sample1`` picks a hero wavelength h
 uniformly among the ray's four and then reflection with probability R(lambda_h), else

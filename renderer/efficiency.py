@@ -3,7 +3,7 @@
 The table (rcwa.table) is indexed by the incident light's (theta, phi) in the RCWA
 convention: the tangential wave vector of the incident wave, i.e. pointing *away* from
 the light (workbench.core.conventions). Interpolation is linear in wavelength and bilinear in
-(theta, phi), the paper's choice (Lange et al. 2021, Sec. 2.2); the accuracy study
+(theta, phi), the paper's choice ([Lange 2021, Sec. 2.2]); the accuracy study
 (rcwa.table_study) measured it. Azimuths are folded into the stored range by the cell's mirror
 symmetries, with the order flips (and, for a cell with the diagonal mirror x <-> y, the
 swap (m, n) -> (n, m)) that go with them: the rule of rcwa.symmetry.fold_azimuths, which

@@ -10,7 +10,7 @@ directions that some camera ray can be diffracted from: a camera ray that meets 
 element at a point p leaves it along omega_o, and the BWDF asks, for every kept order
 (m, n) and wavelength lambda, for the efficiency of the incident direction that order
 sends to omega_o. With the tangential wave vectors over k0 (the grating equation,
-Lange et al. 2021 Eq. 2, with the sign of workbench.core.conventions; tangential k is
+[Lange 2021, Eq. 2], with the sign of workbench.core.conventions; tangential k is
 kept across the CD's flat polycarbonate top, so the camera's side in air gives it):
 
     k_inc = n_cam omega_o,t - ORDER_SIGN (m lambda / Lambda_x, n lambda / Lambda_y),

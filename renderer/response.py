@@ -3,8 +3,8 @@
 Renders are linear camera RGB; a response curve is applied only to compare with non-raw
 photographs (JPEGs). Three forms, one short function each:
 * ``linear``: f(x) = x (raw files);
-* ``gamma``: f(x) = x^(1/gamma) (a pure power law, the usual first model, e.g. Debevec &
-  Malik 1997 fit responses of this family well for many cameras);
+* ``gamma``: f(x) = x^(1/gamma) (a pure power law, the usual first model, e.g. [Debevec 1997]
+  fit responses of this family well for many cameras);
 * ``points``: a monotone curve through measured samples, interpolated with a monotone
   cubic (scipy PchipInterpolator), e.g. one recovered from exposure brackets.
 """
