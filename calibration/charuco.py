@@ -1,9 +1,7 @@
 """ChArUco boards (OpenCV contrib's aruco module): a checkerboard whose white squares hold
 ArUco markers, so every corner is identified and partial views count.
 
-S. Garrido-Jurado, R. Munoz-Salinas, F. J. Madrid-Cuevas, M. J. Marin-Jimenez,
-"Automatic generation and detection of highly reliable fiducial markers under
-occlusion", Pattern Recognition 47(6), 2280-2292, 2014 (the markers); OpenCV's
+The markers: [Garrido-Jurado 2014]. OpenCV's
 ``CharucoDetector`` finds the markers, then interpolates and sub-pixel refines the
 chessboard corners between them.
 

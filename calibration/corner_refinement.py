@@ -4,9 +4,7 @@ A checkerboard corner q is a centre of point symmetry: I(q + v) = I(q - v) for e
 in a disc around it, however the board is tilted, and so is its image after pixel
 averaging, blur and any monotone response (locally the pattern is an affine image of the
 board, which keeps the symmetry). The criterion is that of saddle-point / symmetry corner
-detectors (D. Chen & G. Zhang, "A new sub-pixel detector for X-corners in camera
-calibration targets", WSCG 2005; L. Lucchese & S. K. Mitra, "Using saddle points for
-subpixel feature detection in camera calibration targets", APCCAS 2002), written here as
+detectors ([Chen 2005]; [Lucchese 2002]), written here as
 a least-squares fit over the integer offsets k of a half disc (each pair k, -k once) with
 a linear shading term h that takes up a light's fall-off across the disc:
 
@@ -16,12 +14,10 @@ Unlike cornerSubPix's gradient-orthogonality criterion it is not biased by persp
 (0.02-0.03 px on rasterized tilted boards against cornerSubPix's 0.04-0.07,
 tests/calibration/test_corners.py).
 
-The fit is Gauss-Newton with a little Levenberg-Marquardt damping (K. Madsen,
-H. B. Nielsen, O. Tingleff, "Methods for non-linear least squares problems", 2004,
-Sec. 3.2), the 4 x 4 normal equations of every corner solved together (numpy's batched
-solve). The image is interpolated with Keys' cubic convolution (R. Keys, "Cubic
-convolution interpolation for digital image processing", IEEE TASSP 29(6), 1981,
-Eq. 15) and its exact derivative, so the Jacobian is that of the interpolant itself
+The fit is Gauss-Newton with a little Levenberg-Marquardt damping ([Madsen 2004,
+Sec. 3.2]), the 4 x 4 normal equations of every corner solved together (numpy's batched
+solve). The image is interpolated with Keys' cubic convolution ([Keys 1981,
+Eq. 15]) and its exact derivative, so the Jacobian is that of the interpolant itself
 (cv2.remap quantises sub-pixel positions to 1/32 pixel, which would put steps into the
 cost). Keys' parameter is a = -0.75 (OpenCV's and Photoshop's choice) rather than Keys'
 -0.5: on the rasterized boards -0.5 gave 0.032-0.055 px, -0.75 0.024-0.029 px; the
@@ -55,7 +51,7 @@ def _half_disc(radius: int) -> np.ndarray:
 
 def _keys_weights(t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Keys' cubic convolution weights (a = KEYS_A) of the taps at -1, 0, 1, 2 for fractions ``t`` (M,), and
-    their derivatives in t. Kernel (Keys 1981, Eq. 15): (a+2)|s|^3 - (a+3)|s|^2 + 1 for |s| <= 1,
+    their derivatives in t. Kernel ([Keys 1981, Eq. 15]): (a+2)|s|^3 - (a+3)|s|^2 + 1 for |s| <= 1,
     a|s|^3 - 5a|s|^2 + 8a|s| - 4a for 1 < |s| < 2."""
     a = KEYS_A
     t2, t3 = t * t, t * t * t

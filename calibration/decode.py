@@ -169,8 +169,8 @@ def _libraw_develop(raw, demosaic: str) -> np.ndarray:
 def bilinear_demosaic(mosaic: np.ndarray, channel: np.ndarray) -> np.ndarray:
     """Bilinear demosaicing of a Bayer mosaic (float, H x W) whose pixel (y, x) holds channel ``channel[y, x]``
     (0 R, 1 G, 2 B), in float: each channel's samples kept, the missing ones the mean of the nearest samples of that
-    channel (4 edge neighbours for green, 2 or 4 for red and blue): normalised convolution (H. Knutsson &
-    C.-F. Westin, "Normalized and differential convolution", CVPR 1993) with a cross kernel for green and a tent for
+    channel (4 edge neighbours for green, 2 or 4 for red and blue): normalised convolution
+    ([Knutsson 1993]) with a cross kernel for green and a tent for
     red and blue, so the image's borders need no special case."""
     cross = np.array([[0, 1, 0], [1, 4, 1], [0, 1, 0]], np.float32)
     tent = np.array([[1, 2, 1], [2, 4, 2], [1, 2, 1]], np.float32)

@@ -3,17 +3,16 @@
 Two measurements, coarse and fine:
 
 * ``ChamferMap``: a truncated Euclidean distance transform of the photo's Canny edges
-  (J. Canny, IEEE TPAMI 8(6), 1986), at a chosen scale: the cost of projected model
+  ([Canny 1986]), at a chosen scale: the cost of projected model
   points is the mean of their squared distances to the nearest photo edge, capped at
   ``tau`` so that model points whose edge is hidden or faint cost a constant
-  (chamfer matching, H. G. Barrow et al., IJCAI 1977; truncated as in robust chamfer
+  (chamfer matching, [Barrow 1977]; truncated as in robust chamfer
   variants). It is smooth enough for a derivative-free optimiser and has a wide basin.
 * ``edge_offsets``: the sub-pixel position of the edge along a projected edge's normal:
   the photo's linear intensity is sampled on a short 2D strip across the predicted
   edge (bilinear), averaged along it, differentiated, and the extremum of the
   derivative is located by a parabola through its three highest samples (the 1D
-  search of the "moving edges" trackers: C. Harris, "Tracking with rigid models", in
-  Active Vision, MIT Press 1992; T. Drummond and R. Cipolla, IEEE TPAMI 24(7), 2002).
+  search of the "moving edges" trackers: [Harris 1992]; [Drummond 2002]).
   Linear intensity matters: a pixel integrates light linearly, so a step blurred by a
   symmetric kernel has its steepest point on the true edge, which a gamma would move.
 """

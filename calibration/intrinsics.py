@@ -1,7 +1,6 @@
 """Intrinsics from board photographs: ``workbench calibrate intrinsics``.
 
-Z. Zhang, "A flexible new technique for camera calibration", IEEE TPAMI 22(11),
-1330-1334, 2000, as implemented by OpenCV's ``calibrateCameraExtended`` (OpenCV's
+[Zhang 2000], as implemented by OpenCV's ``calibrateCameraExtended`` (OpenCV's
 distortion model [k1, k2, p1, p2, k3]; k3 held at 0 by default, as the wide-angle term is
 not observable from a few boards). calibrateCameraExtended also gives the parameters'
 standard deviations (from the Jacobian at the optimum, scaled by the residual) and each

@@ -5,12 +5,12 @@ the render check has measured the photometric scale on the walls (exposure x lig
 the photo's CD is compared with re-renders of the scene (renderer.fit.FitRenderer, the same
 fixed seed for every render, so that the cost is a smooth function of the camera and not a
 new draw of the path tracer's noise each time) as a function of the camera's rotation about
-its fitted centre (3 unknowns), minimised with nlopt's BOBYQA (M. J. D. Powell, Cambridge NA
-Report 2009/06) from the edge fit.
+its fitted centre (3 unknowns), minimised with nlopt's BOBYQA
+[Powell 2009] from the edge fit.
 
 The fringes are first diffraction orders of the CD's grating: where a pixel sees a
 wavelength depends on the direction from the CD to the ceiling light and to the camera
-(the grating equation, Lange et al. 2021, Eq. 2, as reports.prediction uses it: sin(theta_m) = sin(theta_i) + m lambda /
+(the grating equation, [Lange 2021, Eq. 2], as reports.prediction uses it: sin(theta_m) = sin(theta_i) + m lambda /
 Lambda), so a fringe moves across the disc as the camera's *centre* moves, but hardly at
 all relative to the disc when the camera only turns: a rotation moves the disc and its
 fringes together in the image, which the rim's edges already measure to a few hundredths

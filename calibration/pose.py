@@ -6,8 +6,7 @@ rectangle, each CD's rim) are projected with the camera model (renderer.camera, 
 pinhole with radial-tangential distortion) and aligned with the photo's edges in three
 stages:
 
-1. **Coarse** (nlopt, BOBYQA: M. J. D. Powell, "The BOBYQA algorithm for bound
-   constrained optimization without derivatives", Cambridge NA Report 2009/06): the
+1. **Coarse** (nlopt, BOBYQA: [Powell 2009]): the
    truncated chamfer cost of the projected edge points against the photo's Canny edges
    (calibration.edges.ChamferMap), coarse to fine over image scales, so that a start tens
    of pixels off still lands in the right basin. Unknowns: the 6 pose parameters, and,
@@ -16,9 +15,8 @@ stages:
    (calibration.edges.edge_offsets), then robust (Huber) least squares of the
    point-to-edge distances over the same unknowns (+ k1 without intrinsics), with the
    analytic Jacobian of cv2.projectPoints; repeated with shrinking search windows until
-   the projection stops moving (the "moving edges" scheme of C. Harris, "Tracking with
-   rigid models", Active Vision 1992, and T. Drummond and R. Cipolla, IEEE TPAMI 24(7),
-   2002, eqs. 3-6). With intrinsics given they are held fixed.
+   the projection stops moving (the "moving edges" scheme of [Harris 1992] and
+   [Drummond 2002, Eqs. 3-6]). With intrinsics given they are held fixed.
 3. **Render check** (renderer.fit.FitRenderer: the scene rendered with the fitted camera,
    fixed seed): the photometric scale (exposure x light power) is the ratio of the photo
    to the render over the walls, and the render, scaled, clipped, mosaicked and

@@ -1,8 +1,7 @@
 """The camera's response curve from an exposure bracket (``workbench calibrate response``).
 
 A pixel value is Z = f(E t): the scene irradiance E times the exposure time t through one
-monotone response f per channel (P. E. Debevec and J. Malik, "Recovering high dynamic
-range radiance maps from photographs", SIGGRAPH 1997, Sec. 2.1, Eq. 1). A bracket of the
+monotone response f per channel ([Debevec 1997, Sec. 2.1, Eq. 1]). A bracket of the
 same view at several known times constrains f up to the scale of E, which is fixed here by
 normalising f(0) = 0 and f(1) = 1: normalised irradiance 1 is the one that just reaches the
 top value (for the synthetic camera, the raw white level).

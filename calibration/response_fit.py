@@ -4,11 +4,9 @@ Methods, one short function each, in ``RESPONSE_METHODS`` (dispatcher: ``fit_res
 each returns the inverse response as log normalised irradiance at the 256 values
 y = k / 255, per channel:
 
-* ``debevec``: OpenCV's ``CalibrateDebevec`` (Debevec & Malik 1997, Eq. 3: least squares
+* ``debevec``: OpenCV's ``CalibrateDebevec`` ([Debevec 1997, Eq. 3]: least squares
   on g = ln f^-1 with a smoothness term and a hat weight);
-* ``robertson``: OpenCV's ``CalibrateRobertson`` (M. A. Robertson, S. Borman and
-  R. L. Stevenson, "Estimation-theoretic approach to dynamic range enhancement using
-  multiple exposures", J. Electronic Imaging 12(2), 2003, Eqs. 8-9: alternating ML
+* ``robertson``: OpenCV's ``CalibrateRobertson`` ([Robertson 2003, Eqs. 8-9]: alternating ML
   estimates of irradiance and of the inverse response). It leaves values that never occur
   in the bracket as NaN; both OpenCV methods are masked there (Debevec's values are only
   extrapolated by its smoothness term);
@@ -18,9 +16,8 @@ y = k / 255, per channel:
   (``SlopeResponse``). Any positive slopes give a monotone curve; a pure gamma curve is one
   constant slope; below the data it is a power law (g(0) = 0). ln g is linear in the
   slopes, so the cost — the weighted spread of ln g(y_ij) - ln t_j over the exposures j
-  of each pixel i, with ln E_i eliminated as its weighted mean (Debevec & Malik's data
-  term, Eq. 3) — is quadratic, minimised with nlopt (L-BFGS, D. C. Liu and J. Nocedal,
-  Math. Programming 45, 1989) within bounds on the slopes. Weights y^2 make the terms'
+  of each pixel i, with ln E_i eliminated as its weighted mean ([Debevec 1997, Eq. 3]'s data
+  term) — is quadratic, minimised with nlopt (L-BFGS, [Liu 1989]) within bounds on the slopes. Weights y^2 make the terms'
   variances about equal for a constant noise in y (d ln g / dy ~ s / y).
 
 What makes the fit accurate on camera JPEGs (measured on the draft synthetic datasets,
@@ -112,13 +109,13 @@ def _opencv_curves(method: str, calibrator, bracket: Bracket) -> InverseCurves:
 
 
 def response_debevec(bracket: Bracket, samples: int = 70, smoothness: float = 10.0) -> InverseCurves:
-    """Debevec & Malik 1997 (Eq. 3) through OpenCV's CalibrateDebevec: ``samples`` pixels on
+    """[Debevec 1997, Eq. 3] through OpenCV's CalibrateDebevec: ``samples`` pixels on
     a grid (OpenCV's defaults), ``smoothness`` is their lambda. Values that never occur are masked."""
     return _opencv_curves("debevec", cv2.createCalibrateDebevec(samples, smoothness, False), bracket)
 
 
 def response_robertson(bracket: Bracket, max_iter: int = 30, threshold: float = 0.01) -> InverseCurves:
-    """Robertson et al. 2003 (Eqs. 8-9) through OpenCV's CalibrateRobertson; it returns NaN
+    """[Robertson 2003, Eqs. 8-9] through OpenCV's CalibrateRobertson; it returns NaN
     for values that never occur, which are masked."""
     return _opencv_curves("robertson", cv2.createCalibrateRobertson(max_iter, threshold), bracket)
 
@@ -259,8 +256,8 @@ def _residuals(model: SlopeResponse, samples: PixelSamples, weights: np.ndarray)
 def _tukey_weights(residuals: np.ndarray, weights: np.ndarray) -> np.ndarray:
     """Tukey's biweight (1 - (e / c)^2)^2 of the standardised residuals e = r sqrt(w), with
     c = 4.685 robust standard deviations (1.4826 median |e|): 95 % efficient for Gaussian
-    noise, and 0 for a value no exposure of its pixel agrees with (P. J. Huber, Robust
-    Statistics, 1981; the constant from Holland & Welsch 1977)."""
+    noise, and 0 for a value no exposure of its pixel agrees with ([Huber 1981];
+    the constant from [Holland 1977])."""
     e = residuals * np.sqrt(weights)
     scale = 1.4826 * np.median(np.abs(e[weights > 0]))
     u = e / max(TUKEY_C * scale, 1e-300)
@@ -291,7 +288,7 @@ def _minimise_spread(samples: PixelSamples, weights: np.ndarray, knots: np.ndarr
 def fit_slope_response(samples: PixelSamples, knots: int = DEFAULT_KNOTS) -> tuple[SlopeResponse, dict]:
     """The parametric inverse response: the knot slopes s minimising the weighted spread
     sum_ij w_ij (ln g(y_ij) - ln t_j - ln E_i)^2, each ln E_i at its weighted least-squares
-    value (Debevec & Malik 1997, Eq. 3's data term, without their smoothness term: a few
+    value ([Debevec 1997, Eq. 3]'s data term, without their smoothness term: a few
     knots are smooth enough), within SLOPE_BOUNDS from a gamma-2.2 start; then
     ROBUST_ITERATIONS reweightings with Tukey's biweight (iteratively reweighted least
     squares), which drop the values no other exposure of their pixel agrees with (JPEG
@@ -407,8 +404,8 @@ def linearity_slope(raw: RawBracket) -> dict:
     eliminated by centring on its mean; values whose neighbourhood lies within RAW_USABLE of
     the black-to-white range, pixels with such values in two exposures at least), and how
     far it is from 1; also each exposure's median residual (a non-linearity or a wrong
-    exposure time shows there). A linear sensor gives b = 1 (the EMVA 1288 standard's
-    linearity, Release 4.0, 2021, Sec. 6.4, here per pixel across the bracket rather than
+    exposure time shows there). A linear sensor gives b = 1 (the linearity of
+    [EMVA 1288, Sec. 6.4], here per pixel across the bracket rather than
     on a flat field)."""
     v, w, times = raw.values, raw.usable, raw.times_s
     keep = w.sum(1) >= 2
