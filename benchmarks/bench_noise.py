@@ -13,7 +13,7 @@ by sqrt(seconds / budget) (Monte Carlo error falls as one over the square root o
 
 Two error measures on the CD's pixels, both standard: the relative RMS error
 (RMS of I - truth over the mean of the truth), dominated by the brightest pixels (the
-light's mirror image), and the relative MSE of Rousselle et al. 2011 (mean over pixels
+light's mirror image), and the relative MSE of [Rousselle 2011, Sec. 6] (mean over pixels
 of (I - truth)^2 / (truth^2 + eps), eps = 1e-2 times the mean squared truth), which
 weighs every pixel alike.
 """

@@ -1,7 +1,7 @@
 """Benchmark: draft and paper presets of cornell_cd (``make bench``).
 
 Prints samples per second and wall time of the draft preset, and for the paper preset
-(978 x 734, 2045 spp; Lange et al. 2021 rendered it in 22 minutes on a 4-core desktop)
+(978 x 734, 2045 spp; [Lange 2021] rendered it in 22 minutes on a 4-core desktop)
 its samples per second measured on a few passes and the estimated time of the full frame.
 
 Then the time at the paper's noise level. Paper mode at 2045 spp stands in for the

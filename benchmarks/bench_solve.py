@@ -11,7 +11,7 @@ one timed round per request), so their pinned numpy never meets ours::
                      [--no-reference] [--peers-only | --no-peers] [--base SITE_DIR]
                      [--no-sectors | --sectors-only]
 
-Cases p2c / p2k: P2 (Moharam et al. 1995, Fig. 2) in classical (phi 0) and conical (phi 30)
+Cases p2c / p2k: P2 ([Moharam 1995a, Fig. 2]) in classical (phi 0) and conical (phi 30)
 mount; cd0 / cd30: the CD at phi 0 and 30; g9 / g15: gold2d at 9 x 9 and 15 x 15 orders
 off its mirror planes (theta 20, phi 30). ``--base DIR`` times another build of our
 solver in the same rounds (a subprocess importing rcwa from DIR first), e.g. the base
@@ -43,7 +43,7 @@ for the peers):
   ``pol="p"`` and ``pol="unpolarized"`` (s+p), interleaved, in CPU time
   (``time.process_time``: the machine's background load does not count), each the
   median of all rounds' repeats after one warm-up call, with every
-  factorization in ``OUR_FACTORIZATIONS`` (the default, and in 2D also Li 1997, which is
+  factorization in ``OUR_FACTORIZATIONS`` (the default, and in 2D also [Li 1997], which is
   what meent uses). The structure is built once, outside the timing (the peers'
   rasterization is outside theirs too). "ours s+p" is one unpolarized call; a 1D
   classical-mount s or p call solves only that polarization (rcwa/cpp/polarized.hpp).
@@ -150,10 +150,9 @@ CASES: dict[str, dict] = {
                         "shapes": [{"material": GOLD_600NM, "x": [0.0, 0.5]}]}],
         },
     },
-    # P2: the dielectric binary grating of Moharam, Grann, Pommet & Gaylord 1995 (JOSA A 12,
-    # 1068, Fig. 2: period 10 lambda, n = 2.04, fill 0.3, 10 deg), one wavelength deep. The
-    # substrate index is given as 2.04 + 0j (k = 0.0): meent takes a wrong kz branch in
-    # classical mount for 2.04 - 0j (issue 17).
+    # P2: the dielectric binary grating of [Moharam 1995a, Fig. 2] (period 10 lambda, n = 2.04,
+    # fill 0.3, 10 deg), one wavelength deep. The substrate index is given as 2.04 + 0j
+    # (k = 0.0): meent takes a wrong kz branch in classical mount for 2.04 - 0j (issue 17).
     "p2c": {"name": "P2_classical", **P2_BASE, "phi_deg": 0.0},
     "p2k": {"name": "P2_conical", **P2_BASE, "phi_deg": 30.0},
     # The CD of rcwa/structures/cd.toml with its materials' indices at 633 nm.
@@ -177,8 +176,8 @@ CASES: dict[str, dict] = {
 }
 
 # Factorization rules our solver is timed with, per dimension: "auto" is the default a user
-# gets (Li 1996 in 1D; in 2D Li 1997 for cells made of rectangles, else the normal vector
-# method). ``--factorizations li,nv`` adds others; a rule that resolves to one already
+# gets ([Li 1996] in 1D; in 2D [Li 1997] for cells made of rectangles, else the normal vector
+# method [Schuster 2007]). ``--factorizations li,nv`` adds others; a rule that resolves to one already
 # timed is dropped.
 OUR_FACTORIZATIONS = {1: ("auto",), 2: ("auto",)}
 OUR_FORMULATION = {

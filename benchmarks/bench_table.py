@@ -1,7 +1,7 @@
 """Benchmark: the paper-preset efficiency table of the built-in CD (``make bench``).
 
 Prints the wall time and the size on disk of the table the paper computed (61 orders,
-2 deg steps in theta and phi over 0-90 deg, 31 wavelengths; Lange et al. 2021, Sec. 3:
+2 deg steps in theta and phi over 0-90 deg, 31 wavelengths; [Lange 2021, Sec. 3]:
 four hours on a 4-core desktop, held as a 1.2 GB array), and for comparison one solve
 at a time over the same grid (estimated from a sample), in the same run.
 """

@@ -37,7 +37,7 @@ against an independent reference by ``check_peer_conventions.py``):
 * z points into the superstrate; the incident wave travels toward -z with tangential wave
   vector k0 n_sup (sin theta cos phi, sin theta sin phi).
 * Order m (and n) has k_x,m = k_x,inc - m 2 pi / Lambda_x (k_y,n = k_y,inc - n 2 pi /
-  Lambda_y), Eq. 2 of Lange et al. 2021.
+  Lambda_y), [Lange 2021, Eq. 2].
 * s: E perpendicular to the plane of incidence (TE); p: TM.
 * Efficiency: fraction of incident power through a plane z = const, summed over both
   output polarizations. ``R_s`` is the efficiency of a reflected order for s incidence,
@@ -381,8 +381,8 @@ def solve_meent(case: Case, raster: np.ndarray, pols: tuple[str, ...] = ("s", "p
       otherwise meent solves both in one call whatever is asked.
 
     Factorization (``fourier_type=1``: continuous Fourier series of the piecewise-constant
-    raster, exact): 1D conical -- Li 1996 inverse rule for eps_x, Laurent for eps_y and for
-    1/eps_z (the same as ours); 2D -- Li 1997's rules on the staircase cells, but nested
+    raster, exact): 1D conical -- [Li 1996] inverse rule for eps_x, Laurent for eps_y and for
+    1/eps_z (the same as ours); 2D -- [Li 1997]'s rules on the staircase cells, but nested
     the other way round from ours (meent's ``cfs2d``: eps_x = [[ [[eps]]_y^-1 ]]_x^-1, the
     Laurent rule along y inside and the inverse rule along x outside; ours applies the
     inverse rule along x inside each y-slab, then Laurent along y; eps_y mirrored).

@@ -1,8 +1,7 @@
 """A checkerboard calibration target: its texture, its Mitsuba shape, the poses a
 photographer holds it in, and its corner coordinates.
 
-Planar-target calibration (Z. Zhang, "A flexible new technique for camera calibration",
-IEEE TPAMI 22(11), 1330-1334, 2000, Sec. 2-3) needs the board seen in several
+Planar-target calibration ([Zhang 2000, Secs. 2-3]) needs the board seen in several
 orientations: each view gives a homography, two constraints on the intrinsics, so
 tilted views (not only fronto-parallel ones) make the focal lengths observable, and
 the principal point needs tilts in every direction (tilts all one way leave it

@@ -1,8 +1,8 @@
 """Writing raw Bayer images as DNG files that rawpy (LibRaw) reads back.
 
-A DNG is a TIFF with a CFA image and the tags of the DNG specification 1.4 (Adobe, 2012):
+A DNG is a TIFF with a CFA image and the tags of the DNG specification [DNG 1.4]:
 we write, in IFD 0, NewSubFileType 0, PhotometricInterpretation 32803 (CFA),
-CFARepeatPatternDim / CFAPattern (TIFF/EP), DNGVersion 1.4 and DNGBackwardVersion 1.1,
+CFARepeatPatternDim / CFAPattern ([TIFF/EP]), DNGVersion 1.4 and DNGBackwardVersion 1.1,
 UniqueCameraModel, Make, Model, BlackLevel, WhiteLevel, ColorMatrix1 with
 CalibrationIlluminant1, AsShotNeutral, ExposureTime and ISOSpeedRatings; uncompressed
 16-bit samples. tifffile writes the TIFF (its extratags); the file is written to a

@@ -1,9 +1,8 @@
 """The camera's own JPEG: a raw frame developed through a hidden, non-linear response.
 
 What a camera in RAW+JPEG mode does, reduced to the steps that matter for recovering its
-response from exposure brackets (P. E. Debevec and J. Malik, "Recovering high dynamic
-range radiance maps from photographs", SIGGRAPH 1997, Sec. 2: pixel value Z = f(E t),
-one monotone f per channel):
+response from exposure brackets ([Debevec 1997, Sec. 2]: pixel value Z = f(E t), one
+monotone f per channel):
 1. demosaic the raw mosaic (OpenCV's bilinear Bayer interpolation);
 2. normalise to irradiance x = (raw - black) / (white - black), clipped to [0, 1]
    (a clipped raw value gives x = 1);

@@ -1,6 +1,6 @@
 """A raw sensor: linear camera RGB to a noisy, quantized Bayer mosaic (and its statistics).
 
-Model (EMVA Standard 1288, release 4.0, Sec. 2: the linear photon-transfer model): the
+Model ([EMVA 1288, Sec. 2]: the linear photon-transfer model): the
 mean number of photo-electrons of a pixel is mu_e = camera_rgb * exposure_time * scale
 (the render's linear camera RGB per second, times the electrons one unit gives); shot
 noise is Poisson in electrons, read noise Gaussian with sigma_read electrons; the digital
@@ -58,8 +58,8 @@ class SensorModel:
 
 # ------------------------------------------------------------------------------------ colour tags
 #
-# What a raw developer needs to show the camera's RGB as colour (DNG specification 1.4,
-# Adobe 2012, chapter 6 "Mapping Camera Color Space to CIE XYZ Space"): AsShotNeutral, the
+# What a raw developer needs to show the camera's RGB as colour ([DNG 1.4],
+# chapter 6 "Mapping Camera Color Space to CIE XYZ Space"): AsShotNeutral, the
 # camera's response to a neutral surface under the light the photo was taken in, and
 # ColorMatrix1, XYZ to camera RGB under CalibrationIlluminant1 (D65). Both follow from the
 # camera's spectral sensitivities S_c(lambda), the renderer's data: a surface of spectral

@@ -7,11 +7,9 @@ its demosaicing, the walls the photometric alignment uses), and each clipped pix
 from the longest darker frame in which it is not, scaled to the photo's exposure.
 
 Why this merge: a raw frame is linear in irradiance (calibration.decode), so frames differ by
-their exposure only (Debevec & Malik, "Recovering high dynamic range radiance maps from
-photographs", SIGGRAPH 1997, Eq. 2 with a linear response); under shot noise the
+their exposure only ([Debevec 1997, Eq. 2] with a linear response); under shot noise the
 signal-to-noise ratio grows with exposure, so the longest unclipped frame is the best single
-estimate of a pixel (Hasinoff, Durand & Freeman, "Noise-optimal capture for high dynamic range
-photography", CVPR 2010, Sec. 3). A JPEG bracket is linear too once calibration.decode has
+estimate of a pixel ([Hasinoff 2010, Sec. 3]). A JPEG bracket is linear too once calibration.decode has
 inverted the fitted response.
 
 Each frame's exposure relative to the photo is measured from the images, not trusted from
@@ -20,7 +18,7 @@ both, of (merged so far) / (frame), frames taken from brighter to darker so each
 last; where too few pixels overlap (a frame 4 EV darker than the last), EXIF's ratio is
 used, and it is recorded beside the measured one in any case. A frame must show the photo's
 view to the pixel: the shift between the two images' log luminance (exposure-invariant),
-found by phase correlation (Kuglin & Hines 1975; OpenCV's ``phaseCorrelate``), must be under
+found by phase correlation ([Kuglin 1975]; OpenCV's ``phaseCorrelate``), must be under
 ``MAX_SHIFT_PX``; a frame taken from another place (another view of a dataset) is shifted by
 tens of pixels. A frame that passes but whose pixels follow no single ratio (robust spread
 over ``MAX_RELATIVE_SPREAD``) is refused as well.

@@ -21,7 +21,7 @@
   sensitivities onto the CIE 1931 2-degree colour matching functions (least squares over
   wavelength: the Luther condition, met as closely as a linear map can), white-balanced
   on the scene's light (von Kries in the Bradford cone space, the light's XYZ to D65's),
-  -> linear sRGB (IEC 61966-2-1). One matrix for photo and render.
+  -> linear sRGB ([IEC 61966-2-1]). One matrix for photo and render.
 """
 
 from __future__ import annotations

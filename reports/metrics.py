@@ -2,10 +2,10 @@
 
 * Relative error: |photo - render| / (render + eps), the channels' mean, eps = 1 % of the
   walls' median brightness (so dark pixels do not explode).
-* CIEDE2000 (CIE 142-2001; colour-science's ``delta_E_CIE2000``) between the two images
+* CIEDE2000 ([CIE 142-2001]; colour-science's ``delta_E_CIE2000``) between the two images
   in a display space: linear sRGB through the report's display transform, scaled so that
   the walls' median luminance is 0.18 (mid grey), clipped to [0, 1], to CIELAB (D65).
-* FLIP (Andersson et al. 2020, 2021: HDR-FLIP; NVIDIA's ``flip-evaluator`` package) on
+* FLIP ([Andersson 2020]; HDR-FLIP, [Andersson 2021]; NVIDIA's ``flip-evaluator`` package) on
   the linear sRGB images with the photo as reference, when the package is installed.
 """
 

@@ -16,7 +16,7 @@ The path, for one pixel (world frame, metres; the CD's frame is renderer.placeme
    then meets the grating plane at p, which must lie on the annulus.
 2. The grating axis at p is radial, computed from p and the CD's centre (the CD's
    circular tracks; not a mesh triangle's direction).
-3. The grating equation (Lange et al. 2021, Eq. 2, with the order sign of
+3. The grating equation ([Lange 2021, Eq. 2], with the order sign of
    workbench.core.conventions.ORDER_SIGN): tangential wave vectors over k0 satisfy
    ``k_out = k_inc + ORDER_SIGN m lambda / Lambda x_hat``. The flat top keeps the
    tangential wave vector, so ``k_out`` is the tangential part of the direction toward the

@@ -4,7 +4,7 @@ reports.prediction weighs each lit (pixel, wavelength) pair of order m (``weight
 the default) by eta_m T_in T_out, from here:
 
 * eta_m(lambda, theta, phi): the order's diffraction efficiency for unpolarized light (the
-  mean of s and p), computed by RCWA (Moharam et al., JOSA A 12, 1068 (1995)) for the
+  mean of s and p), computed by RCWA ([Moharam 1995a]) for the
   CD's structure: the scene's efficiency table (rcwa.table, the one renderer.tables serves
   for the scene: built into the cache when missing; scene_efficiency), read at the incident
   wave's direction inside the grating's superstrate (polycarbonate: sin theta = |k_inc| /

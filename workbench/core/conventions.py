@@ -16,7 +16,7 @@ Written down once here and imported by the solver, the renderer and the tests.
   the light comes *from* the azimuth ``phi + pi`` (a renderer's light direction
   ``omega_i`` with azimuth ``phi_i`` is an RCWA solve at ``phi = phi_i + pi``).
 * Orders: ``k_x,m = k_x,inc - m * 2 pi / Lambda_x`` (and ``k_y,n = k_y,inc - n * 2 pi /
-  Lambda_y``), the sign of Eq. 2 of Lange et al. 2021: ``ORDER_SIGN`` below, which
+  Lambda_y``), the sign of [Lange 2021, Eq. 2]: ``ORDER_SIGN`` below, which
   ``order_kx`` and the renderer's BWDF (Dr.Jit code, renderer/bwdf.py) both use.
 * Polarization: ``s`` (TE, E perpendicular to the plane of incidence) and ``p`` (TM);
   ``unpolarized`` is the mean of the s and p efficiencies.
@@ -42,13 +42,13 @@ class Polarization(str, Enum):
 
 
 ORDER_SIGN = -1
-"""The order sign: ``k_x,m = k_x,inc + ORDER_SIGN * m * 2 pi / Lambda_x`` (Lange et al. 2021, Eq. 2)."""
+"""The order sign: ``k_x,m = k_x,inc + ORDER_SIGN * m * 2 pi / Lambda_x`` [Lange 2021, Eq. 2]."""
 
 
 def order_kx(kx_inc: float, m: np.ndarray | int, period: float, wavelength: float) -> np.ndarray:
     """Normalized tangential wave number of order ``m``: ``kx_inc + ORDER_SIGN * m * lambda / Lambda``.
 
-    All quantities are divided by ``k0 = 2 pi / lambda`` (Lange et al. 2021, Eq. 2 sign).
+    All quantities are divided by ``k0 = 2 pi / lambda`` ([Lange 2021, Eq. 2] sign).
     ``period`` and ``wavelength`` must share a unit.
     """
     return kx_inc + ORDER_SIGN * np.asarray(m, dtype=float) * (wavelength / period)
@@ -60,8 +60,8 @@ def order_kxy(
     """Normalized tangential wave vectors ``(kx, ky) / k0`` of orders ``(m, n)``, vectorized.
 
     Along each periodic axis the sign of ``order_kx`` (``ORDER_SIGN``):
-    ``kx_inc + ORDER_SIGN * m * lambda / Lambda_x`` (Lange et al. 2021, Eq. 2) and
-    ``ky_inc + ORDER_SIGN * n * lambda / Lambda_y`` (its y-counterpart, Sec. 2.2 there).
+    ``kx_inc + ORDER_SIGN * m * lambda / Lambda_x`` ([Lange 2021, Eq. 2]) and
+    ``ky_inc + ORDER_SIGN * n * lambda / Lambda_y`` (its y-counterpart, [Lange 2021, Sec. 2.2]).
     ``period`` is ``(Lambda_x,)`` for a 1D grating, whose orders keep ``ky = ky_inc``
     (``n`` must be 0), or ``(Lambda_x, Lambda_y)``; it and ``wavelength`` share a unit.
     ``m`` and ``n`` broadcast against each other.
@@ -87,7 +87,7 @@ def incident_tangential_k(n_superstrate: float, theta_rad: np.ndarray, phi_rad: 
 def incident_tangential_k(n_superstrate, theta_rad, phi_rad):
     """Normalized tangential wave vector ``(kx, ky) / k0`` of the incident wave.
 
-    Lange et al. 2021, Eq. 2: ``k_x = cos(phi) sin(theta) k0 n1`` and
+    [Lange 2021, Eq. 2]: ``k_x = cos(phi) sin(theta) k0 n1`` and
     ``k_y = sin(phi) sin(theta) k0 n1``, so the incident wave's tangential wave vector
     points along the azimuth ``phi``; its direction of travel has ``k_z < 0``.
     The specularly reflected order 0 then leaves with the same ``(kx, ky)``.
