@@ -39,6 +39,11 @@ from renderer.scene import load_scene, parse_scene
 from workbench.core.errors import UserInputError
 
 TOLERANCE_SPECTRAL = 0.015
+# Noise (issue 23): the patch mean's Monte Carlo noise, measured over 200 render seeds: ratio - 1 per channel
+# -1.5e-4 .. 2e-5 (the quadrature's share, well under the 1 % allowed) +- 8e-4 .. 1.4e-3, worst 5.1e-3 (3.6 SD);
+# the bound is >= 10.3 SD: 3 channels x 2 sides x Q(10.3) ~ 1e-24 per run. Still caught: a 1.5 % error in a
+# channel (a wrong sensitivity, spectrum or exposure scale). test_direct_light_equals_the_analytic_irradiance
+# (TOLERANCE_DIRECT) and test_cd_splits_colours_unlike_a_flat_mirror are not yet measured over seeds.
 TOLERANCE_DIRECT = 0.01
 CHROMA_SPREAD_RATIO = 5.0
 PHYSICS_RESOLUTION = (160, 120)

@@ -21,6 +21,12 @@ from reports.rim import fit_rim
 RESOLUTION = (320, 240)
 EXPOSURE_INVARIANCE_PX = 1e-6  # a half-maximum crossing does not move with a scale and an offset of the image
 NOISY_OFFSET_PX = 0.3  # median |measured - predicted| offset with 1 % noise: well under the issue's 0.5 px bar
+# Noise (issue 23): the photo's and the render's Gaussian noise of 0.01 per pixel (their seeds), measured over
+# 100 seed pairs per camera error: the median 0.0103 +- 0.0019 px (turned) and 0.0106 +- 0.0015 px (FOV), max
+# 0.016, from >= 54 edges; 150-190 SD inside the bound. The median passes 0.3 px only if half the edges do: at
+# most 3.3 % of a realisation's edges were even over 0.1 px (one edge at most 1.2 px), so a binomial tail over
+# 54 edges gives < 1e-20 per run; the turn's median offset (> 1.0 px) is 1.340 +- 0.014 px, 24 SD above it.
+# Still caught: a measured offset off by 0.3 px on half the edges (the median of the differences).
 RIM_CENTRE_PX = 0.1  # an anti-aliased ellipse's centre is found to a tenth of a pixel
 RIM_AXES_PX = 0.3
 SAME_SENSOR_PX = 1e-4  # one image through one sensor model twice: the same edges, to interpolation round-off
@@ -111,6 +117,10 @@ def test_known_camera_error_offset_is_the_predicted_one(scene, predictions, erro
 
 
 def test_no_band_no_edge_of_quality_ok(predictions):
+    """Noise alone (0.01 per pixel on a flat 0.3) makes no edge of quality ok. Over 100 noise
+    seeds (issue 23): no ok edge; a flat's largest band contrast 0.0079 +- 0.0016 (max 0.016)
+    against the faint limit MIN_RELATIVE_CONTRAST x 0.3 = 0.075, 42 SD; the maximum's
+    Gumbel tail at 0.075 is about 1e-23 per run."""
     pred, _ = predictions
     circles, _ = polar.standard_grids(pred.camera, pred.cd)
     flat = np.full((pred.camera.height, pred.camera.width, 3), 0.3, np.float32)

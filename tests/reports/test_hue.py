@@ -23,6 +23,10 @@ SCALE_ROUND_TRIP_NM = 1e-6  # the scale's own wavelengths come back exactly (int
 CROSSING_PX = 0.3  # median distance of a found crossing from where the known wavelength map takes its level
 CROSSING_P90_PX = 1.0  # pixel mixing (bilinear samples of pixels about 17 nm apart here) and the map's 5 nm steps
 MIN_CROSSINGS = 15
+# Noise (issue 23): the image's Gaussian noise of 1e-4 against a band of 40 is negligible; over 60 noise seeds
+# the median is 0.1520 +- 0.0002 px, the 90th percentile 0.4441 +- 0.0002 px (> 700 and > 2000 SD inside the
+# bounds: no false alarm from noise) and the count 15 in every seed: deterministic, but on MIN_CROSSINGS itself,
+# so a crossing whose quality changes with round-off on another machine would fail the count (not yet assessed).
 
 
 @pytest.fixture(scope="module")
