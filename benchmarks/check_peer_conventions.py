@@ -282,7 +282,7 @@ def check_energy(peer: str) -> None:
             report(f"{peer}: {case.name}, {pol}: R + T = 1", abs(total - 1.0), TOL_ENERGY, f"(sum {total:.12f})")
 
 
-TOL_CROSS = 1.5e-2  # meent (Li 1997) vs grcwa (Laurent), 9 x 9 orders, n = 1.4: truncation, not mapping
+TOL_CROSS = 1.5e-2  # meent ([Li 1997]) vs grcwa (Laurent), 9 x 9 orders, n = 1.4: truncation, not mapping
 
 
 def check_cross_2d() -> None:
