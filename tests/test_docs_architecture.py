@@ -89,7 +89,7 @@ def test_architecture_is_a_page_a_newcomer_reads() -> None:
 
 @pytest.mark.parametrize("guide", CHECKED_GUIDES)
 def test_every_module_path_named_exists(guide: str) -> None:
-    missing = []
+    missing: list[str] = []
     for number, line in enumerate(_lines(guide), 1):
         for path in MODULE_PATH.findall(line):
             exists = (ROOT / path).is_file() if "/" in path else path in _tree_file_names()
@@ -112,7 +112,7 @@ def reference_keys() -> set[str]:
 
 def cited_keys(text: str) -> list[str]:
     """Every key cited in brackets in ``text``: ``[Li 1997, Eqs. 38-39; Li 1996]`` gives both."""
-    keys = []
+    keys: list[str] = []
     for match in CITATION.finditer(text):
         keys.extend(re.findall(KEY, match.group(0)))
     return keys
@@ -128,7 +128,7 @@ def test_citation_pattern() -> None:
 def test_every_cited_key_is_in_the_references() -> None:
     known = reference_keys()
     assert "Moharam 1995a" in known, "docs/references.md's entries are not read"
-    unknown = []
+    unknown: list[str] = []
     for folder in CITING_FOLDERS:
         for path in sorted((ROOT / folder).rglob("*")):
             if path.suffix not in SOURCE_SUFFIXES:
