@@ -20,7 +20,7 @@ Scenes and rendering
     tables        which efficiency table serves each CD and grating, built when missing
     camera        the camera model shared with calibration (OpenCV pinhole with distortion)
     response      camera response curves
-    checks        pre-render checks (table coverage of the camera's sensitivities)
+    camera_coverage  pre-render checks (table coverage of the camera's sensitivities)
     planner       what a scene needs simulated (the table nodes its camera reads)
     table_cost    a table's estimated build time on this machine, for the planner
     render        ``workbench render``: passes, resume, EXR, preview, sidecar
@@ -29,7 +29,7 @@ Scenes and rendering
 
 Accuracy
     accuracy      error measures on a scene's diffractive elements (shared with benchmarks/)
-    study         ``workbench study render``: rendering accuracy versus time
+    render_study  ``workbench study render``: rendering accuracy versus time
 
 ``data/`` holds the measured Cornell box (with its provenance).
 """
