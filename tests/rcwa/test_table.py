@@ -19,6 +19,10 @@ from rcwa.table import build_table, open_table, settings_for
 from tests.rcwa.helpers import damage_chunk
 from workbench.core.errors import UserInputError
 
+# Only a guard against a hang: the child reaches the state it is waited for in seconds; the wait
+# ends on that state, never on the clock (issue 23: a loaded machine may be ten times slower).
+HANG_GUARD_S = 900.0
+
 TOLERANCE_FLOAT32 = 1e-6
 
 
@@ -77,7 +81,7 @@ def test_sigkill_then_resume_equals_uninterrupted(tmp_path):
     cmd = [sys.executable, "-m", "workbench.cli", "rcwa", "table", "cd", "--out", str(out), "--preset", "draft",
            "--wavelengths", "400:700:8", "--orders", "41", "--theta-step", "3", "--phi-step", "5", "--quiet", "--threads", "1"]
     proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE)
-    deadline = time.time() + 120
+    deadline = time.time() + HANG_GUARD_S
     while time.time() < deadline and proc.poll() is None:
         try:
             if len(json.loads((out / "progress.json").read_text())) >= 2:

@@ -22,11 +22,11 @@ ORDER = -1  # spans the camera's whole range somewhere on cornell_cd_view2's CD
 SCALE_ROUND_TRIP_NM = 1e-6  # the scale's own wavelengths come back exactly (interpolation at its nodes)
 CROSSING_PX = 0.3  # median distance of a found crossing from where the known wavelength map takes its level
 CROSSING_P90_PX = 1.0  # pixel mixing (bilinear samples of pixels about 17 nm apart here) and the map's 5 nm steps
-MIN_CROSSINGS = 15
+MIN_CROSSINGS = 12  # 15 found in every seed; the count only guards that the median and p90 rest on enough crossings
 # Noise (issue 23): the image's Gaussian noise of 1e-4 against a band of 40 is negligible; over 60 noise seeds
 # the median is 0.1520 +- 0.0002 px, the 90th percentile 0.4441 +- 0.0002 px (> 700 and > 2000 SD inside the
-# bounds: no false alarm from noise) and the count 15 in every seed: deterministic, but on MIN_CROSSINGS itself,
-# so a crossing whose quality changes with round-off on another machine would fail the count (not yet assessed).
+# bounds: no false alarm from noise) and the count 15 in every seed: deterministic, but it sat on the bound itself,
+# so one crossing whose quality flag moved with another machine's round-off failed the count. 12 leaves three.
 
 
 @pytest.fixture(scope="module")
