@@ -47,15 +47,20 @@ def add_registry_option(parser: argparse.ArgumentParser, flag: str, names: Regis
     action.choices = names
 
 
-def board_argument(text: str) -> tuple[int, int]:
-    """``COLSxROWS``: a checkerboard's inner corners (or a ChArUco board's squares)."""
+def _integer_pair(text: str, minimum: int, expected: str) -> tuple[int, int]:
+    """``AxB`` with both integers at least ``minimum``; otherwise an error saying ``expected``."""
     try:
-        cols, rows = (int(v) for v in text.lower().split("x"))
-        if cols < 2 or rows < 2:
+        a, b = (int(v) for v in text.lower().split("x"))
+        if a < minimum or b < minimum:
             raise ValueError
     except ValueError:
-        raise argparse.ArgumentTypeError(f"expected COLSxROWS with integers >= 2 (e.g. 9x6), got {text!r}") from None
-    return cols, rows
+        raise argparse.ArgumentTypeError(f"expected {expected}, got {text!r}") from None
+    return a, b
+
+
+def board_argument(text: str) -> tuple[int, int]:
+    """``COLSxROWS``: a checkerboard's inner corners (or a ChArUco board's squares)."""
+    return _integer_pair(text, 2, "COLSxROWS with integers >= 2 (e.g. 9x6)")
 
 
 def count_argument(minimum: int, maximum: int | None = None) -> Callable[[str], int]:
@@ -117,13 +122,7 @@ def orders_argument(text: str) -> int | tuple[int, ...]:
 
 def resolution_argument(text: str) -> tuple[int, int]:
     """``WxH``: an image size in pixels."""
-    try:
-        w, h = (int(v) for v in text.lower().split("x"))
-        if w < 1 or h < 1:
-            raise ValueError
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected WxH with positive integers (e.g. 640x480), got {text!r}") from None
-    return w, h
+    return _integer_pair(text, 1, "WxH with positive integers (e.g. 640x480)")
 
 
 def angle_range_argument(text: str) -> tuple[float, float]:
