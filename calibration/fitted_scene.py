@@ -47,14 +47,14 @@ def fitted_scene_text(spec: SceneSpec, camera: CameraModel, exposure: float, not
     groups: list[tuple[str, Sequence[Any]]] = [("cd", spec.cds), ("grating", spec.gratings)]
     for key, elements in groups:
         for entry, element in zip(data.get(key, []), elements, strict=True):
-            entry["structure"] = _absolute(element.structure)
+            entry["structure"] = absolute_reference(element.structure)
             if "path" in element.table:
-                entry["table"] = {"path": _absolute(element.table["path"])}
+                entry["table"] = {"path": absolute_reference(element.table["path"])}
     header = "".join(f"# {line}\n" for line in note.splitlines()) if note else ""
     return header + tomli_w.dumps(data)
 
 
-def _absolute(reference: str) -> str:
+def absolute_reference(reference: str) -> str:
     """A path the scene resolved (relative to the scene's folder) made absolute; built-in names stay."""
     if reference in BUILTIN_STRUCTURES or not Path(reference).exists():
         return reference

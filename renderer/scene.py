@@ -38,6 +38,8 @@ angles in degrees, wavelengths in nm.
           ``sensitivities`` (a colour-science camera, default "Nikon 5100 (NPL)"),
           ``response`` ("linear", { gamma = G } or { points = [[x, y], ...] }; used only
           to compare with non-raw photos; renderer.response).
+[fit]     the scene fit's free parameters, named as the file's fields
+          (``"cd[0].structure.period" = { bounds = [1.5, 1.7] }``; renderer.fit_parameters).
 """
 
 from __future__ import annotations
@@ -56,6 +58,7 @@ from rcwa.factorization import FACTORIZATION_RULES
 from rcwa.materials import material_from_spec
 from rcwa.structure import BUILTIN_STRUCTURES
 from renderer.camera import CameraModel, look_at
+from renderer.fit_parameters import FitTable, parse_fit_table
 from renderer.response import ResponseCurve
 from workbench.core import validation as v
 from workbench.core.errors import UserInputError
@@ -129,6 +132,7 @@ class SceneSpec:
     glass: tuple[GlassSpec, ...] = ()
     gratings: tuple[GratingSpec, ...] = ()
     base_dir: Path | None = field(default=None, compare=False)
+    fit: FitTable | None = field(default=None, compare=False)  # the free parameters of a scene fit ([fit])
 
 
 def cornell_data() -> dict:
@@ -159,7 +163,7 @@ def parse_scene(text: str, *, source: str, base_dir: Path | None) -> SceneSpec:
 
 
 def _parse(data: dict, source: str, text: str, base_dir: Path | None) -> SceneSpec:
-    v.reject_unknown(data, {"name", "description", "box", "light", "cd", "glass", "grating", "camera"}, "")
+    v.reject_unknown(data, {"name", "description", "box", "light", "cd", "glass", "grating", "camera", "fit"}, "")
     box = _parse_box(v.required(data, "box", ""))
     light = _parse_light(v.required(data, "light", ""))
     cds = tuple(_parse_cd(c, f"cd[{i}]", base_dir) for i, c in enumerate(data.get("cd", [])))
@@ -167,7 +171,9 @@ def _parse(data: dict, source: str, text: str, base_dir: Path | None) -> SceneSp
     gratings = tuple(_parse_grating(g, f"grating[{i}]", base_dir) for i, g in enumerate(data.get("grating", [])))
     camera = _parse_camera(v.required(data, "camera", ""))
     _check_camera_placement(camera.model, box)
-    return SceneSpec(str(data.get("name", "scene")), source, text, box, light, camera, cds, glass, gratings, base_dir)
+    fit = parse_fit_table(data.get("fit"), cds, light)
+    return SceneSpec(str(data.get("name", "scene")), source, text, box, light, camera, cds, glass, gratings, base_dir,
+                     fit)
 
 
 def _parse_box(d: Any) -> dict:

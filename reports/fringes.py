@@ -51,6 +51,7 @@ rim is found in the same images (reports.rim).
 
 from __future__ import annotations
 
+from collections.abc import Iterable
 from dataclasses import asdict, dataclass
 
 import numpy as np
@@ -365,7 +366,8 @@ def sampled_profiles(polar: PolarGrid, pred_samples: np.ndarray, image: np.ndarr
 
 
 def find_edges(polar: PolarGrid, pred_samples: np.ndarray, orders: list[int], image: np.ndarray | None = None,
-               clipped: np.ndarray | None = None, correlation_px: float = NOISE_CORRELATION_PX) -> list[Edge]:
+               clipped: np.ndarray | None = None, correlation_px: float = NOISE_CORRELATION_PX,
+               profiles: Iterable[int] | None = None) -> list[Edge]:
     """Band edges along every profile of ``polar``.
 
     ``pred_samples`` (orders, 3, radii, azimuths): the prediction sampled on the grid as the
@@ -373,10 +375,11 @@ def find_edges(polar: PolarGrid, pred_samples: np.ndarray, orders: list[int], im
     ``image`` (H, W, 3) linear camera RGB; None measures the prediction's own edges.
     ``clipped`` (H, W) bool: saturated pixels. ``correlation_px``: the distance over which the
     image's noise is shared (``MOSAIC_CORRELATION_PX`` for a demosaiced raw photo).
+    ``profiles``: only these profiles (all by default).
     """
     periodic, pred, raw, values, clip, steps = sampled_profiles(polar, pred_samples, image, clipped)
     edges: list[Edge] = []
-    for p in range(polar.profile_count):
+    for p in (range(polar.profile_count) if profiles is None else sorted(set(profiles))):
         roll = seam(pred[:, :, p].sum(axis=(0, 1))) if periodic else 0
         unroll = (lambda a, r=roll: np.roll(a, -r, axis=-1))  # noqa: E731
         found = _profile_edges(unroll(values[:, p]) if image is not None else None,
@@ -406,7 +409,7 @@ class EdgePair:
     offset_deg: float  # azimuth on the CD (circles) or the camera's visual angle (radii)
 
 
-def _signed_offset(polar: PolarGrid, a: Edge, b: Edge) -> float:
+def signed_offset(polar: PolarGrid, a: Edge, b: Edge) -> float:
     """The position of b minus that of a along the profile, in pixels (arc length through the grid)."""
     n = polar.pixels.shape[1] if polar.kind == "circle" else polar.pixels.shape[0]
     d = b.position - a.position
@@ -428,7 +431,7 @@ def pair_edges(polar: PolarGrid, a: list[Edge], b: list[Edge], focal_px: float, 
             continue
         if require_ok and (ea.quality not in accept or eb.quality not in accept):
             continue
-        px = _signed_offset(polar, ea, eb)
+        px = signed_offset(polar, ea, eb)
         if polar.kind == "circle":
             deg = (eb.coordinate - ea.coordinate + 180.0) % 360.0 - 180.0
         else:

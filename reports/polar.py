@@ -153,13 +153,29 @@ def sample(image: np.ndarray, polar: PolarGrid, robust: bool = False) -> np.ndar
     return _sample_at(image, polar.pixels)
 
 
-def _sample_at(image: np.ndarray, pixels: np.ndarray) -> np.ndarray:
+def sample_crop(crop: np.ndarray, origin: tuple[int, int], frame: tuple[int, int], polar: PolarGrid,
+                robust: bool = False) -> np.ndarray:
+    """``sample`` of an image that is zero outside ``crop`` (h, w, C) placed at ``origin`` (x0, y0)
+    in a frame of ``frame`` (H, W): the same values, without making the whole frame."""
+    x0, y0 = origin
+    copies = polar.across if robust and polar.across is not None else polar.pixels[None]
+    values = []
+    for pixels in copies:
+        v = _sample_at(crop, pixels - np.array([x0, y0], float), fill=0.0)
+        outside = ((pixels[..., 0] < 0) | (pixels[..., 1] < 0) | (pixels[..., 0] > frame[1] - 1)
+                   | (pixels[..., 1] > frame[0] - 1))
+        v[outside] = np.nan
+        values.append(v)
+    return np.median(np.stack(values), axis=0) if len(values) > 1 else values[0]
+
+
+def _sample_at(image: np.ndarray, pixels: np.ndarray, fill: float | None = None) -> np.ndarray:
     map_x = pixels[..., 0].astype(np.float32)
     map_y = pixels[..., 1].astype(np.float32)
     values = cv2.remap(np.ascontiguousarray(image, dtype=np.float32), map_x, map_y, cv2.INTER_LINEAR,
-                       borderMode=cv2.BORDER_CONSTANT, borderValue=np.nan)
-    h, w = image.shape[:2]
-    outside = (map_x < 0) | (map_y < 0) | (map_x > w - 1) | (map_y > h - 1)
+                       borderMode=cv2.BORDER_CONSTANT, borderValue=np.nan if fill is None else fill)
     values = values.astype(float)
-    values[outside] = np.nan
+    if fill is None:
+        h, w = image.shape[:2]
+        values[(map_x < 0) | (map_y < 0) | (map_x > w - 1) | (map_y > h - 1)] = np.nan
     return values

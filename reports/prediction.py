@@ -437,16 +437,17 @@ def lit_table(spec: SceneSpec, camera: CameraModel, pixels: np.ndarray, order: i
 
 def predict(spec: SceneSpec, camera: CameraModel | None = None, *, cd_index: int = 0, supersample: int = SUPERSAMPLE,
             step_nm: float = PREDICTION_STEP_NM, weighting: Weighting = "efficiency",
-            efficiency: Efficiency | None = None) -> Prediction:
+            efficiency: Efficiency | None = None, geometry: CDGeometry | None = None) -> Prediction:
     """The lit fractions of every order over the CD's pixels for ``camera`` (the scene's by default).
 
     ``weighting``: ``"efficiency"`` weighs each lit (pixel, wavelength) by the order's
     efficiency and the top's Fresnel transmission (module docstring), from ``efficiency``
     (the scene's table by default: scene_efficiency); ``"geometric"`` by the light's spectrum
-    and emission profile alone. Raises UserInputError when the CD is not in the camera's view."""
+    and emission profile alone. ``geometry``: the CD's geometry in place of the scene's
+    (the scene fit's changed period). Raises UserInputError when the CD is not in the camera's view."""
     started = time.perf_counter()
     camera = camera or spec.camera.model
-    cd = cd_geometry(spec, cd_index)
+    cd = geometry if geometry is not None else cd_geometry(spec, cd_index)
     wavelengths, weights = channel_weights(spec, step_nm)
     box = cd_bbox(camera, cd)
     if box is None:

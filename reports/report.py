@@ -364,24 +364,31 @@ def _studies(paths: tuple[Path, ...]) -> list[tuple[str, str]]:
 
 
 def _photo(inputs: Inputs, messages: list[str]) -> tuple[images.Photo, images.Photo]:
+    """The report's photo, filled from its bracket (read_merged_photo)."""
+    return read_merged_photo(inputs.photo, inputs.calibration, inputs.brackets, inputs.brackets_strict, messages)
+
+
+def read_merged_photo(photo_path: Path, calibration: Path, brackets: tuple[Path, ...], strict: bool,
+                      messages: list[str]) -> tuple[images.Photo, images.Photo]:
     """The photo with its clipped highlights filled from the bracket's darker frames (reports.exposure_merge), and
-    the photo as taken (the same object when nothing was filled)."""
-    response = read_response(inputs.calibration)
-    photo = images.read_photo(inputs.photo, response)
-    if not inputs.brackets:
+    the photo as taken (the same object when nothing was filled). ``strict``: a frame that does not fit
+    is an error (else it is left out, with the reason)."""
+    response = read_response(calibration)
+    photo = images.read_photo(photo_path, response)
+    if not brackets:
         return photo, photo
     frames, left_out = [], {}
-    for path in inputs.brackets:
-        if not inputs.brackets_strict and is_raw(path) != is_raw(inputs.photo):  # a RAW+JPEG folder: not decoded
+    for path in brackets:
+        if not strict and is_raw(path) != is_raw(photo_path):  # a RAW+JPEG folder: not decoded
             left_out[str(path)] = "raw, unlike the photo" if is_raw(path) else "not raw, unlike the photo"
             continue
         try:
             frames.append(images.read_photo(path, response, what="--bracket"))
         except UserInputError as error:
-            if inputs.brackets_strict:
+            if strict:
                 raise
             left_out[str(path)] = error.reason
-    merged, used, _ = merge_highlights(photo, frames, strict=inputs.brackets_strict)
+    merged, used, _ = merge_highlights(photo, frames, strict=strict)
     merged.decoding = (merged.decoding or {}) | {
         "bracket_left_out": ((merged.decoding or {}).get("bracket_left_out") or {}) | left_out}
     if used:

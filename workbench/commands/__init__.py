@@ -21,6 +21,7 @@ from workbench.commands import (
     calibrate,
     decode,
     demo,
+    fit,
     listing,
     plan,
     rcwa,
@@ -53,6 +54,7 @@ COMMANDS: dict[str, Command] = {
     "report": report,
     "decode": decode,
     "calibrate": calibrate,
+    "fit": fit,
     "verify": verify,
     "score": score,
 }

@@ -1,0 +1,119 @@
+"""``workbench fit``: the scene parameters a dataset's photos constrain, and the verdict.
+
+Steps: every photo of DATASET/photos with its camera from the calibration
+(reports.camera_file.read_camera) and its clipped highlights filled from the dataset's
+bracket frames of its view (reports.report.read_merged_photo); the scene's ``[fit]`` table
+(renderer.fit_parameters; the defaults without one); the forward model
+(reports.scene_fit_model) fitted to all photos' band edges at once (reports.scene_fit),
+the camera's uncertainty propagated (reports.scene_verdict.camera_edge_covariance); the
+verdict (reports.scene_verdict); DIR/scene_fit.json and DIR/fitted_scene.toml
+(reports.scene_fit_outputs).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from calibration.dataset import dataset_files
+from calibration.decode import is_raw
+from renderer.scene import load_scene
+from reports import fringes
+from reports.camera_file import check_scene, read_camera
+from reports.prediction import PREDICTION_STEP_NM
+from reports.report import read_merged_photo
+from reports.scene_fit import FitSettings, SceneFitResult, fit_scene
+from reports.scene_fit_model import FIT_SUPERSAMPLE, EdgeModel, View, view_grids
+from reports.scene_fit_outputs import parameters_json, write_fitted_scene
+from reports.scene_verdict import camera_edge_covariance, verdict
+from workbench.core.errors import UserInputError
+from workbench.core.files import atomic_write_text
+from workbench.core.version import versions
+
+FIT_FORMAT = "workbench-scene-fit"
+
+
+@dataclasses.dataclass
+class FitInputs:
+    dataset: Path
+    scene: str
+    calibration: Path
+    out: Path
+    photos: tuple[str, ...] = ()
+    supersample: int = FIT_SUPERSAMPLE
+    step_nm: float = PREDICTION_STEP_NM
+    settings: FitSettings = dataclasses.field(default_factory=FitSettings)
+
+
+def load_views(inputs: FitInputs, spec) -> list[View]:
+    """The photos with their cameras, filled highlights and fixed grids."""
+    files = dataset_files(inputs.dataset)
+    photos = files["photos"]
+    if inputs.photos:
+        photos = [p for p in photos if p.name in inputs.photos]
+        missing = sorted(set(inputs.photos) - {p.name for p in photos})
+        if missing:
+            raise UserInputError(f"no such photo in the dataset: {', '.join(missing)}", file=inputs.dataset / "photos",
+                                 field="--photo")
+    views = []
+    for path in photos:
+        fitted = read_camera(inputs.calibration, path.name)
+        check_scene(fitted, spec, inputs.scene)
+        photo, _ = read_merged_photo(path, inputs.calibration, tuple(files["brackets"]), False, [])
+        correlation = fringes.MOSAIC_CORRELATION_PX if is_raw(path) else fringes.NOISE_CORRELATION_PX
+        views.append(View(path.name, fitted.model, photo, view_grids(spec, fitted.model), fitted.std or {}, correlation))
+    return views
+
+
+def _record(inputs: FitInputs, spec, table, result: SceneFitResult, judged: dict, views: list[View],
+            seconds: dict[str, float]) -> dict[str, Any]:
+    labels = table.labels()
+    return {
+        "format": FIT_FORMAT, "dataset": str(inputs.dataset), "scene": inputs.scene,
+        "calibration": str(inputs.calibration), "photos": [v.name for v in views],
+        "parameters": parameters_json(spec, table, result.nominal, result.values, result.std),
+        "held": table.held | ({} if table.declared else {"(defaults)": "the scene has no [fit] table: the defaults "
+                                                          "of renderer.fit_parameters.DEFAULT_FREE are fitted"}),
+        "components": labels,
+        "std_jacobian": result.std_jacobian.tolist(), "std_bootstrap": result.std_bootstrap.tolist(),
+        "correlations": np.round(result.correlations, 4).tolist(),
+        "residuals_before_px": judged["residuals_before_px"], "residuals_after_px": judged["residuals_after_px"],
+        "edge_noise_px": result.sigma_px, "verdict": judged,
+        "settings": {"supersample": inputs.supersample, "step_nm": inputs.step_nm,
+                     **dataclasses.asdict(inputs.settings)},
+        "rounds": result.log, "evaluations": result.evaluations,
+        "versions": versions("numpy", "scipy", "nlopt", "opencv"), "timings": seconds,
+    }
+
+
+def run_fit(inputs: FitInputs) -> dict[str, Any]:
+    """Fit, judge and write DIR/scene_fit.json and DIR/fitted_scene.toml; returns the record."""
+    started = time.perf_counter()
+    spec = load_scene(inputs.scene)
+    table = spec.fit
+    if table is None or not table.free:
+        raise UserInputError("the scene has nothing to fit (no CD, or a [fit] table with no free parameter)",
+                             file=spec.source, field="fit")
+    views = load_views(inputs, spec)
+    loaded = time.perf_counter()
+    model = EdgeModel(spec, table, views, supersample=inputs.supersample, step_nm=inputs.step_nm)
+    try:
+        result = fit_scene(model, inputs.settings, lambda x, observed: camera_edge_covariance(model, x, observed))
+    except ValueError as error:
+        raise UserInputError(f"the photos do not constrain the scene: {error}", file=inputs.dataset / "photos") from None
+    fitted = time.perf_counter()
+    judged = verdict(result, table.labels(), [p.name for p in table.free for _ in p.components],
+                     [v.name for v in views], result.camera_covariance)
+    inputs.out.mkdir(parents=True, exist_ok=True)
+    write_fitted_scene(spec, table, result.values, inputs.out,
+                       f"{spec.name} with the scene fit's values (workbench fit; verdict: {judged['verdict']})")
+    seconds = {"load": loaded - started, "fit": fitted - loaded, "total": time.perf_counter() - started,
+               "forward_model": model.seconds, "evaluations": model.evaluations}
+    record = _record(inputs, spec, table, result, judged, views, seconds)
+    atomic_write_text(inputs.out / "scene_fit.json", json.dumps(record, indent=2) + "\n")
+    return record

@@ -1,0 +1,168 @@
+"""The scene fit's forward model: where the CD's band edges fall for given scene parameters.
+
+No renderer in the loop: for parameter values (renderer.fit_parameters, fit coordinates)
+the scene is changed (the CD's placement, the light, the grating's period), the
+grating-equation prediction weighted by the RCWA efficiency is made for each photo's
+fitted camera (reports.prediction), sampled on that photo's fixed polar grids
+(reports.polar, set once from the scene file's CD, so that the same edge keys and pixel
+lines serve every evaluation) and its band edges found (reports.fringes). A residual is the
+predicted edge's position minus the photo's along the profile, in pixels.
+
+The photo's edges are found with the windows of a prediction (fringes.find_edges): the fit
+measures them once per round with the round's starting values (ObservedEdges), and they
+stay fixed while the optimiser moves the prediction.
+
+Approximation, stated: the efficiency table is the scene file's (its period and depth);
+a fitted period moves the orders' directions exactly (the grating equation) but their
+efficiencies are read at the table's period, a change of eta by a few per cent for a
+period a few per cent off, which moves a half-maximum edge by far less than its slope's
+pixel.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import time
+from dataclasses import dataclass
+
+import numpy as np
+
+from renderer.camera import CameraModel
+from renderer.fit_apply import AppliedScene, apply_values
+from renderer.fit_parameters import FitTable
+from reports import fringes, polar
+from reports.images import Photo
+from reports.prediction import PREDICTION_STEP_NM, Prediction, cd_geometry, predict
+from reports.prediction_efficiency import Efficiency, scene_efficiency
+
+FIT_SUPERSAMPLE = 1  # sub-rays per pixel axis in the fit's predictions (the report's is 2)
+MISSING_EDGE_PX = 4.0  # the residual of an observed edge the prediction no longer shows (a robust loss caps it)
+
+
+@dataclass
+class View:
+    """One photo in the fit: its fitted camera, the decoded photo and its fixed grids."""
+
+    name: str
+    camera: CameraModel
+    photo: Photo
+    grids: tuple[polar.PolarGrid, ...]
+    camera_std: dict
+    correlation_px: float = fringes.NOISE_CORRELATION_PX
+
+
+@dataclass(frozen=True)
+class EdgeKey:
+    view: int
+    key: tuple
+
+
+@dataclass
+class ObservedEdges:
+    """The photos' edges of quality ok, with the prediction's edge key (fixed for a round)."""
+
+    keys: list[EdgeKey]
+    edges: list[fringes.Edge]
+    grids: list[polar.PolarGrid]
+
+    def __len__(self) -> int:
+        return len(self.keys)
+
+    def profiles(self) -> dict[tuple[int, str], set[int]]:
+        """The profiles the edges lie on, by (view, grid kind)."""
+        out: dict[tuple[int, str], set[int]] = {}
+        for key in self.keys:
+            out.setdefault((key.view, key.key[0]), set()).add(key.key[1])
+        return out
+
+    def subset(self, rows: np.ndarray) -> ObservedEdges:
+        return ObservedEdges([self.keys[i] for i in rows], [self.edges[i] for i in rows], [self.grids[i] for i in rows])
+
+
+def view_grids(spec, camera: CameraModel) -> tuple[polar.PolarGrid, ...]:
+    """The polar grids of the scene file's CD seen by ``camera`` (kept fixed during the fit)."""
+    return polar.standard_grids(camera, cd_geometry(spec))
+
+
+def sampled_prediction(pred: Prediction, grid: polar.PolarGrid) -> np.ndarray:
+    """The prediction's lit fractions sampled on ``grid`` (orders, 3, radii, azimuths), as images are."""
+    frame = (pred.camera.height, pred.camera.width)
+    return np.stack([polar.sample_crop(lit.transpose(1, 2, 0), (pred.x0, pred.y0), frame, grid, robust=True)
+                     for lit in pred.lit]).transpose(0, 3, 1, 2)  # 3 channels per remap (OpenCV's bilinear path)
+
+
+class EdgeModel:
+    """Predicted band edges per view for parameter values; the photos' edges; residuals."""
+
+    def __init__(self, spec, table: FitTable, views: list[View], *, supersample: int = FIT_SUPERSAMPLE,
+                 step_nm: float = PREDICTION_STEP_NM, efficiency: Efficiency | None = None):
+        self.spec, self.table, self.views = spec, table, views
+        self.supersample, self.step_nm = supersample, step_nm
+        self.efficiency = efficiency if efficiency is not None else scene_efficiency(spec)
+        self.evaluations = 0
+        self.seconds = 0.0
+
+    def applied(self, values: np.ndarray) -> AppliedScene:
+        return apply_values(self.spec, self.table, values)
+
+    def predictions(self, values: np.ndarray) -> list[Prediction | None]:
+        """One prediction per view (None where the changed CD leaves that camera's view)."""
+        applied = self.applied(values)
+        cd = cd_geometry(applied.spec)
+        period = applied.period_um(0)
+        if period is not None:
+            cd = dataclasses.replace(cd, period_um=period)
+        out: list[Prediction | None] = []
+        for view in self.views:
+            try:
+                out.append(predict(applied.spec, view.camera, supersample=self.supersample, step_nm=self.step_nm,
+                                   efficiency=self.efficiency, geometry=cd))
+            except ValueError:  # UserInputError: the CD left the view
+                out.append(None)
+        return out
+
+    def predicted_edges(self, values: np.ndarray, profiles: dict[tuple[int, str], set[int]] | None = None
+                        ) -> dict[EdgeKey, fringes.Edge]:
+        """Every view's predicted band edges (all qualities), by key; ``profiles``: only those
+        profiles, by (view, grid kind)."""
+        started = time.perf_counter()
+        found: dict[EdgeKey, fringes.Edge] = {}
+        for v, (view, pred) in enumerate(zip(self.views, self.predictions(values), strict=True)):
+            if pred is None:
+                continue
+            for grid in view.grids:
+                wanted = None if profiles is None else profiles.get((v, grid.kind), set())
+                if wanted is not None and not wanted:
+                    continue
+                for e in fringes.find_edges(grid, sampled_prediction(pred, grid), pred.orders, profiles=wanted):
+                    if np.isfinite(e.position):
+                        found[EdgeKey(v, e.key())] = e
+        self.evaluations += 1
+        self.seconds += time.perf_counter() - started
+        return found
+
+    def observed_edges(self, values: np.ndarray) -> ObservedEdges:
+        """The photos' edges of quality ok, found in the windows of the prediction at ``values``."""
+        keys, edges, grids = [], [], []
+        for v, (view, pred) in enumerate(zip(self.views, self.predictions(values), strict=True)):
+            if pred is None:
+                continue
+            for grid in view.grids:
+                sampled = sampled_prediction(pred, grid)
+                for e in fringes.find_edges(grid, sampled, pred.orders, view.photo.rgb, view.photo.clipped,
+                                            view.correlation_px):
+                    if e.quality == "ok":
+                        keys.append(EdgeKey(v, e.key()))
+                        edges.append(e)
+                        grids.append(grid)
+        return ObservedEdges(keys, edges, grids)
+
+    def residuals(self, values: np.ndarray, observed: ObservedEdges) -> np.ndarray:
+        """Predicted minus observed position along each observed edge's profile (px); an
+        edge the prediction does not show gets +-MISSING_EDGE_PX (its last known sign)."""
+        predicted = self.predicted_edges(values, observed.profiles())
+        out = np.empty(len(observed))
+        for i, (key, edge, grid) in enumerate(zip(observed.keys, observed.edges, observed.grids, strict=True)):
+            p = predicted.get(key)
+            out[i] = MISSING_EDGE_PX if p is None else fringes.signed_offset(grid, edge, p)
+        return out
