@@ -9,9 +9,10 @@ value is a table of options (``{}`` takes the defaults)::
     "light.center" = { within = 0.10, prior_std = 0.05 }  # metres; x and z (the light is in the ceiling)
 
 Options: ``bounds`` ([lo, hi], or one [lo, hi] per component), ``within`` (+- about the
-file's value, in the field's unit; ``within_deg`` for a normal), ``prior_std`` (a Gaussian
-prior about the file's value: one number or one per component). The fit varies each
-parameter in *fit coordinates* (``FitParameter.components``):
+file's value, in the field's unit; ``within_deg`` for a normal, and only there; bounds or
+within, not both), ``prior_std`` (a Gaussian prior about the file's value: one number or
+one per component). The fit varies each parameter in *fit coordinates*
+(``FitParameter.components``):
 
 ==================================  ==========================  =========================================
 name                                components                  unit
@@ -176,10 +177,15 @@ def _per_component(value: Any, size: int, where: str) -> tuple[float, ...]:
 def _with_options(p: FitParameter, options: dict) -> FitParameter:
     where = f"fit.{p.name}"
     nominal = np.asarray(p.nominal)
+    key = "within_deg" if p.kind == "normal" else "within"
+    wrong = "within" if key == "within_deg" else "within_deg"
+    if wrong in options:  # would be ignored: a normal's half-width is in degrees, every other one in the field's unit
+        raise UserInputError(f"is not an option of {p.name}", field=f"{where}.{wrong}", expected=f"{key} ({p.unit})")
+    if "bounds" in options and key in options:
+        raise UserInputError(f"give bounds or {key}, not both", field=where, got=sorted(options))
     if "bounds" in options:
         lower, upper = _bounds(options["bounds"], p.size, f"{where}.bounds")
     else:
-        key = "within_deg" if p.kind == "normal" else "within"
         kind, default = DEFAULT_WITHIN["structure.period" if p.kind == "period" else p.kind]
         half = np.asarray(_per_component(options.get(key, default), p.size, f"{where}.{key}"))
         if np.any(half <= 0):

@@ -10,12 +10,14 @@ fitted values), ``verdict`` (reports.scene_verdict), ``held``, settings, version
 fitted_scene.toml: the scene file with the fitted values in place (a scene any command
 accepts). A fitted structure field (the period, a layer's thickness) changes the structure
 file the scene names: a copy with the fitted values is written beside it
-(``cd0_structure.toml``) and the scene points to it. Paths the scene resolved are made
-absolute (calibration.fitted_scene.absolute_reference), since the file is written elsewhere.
+(``cd0_structure.toml``; its material CSV files named by absolute paths) and the scene
+points to it. Paths the scene resolved are made absolute
+(calibration.fitted_scene.absolute_reference), since the file is written elsewhere.
 """
 
 from __future__ import annotations
 
+import os
 import tomllib
 from pathlib import Path
 from typing import Any
@@ -24,7 +26,7 @@ import numpy as np
 import tomli_w
 
 from calibration.fitted_scene import absolute_reference
-from rcwa.structure import load_structure
+from rcwa.structure import BUILTIN_STRUCTURES, load_structure
 from renderer.fit_apply import apply_values, tilt_angle_deg
 from renderer.fit_parameters import FitParameter, FitTable
 from workbench.core.files import atomic_write_text
@@ -64,10 +66,21 @@ def parameters_json(spec, table: FitTable, nominal: np.ndarray, values: np.ndarr
     return out
 
 
+def _material_specs(data: dict) -> list[dict]:
+    """The structure data's ``{ file = ... }`` material tables (superstrate, substrate, layers, shapes)."""
+    values = [data.get("superstrate"), data.get("substrate")]
+    for layer in data.get("layers", []):
+        values += [layer.get("material")] + [shape.get("material") for shape in layer.get("shapes", [])]
+    return [v for v in values if isinstance(v, dict) and isinstance(v.get("file"), str)]
+
+
 def _structure_copy(reference: str, changes: dict[str, float], path: Path) -> str:
     """A copy of the structure file ``reference`` with ``changes`` ("period", "layers[j].thickness") at ``path``."""
     structure = load_structure(reference)
     data = tomllib.loads(structure.text)
+    if reference not in BUILTIN_STRUCTURES:  # a material CSV named relative to the structure file: absolute in the copy
+        for spec in _material_specs(data):
+            spec["file"] = os.path.abspath(Path(reference).parent / spec["file"])
     for field, value in changes.items():
         if field == "period":
             data["period"] = [value]
