@@ -108,6 +108,9 @@ th, td { border: 1px solid #ccc; padding: 2px 6px; text-align: right; } th { bac
 table.kv th { text-align: left; }
 .note { background: #fff7d6; border: 1px solid #e0c870; padding: 6px 10px; margin: 6px 0; }
 .error { background: #fde2e2; border: 1px solid #d88; padding: 6px 10px; margin: 6px 0; }
+.verdict { padding: 8px 12px; margin: 6px 0; border: 1px solid #999; font-size: 15px; }
+.verdict-consistent { background: #e3f4e1; } .verdict-model { background: #fde9cf; }
+.verdict-camera { background: #e3ecfa; } .verdict-unexplained { background: #fde2e2; }
 .legend img { vertical-align: middle; height: 14px; width: 256px; }
 .scroll { max-height: 320px; overflow: auto; display: inline-block; }
 """
@@ -199,9 +202,11 @@ SCRIPT = r"""
 
 
 def render_page(*, title: str, width: int, height: int, linear: dict[str, np.ndarray], exposure_ev: float,
-                maps: dict[str, dict], sections: list[tuple[str, str]], notes: list[str], errors: list[str]) -> str:
+                maps: dict[str, dict], sections: list[tuple[str, str]], notes: list[str], errors: list[str],
+                verdict: str = "") -> str:
     """The whole page. ``linear``: name -> (H, W, 3) linear sRGB (photo first); ``maps``: name ->
-    {"uri": data URI, "legend": text}; ``sections``: (heading, trusted HTML built with table())."""
+    {"uri": data URI, "legend": text}; ``sections``: (heading, trusted HTML built with table());
+    ``verdict``: the scene fit's block (trusted HTML, reports.verdict_block), first on the page."""
     data = {"width": width, "height": height, "exposure_ev": exposure_ev, "order": list(linear),
             "linear": {name: float16_base64(image) for name, image in linear.items()},
             "maps": {name: {"legend": m["legend"]} for name, m in maps.items()}}
@@ -225,7 +230,7 @@ def render_page(*, title: str, width: int, height: int, linear: dict[str, np.nda
 <title>{html.escape(title)}</title><style>{STYLE}</style></head>
 <body>
 <h1>{html.escape(title)}</h1>
-{error_html}{note_html}
+{verdict}{error_html}{note_html}
 <div class="bar">
   <button id="flip" title="A/B flip (F or space)">A/B flip</button> showing <b id="ab-label"></b>
   <label>exposure <input id="exposure" type="range" min="-12" max="12" step="0.1"></label> <span id="ev-value"></span>

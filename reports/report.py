@@ -53,6 +53,7 @@ from reports.fringe_plot import BAND_SIGMAS, fringe_plot
 from reports.hue import HUE_LEVELS_NM, find_hue_crossings, hue_scale
 from reports.prediction import CDGeometry, Prediction, cd_bbox, cd_geometry, predict
 from reports.rim import Rim, fit_rim
+from reports.verdict_block import report_verdict, verdict_html
 from workbench.core.errors import UserInputError
 from workbench.core.files import atomic_write_text
 
@@ -79,6 +80,8 @@ class Inputs:
     studies: tuple[Path, ...] = ()
     brackets: tuple[Path, ...] = ()  # darker frames of the photo's view, for its clipped highlights
     brackets_strict: bool = True  # a frame that does not fit is an error (else it is left out, with the reason)
+    scene_fit: Path | None = None  # the scene fit's scene_fit.json: its verdict heads the page
+    offsets_nominal_scene: dict | None = None  # photo-vs-render offsets with the scene file's render (a re-render's before)
 
 
 def _scene_with_camera(scene: str, fitted: FittedCamera):
@@ -486,6 +489,9 @@ def build_report(inputs: Inputs) -> dict[str, Any]:
         "cd": cd, "problems": problems, "messages": messages,
     }
     report |= _headline_offsets(cd)
+    if inputs.scene_fit is not None:
+        report["verdict"] = report_verdict(json.loads(inputs.scene_fit.read_text()), inputs.offsets_nominal_scene,
+                                           report["fringe_offset_px"] if inputs.offsets_nominal_scene else None)
     edge_rows, pair_rows = _fringe_rows(cd)
     report["seconds"] = time.perf_counter() - started
 
@@ -552,4 +558,4 @@ def _page(report, inputs: Inputs, photo_display, render_display, exposure, maps,
     return page.render_page(title=title, width=width, height=height,
                             linear={"photo": photo_display, "render": render_display},
                             exposure_ev=float(np.log2(exposure)), maps=map_entries, sections=sections, notes=notes,
-                            errors=errors)
+                            errors=errors, verdict=verdict_html(report["verdict"]) if "verdict" in report else "")

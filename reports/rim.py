@@ -83,7 +83,7 @@ def rim_points(image: np.ndarray, expected: np.ndarray, search_px: float = RIM_S
     return np.asarray(found).reshape(-1, 2)
 
 
-def _ellipse_residual(points: np.ndarray, rim: Rim) -> np.ndarray:
+def ellipse_residual(points: np.ndarray, rim: Rim) -> np.ndarray:
     """Approximate distance (px) of points from the ellipse."""
     inverse = np.linalg.inv(_ellipse_matrix(rim))
     unit = points @ inverse[:2, :2].T + inverse[:2, 2]
@@ -101,9 +101,9 @@ def fit_rim(image: np.ndarray, expected: np.ndarray, search_px: float = RIM_SEAR
             return None
         (cx, cy), (w, h), angle = cv2.fitEllipse(points[keep].astype(np.float32))
         rim = Rim((float(cx), float(cy)), (float(w), float(h)), float(angle), int(keep.sum()), 0.0)
-        residual = np.abs(_ellipse_residual(points, rim))
+        residual = np.abs(ellipse_residual(points, rim))
         keep = residual <= max(RIM_OUTLIER_PX, 3 * MAD_TO_SIGMA * float(np.median(residual[keep])))
     assert rim is not None
-    rim.rms_px = float(np.sqrt(np.mean(_ellipse_residual(points[keep], rim) ** 2)))
+    rim.rms_px = float(np.sqrt(np.mean(ellipse_residual(points[keep], rim) ** 2)))
     rim.points = int(keep.sum())
     return rim

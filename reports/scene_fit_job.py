@@ -28,7 +28,7 @@ from reports.camera_file import check_scene, read_camera
 from reports.prediction import PREDICTION_STEP_NM
 from reports.report import read_merged_photo
 from reports.scene_fit import FitSettings, SceneFitResult, fit_scene
-from reports.scene_fit_model import FIT_SUPERSAMPLE, EdgeModel, View, view_grids
+from reports.scene_fit_model import FIT_SUPERSAMPLE, EdgeModel, View, photo_rim_points, view_grids
 from reports.scene_fit_outputs import parameters_json, write_fitted_scene
 from reports.scene_verdict import camera_edge_covariance, verdict
 from workbench.core.errors import UserInputError
@@ -66,7 +66,8 @@ def load_views(inputs: FitInputs, spec) -> list[View]:
         check_scene(fitted, spec, inputs.scene)
         photo, _ = read_merged_photo(path, inputs.calibration, tuple(files["brackets"]), False, [])
         correlation = fringes.MOSAIC_CORRELATION_PX if is_raw(path) else fringes.NOISE_CORRELATION_PX
-        views.append(View(path.name, fitted.model, photo, view_grids(spec, fitted.model), fitted.std or {}, correlation))
+        views.append(View(path.name, fitted.model, photo, view_grids(spec, fitted.model), fitted.std or {}, correlation,
+                          photo_rim_points(photo, fitted.model, spec)))
     return views
 
 
@@ -79,7 +80,7 @@ def _record(inputs: FitInputs, spec, table, result: SceneFitResult, judged: dict
         "parameters": parameters_json(spec, table, result.nominal, result.values, result.std),
         "held": table.held | ({} if table.declared else {"(defaults)": "the scene has no [fit] table: the defaults "
                                                           "of renderer.fit_parameters.DEFAULT_FREE are fitted"}),
-        "components": labels,
+        "components": labels, "values": result.values.tolist(), "nominal_values": result.nominal.tolist(),
         "std_jacobian": result.std_jacobian.tolist(), "std_bootstrap": result.std_bootstrap.tolist(),
         "correlations": np.round(result.correlations, 4).tolist(),
         "residuals_before_px": judged["residuals_before_px"], "residuals_after_px": judged["residuals_after_px"],

@@ -30,12 +30,14 @@ import numpy as np
 from renderer.camera import CameraModel
 from renderer.fit_apply import AppliedScene, apply_values
 from renderer.fit_parameters import FitTable
-from reports import fringes, polar
+from reports import fringes, polar, rim
 from reports.images import Photo
 from reports.prediction import PREDICTION_STEP_NM, Prediction, cd_geometry, predict
 from reports.prediction_efficiency import Efficiency, scene_efficiency
 
 FIT_SUPERSAMPLE = 1  # sub-rays per pixel axis in the fit's predictions (the report's is 2)
+RIM_POINTS_USED = 90  # photo rim points per view (of reports.rim's 720 searches; neighbours share pixels)
+RIM_BLOCK = 8
 MISSING_EDGE_PX = 4.0  # the residual of an observed edge the prediction no longer shows (a robust loss caps it)
 
 
@@ -49,6 +51,7 @@ class View:
     grids: tuple[polar.PolarGrid, ...]
     camera_std: dict
     correlation_px: float = fringes.NOISE_CORRELATION_PX
+    rim_points: np.ndarray = dataclasses.field(default_factory=lambda: np.zeros((0, 2)))  # the photo's CD rim (px)
 
 
 @dataclass(frozen=True)
@@ -64,9 +67,31 @@ class ObservedEdges:
     keys: list[EdgeKey]
     edges: list[fringes.Edge]
     grids: list[polar.PolarGrid]
+    rims: list[tuple[int, np.ndarray]] = dataclasses.field(default_factory=list)  # (view, photo rim points)
 
     def __len__(self) -> int:
+        """The number of residuals: band edges, then rim points."""
+        return len(self.keys) + sum(len(points) for _, points in self.rims)
+
+    @property
+    def edge_count(self) -> int:
         return len(self.keys)
+
+    def groups(self) -> np.ndarray:
+        """Per residual: 0 for a band edge, 1 for a rim point (each group has its own noise)."""
+        return np.concatenate([np.zeros(len(self.keys), int), np.ones(len(self) - len(self.keys), int)])
+
+    def blocks(self) -> list[list[int]]:
+        """Residuals that share their pixels' noise (a profile's edges; ``RIM_BLOCK`` neighbouring rim points)."""
+        groups: dict[tuple, list[int]] = {}
+        for i, key in enumerate(self.keys):
+            groups.setdefault((key.view, key.key[0], key.key[1]), []).append(i)
+        at = len(self.keys)
+        for v, points in self.rims:
+            for start in range(0, len(points), RIM_BLOCK):
+                groups[("rim", v, start)] = list(range(at + start, at + min(start + RIM_BLOCK, len(points))))
+            at += len(points)
+        return list(groups.values())
 
     def profiles(self) -> dict[tuple[int, str], set[int]]:
         """The profiles the edges lie on, by (view, grid kind)."""
@@ -75,13 +100,34 @@ class ObservedEdges:
             out.setdefault((key.view, key.key[0]), set()).add(key.key[1])
         return out
 
-    def subset(self, rows: np.ndarray) -> ObservedEdges:
-        return ObservedEdges([self.keys[i] for i in rows], [self.edges[i] for i in rows], [self.grids[i] for i in rows])
 
 
 def view_grids(spec, camera: CameraModel) -> tuple[polar.PolarGrid, ...]:
     """The polar grids of the scene file's CD seen by ``camera`` (kept fixed during the fit)."""
     return polar.standard_grids(camera, cd_geometry(spec))
+
+
+def photo_rim_points(photo: Photo, camera: CameraModel, spec) -> np.ndarray:
+    """The CD's rim in the photo (reports.rim: strongest gradient along the expected rim's normals),
+    points off the fitted ellipse by more than ``RIM_OUTLIER_PX`` dropped, ``RIM_POINTS_USED`` kept."""
+    cd = cd_geometry(spec)
+    expected = camera.project(cd.rim_points(count=RIM_POINTS_USED, on_top=True))
+    found = rim.rim_points(photo.rgb, expected)
+    ellipse = rim.fit_rim(photo.rgb, camera.project(cd.rim_points(on_top=True)))
+    if ellipse is None or not len(found):
+        return np.zeros((0, 2))
+    return found[np.abs(rim.ellipse_residual(found, ellipse)) <= rim.RIM_OUTLIER_PX]
+
+
+def rim_residuals(camera: CameraModel, cd, points: np.ndarray) -> np.ndarray:
+    """Signed distance (px, outward positive) of the photo's rim points from the predicted rim's curve."""
+    curve = camera.project(cd.rim_points(on_top=True))
+    nearest = np.argmin(((points[:, None, :] - curve[None]) ** 2).sum(axis=2), axis=1)
+    tangent = np.roll(curve, -1, axis=0) - np.roll(curve, 1, axis=0)
+    normal = np.stack([tangent[:, 1], -tangent[:, 0]], axis=1)
+    normal /= np.maximum(np.linalg.norm(normal, axis=1, keepdims=True), 1e-12)
+    normal *= np.sign(np.einsum("ij,ij->i", normal, curve - curve.mean(axis=0)))[:, None]
+    return np.einsum("ij,ij->i", points - curve[nearest], normal[nearest])
 
 
 def sampled_prediction(pred: Prediction, grid: polar.PolarGrid) -> np.ndarray:
@@ -155,14 +201,18 @@ class EdgeModel:
                         keys.append(EdgeKey(v, e.key()))
                         edges.append(e)
                         grids.append(grid)
-        return ObservedEdges(keys, edges, grids)
+        rims = [(v, view.rim_points) for v, view in enumerate(self.views) if len(view.rim_points)]
+        return ObservedEdges(keys, edges, grids, rims)
 
     def residuals(self, values: np.ndarray, observed: ObservedEdges) -> np.ndarray:
-        """Predicted minus observed position along each observed edge's profile (px); an
-        edge the prediction does not show gets +-MISSING_EDGE_PX (its last known sign)."""
+        """Predicted minus observed position along each observed edge's profile (px; an edge
+        the prediction does not show gets MISSING_EDGE_PX), then each photo rim point's
+        distance from the predicted rim (rim_residuals)."""
         predicted = self.predicted_edges(values, observed.profiles())
-        out = np.empty(len(observed))
+        out = np.empty(observed.edge_count)
         for i, (key, edge, grid) in enumerate(zip(observed.keys, observed.edges, observed.grids, strict=True)):
             p = predicted.get(key)
             out[i] = MISSING_EDGE_PX if p is None else fringes.signed_offset(grid, edge, p)
-        return out
+        cd = cd_geometry(self.applied(values).spec)
+        rims = [rim_residuals(self.views[v].camera, cd, points) for v, points in observed.rims]
+        return np.concatenate([out, *rims])

@@ -11,8 +11,7 @@ fitted_scene.toml: the scene file with the fitted values in place (a scene any c
 accepts). A fitted structure field (the period, a layer's thickness) changes the structure
 file the scene names: a copy with the fitted values is written beside it
 (``cd0_structure.toml``; its material CSV files named by absolute paths) and the scene
-points to it. Paths the scene resolved are made absolute
-(calibration.fitted_scene.absolute_reference), since the file is written elsewhere.
+points to it by a relative path. Other paths the scene resolved are made absolute (calibration.fitted_scene.absolute_reference), since the file is written elsewhere.
 """
 
 from __future__ import annotations
@@ -92,17 +91,21 @@ def _structure_copy(reference: str, changes: dict[str, float], path: Path) -> st
     return str(path.resolve())
 
 
-def fitted_scene_data(spec, table: FitTable, values: np.ndarray, out_dir: Path, base: dict | None = None) -> dict:
+def fitted_scene_data(spec, table: FitTable, values: np.ndarray, out_dir: Path, base: dict | None = None,
+                      scene_dir: Path | None = None) -> dict:
     """The scene file's data (``base``: parsed TOML, default ``spec.text``) with the fitted values in place;
-    structure copies written to ``out_dir``."""
+    structure copies written to ``out_dir`` and named relative to ``scene_dir`` (where the scene file
+    will lie; default ``out_dir``), so that a folder moved as a whole (a verify stage) keeps them."""
     data = base if base is not None else tomllib.loads(spec.text)
+    scene_dir = scene_dir if scene_dir is not None else out_dir
     applied = apply_values(spec, table, values)
     for i, (entry, cd) in enumerate(zip(data.get("cd", []), applied.spec.cds, strict=True)):
         entry["center"] = [float(c) for c in cd.center]
         entry["normal"] = [float(c) for c in cd.normal]
         entry["structure"] = absolute_reference(cd.structure)
         if i in applied.structure_changes:
-            entry["structure"] = _structure_copy(cd.structure, applied.structure_changes[i], out_dir / f"cd{i}_structure.toml")
+            copy = _structure_copy(cd.structure, applied.structure_changes[i], out_dir / f"cd{i}_structure.toml")
+            entry["structure"] = os.path.relpath(copy, scene_dir.resolve())
         if "path" in cd.table:
             entry["table"] = {"path": absolute_reference(cd.table["path"])}
     for entry, grating in zip(data.get("grating", []), spec.gratings, strict=True):
@@ -115,10 +118,14 @@ def fitted_scene_data(spec, table: FitTable, values: np.ndarray, out_dir: Path, 
     return data
 
 
-def write_fitted_scene(spec, table: FitTable, values: np.ndarray, out_dir: Path, note: str) -> Path:
-    """DIR/fitted_scene.toml (module docstring)."""
-    data = fitted_scene_data(spec, table, values, out_dir)
+def write_fitted_scene(spec, table: FitTable, values: np.ndarray, out_dir: Path, note: str, *, base: dict | None = None,
+                       name: str = "fitted_scene.toml", structures: Path | None = None) -> Path:
+    """DIR/fitted_scene.toml (module docstring); ``base``: another scene file's data to change (a photo's
+    calibrated scene), ``name`` the file's name in ``out_dir``, ``structures`` the folder for the
+    structure copies (default ``out_dir``)."""
+    out_dir.mkdir(parents=True, exist_ok=True)
+    data = fitted_scene_data(spec, table, values, structures if structures is not None else out_dir, base, out_dir)
     header = "".join(f"# {line}\n" for line in note.splitlines())
-    path = out_dir / "fitted_scene.toml"
+    path = out_dir / name
     atomic_write_text(path, header + tomli_w.dumps(data))
     return path

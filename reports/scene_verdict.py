@@ -6,11 +6,12 @@ likelihood ratio of Gaussian edge residuals [Wilks 1938]:
 
     LR = r0^T S^-1 r0 - r1^T S^-1 r1,   LR ~ chi^2(k) under H0,
 
-with r0, r1 the residuals (predicted minus photo edge, px) at the file's and the fitted
-values, k the number of fitted components and S the edges' covariance. Two covariances:
+with r0, r1 the residuals (predicted minus photo edge, px, and the photo's rim points'
+distances from the predicted rim) at the file's and the fitted values, k the number of
+fitted components and S the residuals' covariance. Two covariances:
 
-* noise only: S = sigma^2 W^-1, sigma the edge noise *measured* at the fit (1.4826 MAD of
-  the fitted residuals) and W the fit's robust (Cauchy) weights, so that edges the fit
+* noise only: S = sigma^2 W^-1, sigma the noise *measured* at the fit (1.4826 MAD of the
+  fitted residuals, band edges and rim points apart) and W the fit's robust (Cauchy) weights, so that edges the fit
   treats as outliers count as little here;
 * noise and camera: S plus C, the edges' covariance from the calibration's standard
   deviations: the residuals' changes over cameras drawn within them
@@ -88,7 +89,7 @@ def _summary(r: np.ndarray) -> dict[str, Any]:
 
 
 def _largest(result: SceneFitResult, views: list[str]) -> list[dict[str, Any]]:
-    order = np.argsort(-np.abs(result.residuals_fitted))[:LISTED_RESIDUALS]
+    order = np.argsort(-np.abs(result.residuals_fitted[:result.observed.edge_count]))[:LISTED_RESIDUALS]
     out = []
     for i in order:
         key, edge = result.observed.keys[i], result.observed.edges[i]
@@ -103,14 +104,15 @@ def verdict(result: SceneFitResult, labels: list[str], names: list[str], views: 
     """report.json's and scene_fit.json's ``verdict`` (module docstring). ``labels``: each
     fitted component's name (FitTable.labels); ``names`` the parameter each belongs to."""
     k = len(result.values)
-    w = cauchy_weights(result.residuals_fitted, result.sigma_px)
-    noise = np.diag(result.sigma_px**2 / w)
+    w = cauchy_weights(result.residuals_fitted, result.sigma)
+    noise = np.diag(result.sigma**2 / w)
+    edges = result.observed.edge_count
     test_noise = likelihood_ratio(result.residuals_nominal, result.residuals_fitted, noise, k)
     test_camera = None if camera_covariance is None else likelihood_ratio(
         result.residuals_nominal, result.residuals_fitted, noise + camera_covariance, k)
     z = (result.values - result.nominal) / np.maximum(result.std, 1e-300)
     moved = [i for i in range(k) if abs(z[i]) > MOVED_SIGMAS]
-    fitted_median = float(np.median(np.abs(result.residuals_fitted)))
+    fitted_median = float(np.median(np.abs(result.residuals_fitted[:edges])))
     if test_noise.p_value >= ALPHA:
         kind, why = "consistent", "the scene file's values explain the band edges as well as the fitted ones do"
     elif test_camera is not None and test_camera.p_value >= ALPHA:
@@ -127,15 +129,19 @@ def verdict(result: SceneFitResult, labels: list[str], names: list[str], views: 
         "verdict": kind, "why": why,
         "test": {"method": "likelihood ratio, nominal (file) against fitted scene, on the photos' band edges; "
                            "chi-square with one degree of freedom per fitted component",
-                 "alpha": ALPHA, "edge_noise_px": result.sigma_px, "edges": len(result.residuals_fitted),
+                 "alpha": ALPHA, "edge_noise_px": result.sigma_px, "edges": edges,
+                 "rim_points": len(result.residuals_fitted) - edges,
+                 "rim_noise_px": float(result.sigma[edges]) if len(result.sigma) > edges else None,
                  "noise_only": test_noise.to_json(),
                  "noise_and_camera": None if test_camera is None else test_camera.to_json()},
         "moved_sigmas": MOVED_SIGMAS,
         "parameters": [{"name": names[i], "component": labels[i], "nominal": float(result.nominal[i]),
                         "fitted": float(result.values[i]), "std": float(result.std[i]), "sigmas": float(z[i])}
                        for i in moved] if kind == "model" else [],
-        "residuals_before_px": _summary(result.residuals_nominal),
-        "residuals_after_px": _summary(result.residuals_fitted),
+        "residuals_before_px": _summary(result.residuals_nominal[:edges]),
+        "residuals_after_px": _summary(result.residuals_fitted[:edges]),
+        "rim_residuals_before_px": _summary(result.residuals_nominal[edges:]) if len(result.sigma) > edges else None,
+        "rim_residuals_after_px": _summary(result.residuals_fitted[edges:]) if len(result.sigma) > edges else None,
     }
     if kind == "unexplained":
         out["largest_residuals"] = _largest(result, views)

@@ -1,6 +1,6 @@
 """``workbench verify DATASET --scene SCENE --out RUN``: photos to report in one resumable run.
 
-Five stages, in order, each with its own folder in RUN:
+Six stages, in order, each with its own folder in RUN:
 
 =============  =====================================================================  ==========================
 stage          what it does                                                           inputs hashed
@@ -8,9 +8,17 @@ stage          what it does                                                     
 plan           renderer.planner on the run's scene: tables, orders, directions, cost  RUN/scene.toml
 tables         the scene's efficiency tables, built (or resumed) in the user's cache  RUN/scene.toml
 calibration    calibration.dataset on DATASET's photos/, brackets/, calibration/      those files, RUN/scene.toml
-render         every photo's fitted scene (calibration/scenes/NAME.toml), rendered     the fitted scenes
+fit            reports.scene_fit_job: the scene's [fit] parameters from the photos'    photos, brackets,
+               band edges, and the verdict (fit/scene_fit.json, fitted_scene.toml;    calibration,
+               with the verdict ``model``, fit/scenes/NAME.toml: each photo's         RUN/scene.toml
+               calibrated scene with the fitted values)
+render         every photo's calibrated scene (calibration/scenes/NAME.toml),          the scenes
+               rendered; with the verdict ``model`` its fitted scene too
+               (render/NAME_fitted.exr: the re-render that confirms the fit)
 report         reports.report: each photo against its render, its clipped highlights  photos, renders, brackets,
-               filled from the bracket frames that show its view                      calibration
+               filled from the bracket frames that show its view, the fit's verdict   calibration, the fit
+               first on the page; after a re-render, report/NAME/ compares the
+               fitted scene's render and report/NAME/nominal/ the scene file's
 =============  =====================================================================  ==========================
 
 The tables stage builds whole tables: calibration re-renders the scene from many
@@ -60,6 +68,8 @@ from renderer.render import render
 from renderer.scene import CDSpec, GratingSpec, SceneSpec, load_scene
 from renderer.tables import table_plan
 from reports.report import Inputs, build_report
+from reports.scene_fit_job import FitInputs, run_fit
+from reports.scene_fit_outputs import write_fitted_scene
 from workbench.core.errors import UserInputError
 from workbench.core.executor import DaskExecutor
 from workbench.core.files import atomic_write_text
@@ -79,6 +89,8 @@ SECONDS_PER_POSE = 7.0  # one photo's pose fit
 SECONDS_PER_SAMPLE = 1.05e-6  # render: 81 s for 640 x 480 at 256 spp
 SECONDS_RENDER_LOAD = 2.5  # building the Mitsuba scene, per photo
 SECONDS_PER_REPORT = 6.0  # one photo's report (masks, fringes, error maps, page)
+SECONDS_FIT = 50.0  # the scene fit of a two-photo draft dataset (benchmarks/bench_scene_fit.py)
+FITTED_SUFFIX = "_fitted"  # render/NAME_fitted.exr: the fitted scene's re-render
 
 
 
@@ -223,8 +235,42 @@ def _stage_calibration(run: Run) -> dict:
                      lambda folder: (folder / "calibration.json").is_file())
 
 
+def _stage_fit(run: Run) -> dict:
+    calibration = run.root / "calibration" / "calibration.json"
+    brackets = _bracket_frames(run.dataset)
+    inputs = ({f"photos/{p.name}": p for p in run.photos} | {f"brackets/{p.name}": p for p in brackets}
+              | {"calibration.json": calibration, "scene.toml": run.scene}
+              | {f"scenes/{p.name}": run.root / "calibration" / "scenes" / f"{p.stem}.toml" for p in run.photos})
+
+    def work(folder: Path) -> dict[str, Any]:
+        record = run_fit(FitInputs(run.dataset, str(run.scene), calibration, folder, tuple(p.name for p in run.photos)))
+        rerender = record["verdict"]["verdict"] == "model"
+        if rerender:
+            spec = load_scene(run.scene)
+            assert spec.fit is not None  # run_fit refuses a scene without free parameters
+            for photo in run.photos:
+                calibrated = run.root / "calibration" / "scenes" / f"{photo.stem}.toml"
+                write_fitted_scene(spec, spec.fit, np.asarray(record["values"]), folder / "scenes",
+                                   f"{photo.name}: the calibrated camera with the scene fit's values",
+                                   base=tomllib.loads(calibrated.read_text()), name=f"{photo.stem}.toml",
+                                   structures=folder)
+        return {"verdict": record["verdict"]["verdict"], "rerender": rerender,
+                "residuals_before_px": record["residuals_before_px"], "residuals_after_px": record["residuals_after_px"],
+                "seconds": record["timings"]["total"]}
+
+    return run_stage(run, "fit", inputs, {}, SECONDS_FIT, work, lambda folder: (folder / "scene_fit.json").is_file())
+
+
+def _render_scenes(run: Run) -> dict[str, Path]:
+    """{output stem: scene file}: each photo's calibrated scene, and its fitted one after the verdict ``model``."""
+    scenes = {p.stem: run.root / "calibration" / "scenes" / f"{p.stem}.toml" for p in run.photos}
+    if run.record["stages"].get("fit", {}).get("result", {}).get("rerender"):
+        scenes |= {f"{p.stem}{FITTED_SUFFIX}": run.root / "fit" / "scenes" / f"{p.stem}.toml" for p in run.photos}
+    return scenes
+
+
 def _stage_render(run: Run) -> dict:
-    scenes = {p.name: run.root / "calibration" / "scenes" / f"{p.stem}.toml" for p in run.photos}
+    scenes = _render_scenes(run)
     s = run.settings
     settings = {"preset": s.preset, "spp": s.render_spp, "seed": s.seed, "integrator": s.integrator, "mode": s.mode,
                 "resolution": list(run.size)}
@@ -233,16 +279,16 @@ def _stage_render(run: Run) -> dict:
     def work(folder: Path) -> dict[str, Any]:
         renders = {}
         for name, scene in scenes.items():
-            info = render(scene, folder / f"{Path(name).stem}.exr", preset=s.preset, spp=s.render_spp,
+            info = render(scene, folder / f"{name}.exr", preset=s.preset, spp=s.render_spp,
                           resolution=run.size, integrator=s.integrator, mode=s.mode, seed=s.seed, progress=s.progress,
                           executor=run.executor, force=True)  # the staging folder is the run's own
-            _point_sidecar_at(folder / f"{Path(name).stem}.json", run.root / "render")
-            renders[name] = {"exr": f"{Path(name).stem}.exr", "seconds": info["seconds_total"],
+            _point_sidecar_at(folder / f"{name}.json", run.root / "render")
+            renders[name] = {"exr": f"{name}.exr", "seconds": info["seconds_total"],
                              "served": info.get("served", False), "resumed_passes": info.get("resumed_passes", 0)}
         return {"renders": renders}
 
-    return run_stage(run, "render", {f"scenes/{k}": p for k, p in scenes.items()}, settings, estimate, work,
-                     lambda folder: all((folder / f"{Path(n).stem}.exr").is_file() for n in scenes))
+    return run_stage(run, "render", {f"scenes/{k}.toml": p for k, p in scenes.items()}, settings, estimate, work,
+                     lambda folder: all((folder / f"{n}.exr").is_file() for n in scenes))
 
 
 def _point_sidecar_at(sidecar: Path, final_folder: Path) -> None:
@@ -263,26 +309,37 @@ def _bracket_frames(dataset: Path) -> tuple[Path, ...]:
 
 
 def _stage_report(run: Run) -> dict:
-    renders = {p.name: run.root / "render" / f"{p.stem}.exr" for p in run.photos}
+    scenes = _render_scenes(run)
+    renders = {stem: run.root / "render" / f"{stem}.exr" for stem in scenes}
     calibration = run.root / "calibration" / "calibration.json"
+    scene_fit = run.root / "fit" / "scene_fit.json"
     brackets = _bracket_frames(run.dataset)
-    inputs = ({f"photos/{p.name}": p for p in run.photos} | {f"render/{k}": p for k, p in renders.items()}
-              | {f"brackets/{p.name}": p for p in brackets} | {"calibration.json": calibration, "scene.toml": run.scene})
+    inputs = ({f"photos/{p.name}": p for p in run.photos} | {f"render/{k}.exr": p for k, p in renders.items()}
+              | {f"brackets/{p.name}": p for p in brackets} | {"calibration.json": calibration, "scene.toml": run.scene,
+                                                                "scene_fit.json": scene_fit})
+
+    def one(photo: Path, render_path: Path, scene: Path, out: Path, before: dict | None = None) -> dict[str, Any]:
+        if (out / "report.html").is_file():  # finished by a killed run with these inputs (written after report.json)
+            return json.loads((out / "report.json").read_text())
+        return build_report(Inputs(photo, render_path, calibration, str(scene), out, brackets=brackets,
+                                   brackets_strict=False, scene_fit=scene_fit, offsets_nominal_scene=before))
 
     def work(folder: Path) -> dict[str, Any]:
         reports = {}
         for photo in tqdm(run.photos, desc="report", unit="photo", disable=not run.settings.progress):
-            out = folder / photo.stem
-            if (out / "report.html").is_file():  # finished by a killed run with these inputs (written after report.json)
-                report = json.loads((out / "report.json").read_text())
+            fitted = renders.get(f"{photo.stem}{FITTED_SUFFIX}")
+            if fitted is None:
+                report = one(photo, renders[photo.stem], run.scene, folder / photo.stem)
             else:
-                report = build_report(Inputs(photo, renders[photo.name], calibration, str(run.scene), out,
-                                             brackets=brackets, brackets_strict=False))
+                nominal = one(photo, renders[photo.stem], run.scene, folder / photo.stem / "nominal")
+                report = one(photo, fitted, run.root / "fit" / "fitted_scene.toml", folder / photo.stem,
+                             nominal["fringe_offset_px"])
             reports[photo.name] = {"html": f"{photo.stem}/report.html", "fringe_offset_px": report["fringe_offset_px"],
+                                   "verdict": report.get("verdict", {}).get("verdict"),
                                    "problems": report.get("problems", []), "seconds": report["seconds"]}
         return {"reports": reports}
 
-    return run_stage(run, "report", inputs, {}, SECONDS_PER_REPORT * len(run.photos), work,
+    return run_stage(run, "report", inputs, {}, SECONDS_PER_REPORT * len(renders), work,
                      lambda folder: all((folder / p.stem / "report.html").is_file() for p in run.photos))
 
 
@@ -325,6 +382,7 @@ def _verify_locked(root: Path, dataset: Path, scene: str | Path, spec: SceneSpec
         plan = _stage_plan(run)
         _stage_tables(run, plan)
         _stage_calibration(run)
+        _stage_fit(run)
         _stage_render(run)
         _stage_report(run)
     except BaseException as exc:
@@ -360,7 +418,10 @@ def run_summary(run: Run) -> dict[str, Any]:
         residual = calibration["residuals"].get(name, {})
         photos[name] = {"report": str(run.root / "report" / r["html"]), "fringe_offset_px": r["fringe_offset_px"],
                         "pose_rms_px": residual.get("rms_px"), "pose_median_abs_px": residual.get("median_abs_px")}
+    fit = run.record["stages"].get("fit", {}).get("result", {})
     return {"photos": photos, "intrinsics_rms_px": calibration.get("intrinsics", {}).get("rms_px"),
+            "scene_fit": {"verdict": fit.get("verdict"), "rerendered": fit.get("rerender"),
+                          "record": str(run.root / "fit" / "scene_fit.json")},
             "seconds_per_stage": {k: v.get("seconds", 0.0) if not v.get("skipped") else 0.0
                                   for k, v in run.record["stages"].items()}}
 
@@ -373,6 +434,10 @@ def format_summary(record: dict[str, Any]) -> str:
                                     for k, v in stages.items())]
     intrinsics = summary.get("intrinsics_rms_px")
     lines.append("calibration: board views " + (f"RMS {intrinsics:.3f} px" if intrinsics is not None else "not used"))
+    fit = summary.get("scene_fit") or {}
+    if fit.get("verdict"):
+        lines.append(f"scene fit: verdict {fit['verdict']}" + (" (the fitted scene re-rendered)" if fit.get("rerendered")
+                                                              else "") + f"; {fit['record']}")
     for name, p in summary["photos"].items():
         fo = p["fringe_offset_px"] or {}
         offsets = (f"fringe offset photo-render median {fo['median']:.2f} px, p95 {fo['p95']:.2f} px "

@@ -31,7 +31,7 @@ from workbench.core.version import __version__ as workbench_version
 from workbench.core.version import versions
 
 RUN_FORMAT = "workbench-verify"
-STAGES = ("plan", "tables", "calibration", "render", "report")
+STAGES = ("plan", "tables", "calibration", "fit", "render", "report")
 PRESETS: dict[str, dict[str, Any]] = {"draft": {"tables": "draft", "spp": 256}, "paper": {"tables": "paper", "spp": 2045}}
 KEY_FILE = ".stage-key"  # in a finished stage's folder: the key it was made for
 DONE_FILE = ".stage-done"  # in a staging folder whose work finished (moved into place next)
