@@ -15,7 +15,7 @@ Method (the forward model is reports.scene_fit_model.EdgeModel; no renderer in t
    the light moved 3.4 cm and the period 8.5 % shorter (cost 81 against the truth's 69).
 3. Coarse: nlopt's BOBYQA [Powell 2009] in scaled coordinates u = (x - x_start) / scale
    within the ``[fit]`` bounds, on a robust cost: the Cauchy loss s^2 log(1 + (r / s)^2) of
-   the residuals r (predicted minus photo edge, px) [Hartley & Zisserman 2004, A6.8], with s
+   the residuals r (predicted minus photo edge, px) [Hartley 2004, A6.8], with s
    the residuals' robust spread at the round's start
    (1.4826 MAD, at least ``MIN_SCALE_PX``), plus the priors' ((x - x_file) / prior_std)^2.
    A redescending loss, since a few edges are paired with the wrong band (an 18 px residual
@@ -28,7 +28,7 @@ Method (the forward model is reports.scene_fit_model.EdgeModel; no renderer in t
    kept only where they lower the cost.
 5. Uncertainty at the answer: the edge noise sigma is measured, the residuals' robust spread
    (1.4826 MAD); the covariance is sigma^2 (J^T W J + P)^-1, W the robust weights, P the
-   priors' precision [Nocedal & Wright 2006, 10.3]; the calibration's camera uncertainty is
+   priors' precision [Nocedal 2006, 10.3]; the calibration's camera uncertainty is
    added as (J^T J)^-1 J^T C J (J^T J)^-1, C the edges' covariance from the camera's
    standard deviations (reports.scene_verdict.camera_edge_covariance). A bootstrap over
    profiles (edges on one profile share its pixels, so they are resampled together;

@@ -11,7 +11,8 @@ fitted_scene.toml: the scene file with the fitted values in place (a scene any c
 accepts). A fitted structure field (the period, a layer's thickness) changes the structure
 file the scene names: a copy with the fitted values is written beside it
 (``cd0_structure.toml``; its material CSV files named by absolute paths) and the scene
-points to it by a relative path. Other paths the scene resolved are made absolute (calibration.fitted_scene.absolute_reference), since the file is written elsewhere.
+points to it by a relative path. Other paths the scene resolved are made absolute
+(calibration.fitted_scene.absolute_reference), since the file is written elsewhere.
 """
 
 from __future__ import annotations

@@ -46,6 +46,10 @@ def files(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
         out[name] = root / name
     (root / "nocamera.toml").write_text(scene.split("[camera]")[0])
     out["nocamera.toml"] = root / "nocamera.toml"
+    for name, fit in (("fitbounds.toml", '"cd[0].structure.period" = { bounds = [1.7, 1.8] }'),
+                      ("fitrotation.toml", '"cd[0].rotation_deg" = {}')):
+        (root / name).write_text(scene + f"\n[fit]\n{fit}\n")
+        out[name] = root / name
     (root / "truncated.dng").write_bytes(b"II*\x00" + bytes(64))
     out["truncated.dng"] = root / "truncated.dng"
     import numpy as np
@@ -147,6 +151,14 @@ CASES: list[tuple[str, list[str], str]] = [
     ("plan-binary", ["plan", "{binary.toml}"], "not a text file"),
     ("plan-missing", ["plan", "{root}/nosuch.toml"], "not found"),
     ("plan-misspelt-table-key", ["plan", "{misspelt.toml}"], "cd[0].table.ordres"),
+    ("fit-bounds-exclude-nominal", ["fit", "{a_folder}", "--scene", "{fitbounds.toml}", "--calibration", "{root}/c.json",
+                                    "--out", "{root}/f1"], "fitbounds.toml: field 'fit.cd[0].structure.period.bounds'"),
+    ("fit-rotation-not-identifiable", ["fit", "{a_folder}", "--scene", "{fitrotation.toml}", "--calibration",
+                                       "{root}/c.json", "--out", "{root}/f2"], "not identifiable"),
+    ("fit-dataset-without-photos", ["fit", "{a_folder}", "--scene", "cornell_cd", "--calibration", "{root}/c.json",
+                                    "--out", "{root}/f3"], "photos"),
+    ("fit-zero-supersample", ["fit", "{a_folder}", "--scene", "cornell_cd", "--calibration", "{root}/c.json",
+                              "--out", "{root}/f4", "--supersample", "0"], "--supersample"),
     ("decode-missing", ["decode", "{root}/nosuch.dng", "--out", "{root}/o.exr"], "nosuch.dng"),
     ("decode-not-an-image", ["decode", "{notes.txt}", "--out", "{root}/o.exr"], "notes.txt"),
     ("decode-truncated-raw", ["decode", "{truncated.dng}", "--out", "{root}/o.exr"], "truncated.dng"),
