@@ -1,0 +1,73 @@
+"""The scene fit recovers a period it did not start from (reports.scene_fit, issue 25).
+
+The "photo" is the forward model's own prediction for a CD whose track pitch is 3 % longer
+than the scene file's (lit fractions as linear RGB over a dark disc, with Gaussian noise),
+seen by the scene's camera: a converged reference with a known answer, no renderer needed.
+The fit starts from the file's 1.6 um and must land on 1.648 um, to within 0.3 % (the
+issue's bar on rendered photos). Not within 4 of its standard deviations, measured: the
+model's edges move in steps as a (pixel, wavelength) pair's back-traced ray crosses the
+light's rim, so at 1 sub-ray per pixel the cost is flat within about 0.002 um and the fit
+stopped at 1.6500 um with a std of 0.0003 um from 1 % noise (on rendered photos the
+bootstrap's std, 0.0035 um, is far above that granularity). The photo is
+predicted at the fit's own resolution (FIT_SUPERSAMPLE): made with 2 x 2 sub-rays per pixel
+it carries a resolution bias of +0.15 % (measured: 1.6504 um, std 0.0003 um) that its
+noise does not cover, which is the accuracy-versus-time question of `workbench study fit`,
+not this test's; the verdict
+must be ``model`` and name the period. With the photo made at the file's period the
+verdict must be ``consistent``.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+
+from renderer.fit_parameters import parse_fit_table
+from renderer.scene import load_scene
+from reports.images import Photo
+from reports.prediction import cd_geometry, predict
+from reports.scene_fit import FitSettings, fit_scene
+from reports.scene_fit_model import FIT_SUPERSAMPLE, EdgeModel, View, view_grids
+from reports.scene_verdict import verdict
+
+TRUE_PERIOD = 1.648  # 3 % longer than cornell_cd's 1.6 um
+PERIOD_BAR = 0.003  # relative: the issue's bar for a fitted period
+NOISE = 0.01  # of the lit fraction (about 1 % of a band's brightness, a draft render's noise)
+
+
+def _photo(spec, period: float, seed: int) -> Photo:
+    camera = spec.camera.model
+    geometry = dataclasses.replace(cd_geometry(spec), period_um=period)
+    pred = predict(spec, camera, geometry=geometry, supersample=FIT_SUPERSAMPLE)
+    rgb = pred.total().transpose(1, 2, 0) + 0.05 * pred.full(pred.on_cd)[..., None]  # the disc's dim background
+    rgb = rgb + np.random.default_rng(seed).normal(0.0, NOISE, rgb.shape)
+    return Photo(np.asarray(rgb, np.float32), np.zeros(rgb.shape[:2], bool), "prediction", "linear")
+
+
+def _fit(period: float, seed: int):
+    base = load_scene("cornell_cd")
+    spec = dataclasses.replace(base, fit=parse_fit_table({"cd[0].structure.period": {}}, base.cds, base.light))
+    view = View("prediction", spec.camera.model, _photo(spec, period, seed), view_grids(spec, spec.camera.model), {})
+    model = EdgeModel(spec, spec.fit, [view])
+    result = fit_scene(model, FitSettings(rounds=2))
+    return result, verdict(result, spec.fit.labels(), ["cd[0].structure.period"], ["prediction"], None)
+
+
+@pytest.mark.slow
+def test_a_longer_period_is_found_and_named() -> None:
+    result, judged = _fit(TRUE_PERIOD, 0)
+    fitted, std = float(result.values[0]), float(result.std[0])
+    assert abs(fitted / TRUE_PERIOD - 1) < PERIOD_BAR, (fitted, std)
+    assert std < PERIOD_BAR * TRUE_PERIOD, std
+    assert judged["verdict"] == "model", judged
+    assert [p["name"] for p in judged["parameters"]] == ["cd[0].structure.period"]
+    assert judged["residuals_after_px"]["median"] < judged["residuals_before_px"]["median"]
+
+
+@pytest.mark.slow
+def test_the_file_period_is_consistent() -> None:
+    result, judged = _fit(1.6, 1)
+    assert judged["verdict"] == "consistent", judged
+    assert abs(float(result.values[0]) - 1.6) < 3 * float(result.std[0])
