@@ -13,6 +13,8 @@ Plugins (registered with Mitsuba by ``renderer.mitsuba_scene.register_plugins``)
 
 Scenes and rendering
     scene         scene files (TOML) and their validation; ``scenes/`` holds the built-in ones
+    fit_parameters  a scene's ``[fit]`` table: the scene fit's free parameters
+    fit_apply     a scene with fit values applied (placements, light, structure fields)
     mitsuba_scene a scene spec to a Mitsuba scene dict (shapes, light, sensor)
     spectra       Mitsuba spectra, the light's emission, the camera's sensitivities
     meshes        the box's quads and the CDs' annuli as PLY files in the cache

@@ -25,6 +25,10 @@ DIR/report.html the page (reports.page). Steps:
    deviations (prediction_band), plotted on the fringe plot.
 5. Error maps (reports.metrics) and per-region statistics.
 
+With a scene fit (``Inputs.scene_fit``: its scene_fit.json), report.json's ``verdict``
+(reports.verdict_block.report_verdict) and the page's first block say whether the photo
+agrees with the scene file and, if not, whether the model or the camera explains it.
+
 Problems that do not stop the rest (the CD not in view, no fringes visible, no rim found)
 are reported on the page and in report.json under ``messages``.
 """

@@ -86,6 +86,30 @@ def test_verify_ends_with_a_report_and_run_json(reference: tuple[Path, dict, flo
 
 
 @pytest.mark.slow
+def test_the_fit_stage_calls_an_unperturbed_scene_consistent(reference: tuple[Path, dict, float]) -> None:
+    """Issue 25: on a dataset made from the scene file itself (seed 0) the scene fit's verdict is
+    consistent and every fitted component lies within 3 of its standard deviations of the file's
+    value; nothing is re-rendered; the fitted scene loads as a scene; each report carries the verdict
+    and shows it first on the page."""
+    from renderer.scene import load_scene
+
+    out, _, _ = reference
+    fit = json.loads((out / "fit" / "scene_fit.json").read_text())
+    assert fit["verdict"]["verdict"] == "consistent", fit["verdict"]
+    std = np.concatenate([np.atleast_1d(p["std"]) for p in fit["parameters"].values()])
+    sigmas = (np.array(fit["values"]) - np.array(fit["nominal_values"])) / std
+    assert np.all(np.abs(sigmas) < 3), dict(zip(fit["components"], sigmas.tolist(), strict=True))
+    assert set(fit["parameters"]) == {"cd[0].structure.period", "cd[0].normal", "light.center"}  # the defaults
+    assert load_scene(out / "fit" / "fitted_scene.toml").name == "cornell_cd"
+    assert not (out / "render" / "view0_fitted.exr").exists()
+    for photo in ("view0", "view1"):
+        report = json.loads((out / "report" / photo / "report.json").read_text())
+        assert report["verdict"]["verdict"] == "consistent"
+        page = (out / "report" / photo / "report.html").read_text()
+        assert page.index("<section id='verdict'>") < page.index("<canvas")
+
+
+@pytest.mark.slow
 def test_a_rerun_skips_every_stage(reference: tuple[Path, dict, float], dataset: Path,
                                    capsys: pytest.CaptureFixture[str]) -> None:
     out, _, _ = reference
