@@ -83,6 +83,7 @@ bench: install
 	$(BIN)/python -m benchmarks.bench_calibration
 	$(BIN)/python -m benchmarks.bench_report
 	$(BIN)/python -m benchmarks.bench_plan
+	$(BIN)/python -m benchmarks.bench_scene_fit --rerender
 
 clean:
 	rm -rf build $(VENV)

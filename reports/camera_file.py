@@ -5,7 +5,8 @@ shares): ``camera`` = {width, height, fx, fy, cx, cy, dist [k1, k2, p1, p2, k3],
 world_to_camera: {file name: 4 x 4}} (OpenCV's model and axes, metres), optionally a
 ``scene`` (the scene's name or file it was made for) and ``camera_std`` (standard
 deviations of fx, fy, cx, cy, dist, and ``rotation_deg``/``translation_m``) when the
-calibration estimated them. The pose is the one listed for the photo's file name, or
+calibration estimated them; calibration.json's own ``std`` (calibration.dataset) is read
+too. The pose is the one listed for the photo's file name, or
 the only one listed.
 """
 
@@ -13,6 +14,7 @@ from __future__ import annotations
 
 import json
 import math
+import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -100,10 +102,32 @@ def read_camera(path: str | Path, photo_name: str) -> FittedCamera:
     model = CameraModel(int(values["width"]), int(values["height"]), values["fx"], values["fy"], values["cx"],
                         values["cy"], tuple(_number(d, "camera.dist", source) for d in dist),  # type: ignore[arg-type]
                         _pose(poses[key], f"camera.world_to_camera.{key}", source))
-    std = data.get("camera_std") or block.get("std") or {}
     scene = data.get("scene")
-    return FittedCamera(model, source, key, str(scene) if scene is not None else None,
-                        std if isinstance(std, dict) else {})
+    return FittedCamera(model, source, key, str(scene) if scene is not None else None, _camera_std(data, block, key))
+
+
+def _camera_std(data: dict, block: dict, key: str) -> dict[str, Any]:
+    """The camera's standard deviations for the photo ``key``: ``camera_std`` (or the camera block's
+    ``std``) as given, else calibration.json's top-level ``std`` (intrinsics, and per pose
+    ``rotation_deg`` and ``camera_center_m`` per axis, whose RMS over the axes is the per-axis
+    std reports.camera_draws takes)."""
+    given = data.get("camera_std") or block.get("std")
+    if isinstance(given, dict):
+        return given
+    top = data.get("std")
+    if not isinstance(top, dict):
+        return {}
+    out: dict[str, Any] = {k: float(top[k]) for k in ("fx", "fy", "cx", "cy") if _is_number(top.get(k))}
+    pose = (top.get("poses") or {}).get(key) if isinstance(top.get("poses"), dict) else None
+    for name, field_name in (("rotation_deg", "rotation_deg"), ("translation_m", "camera_center_m")):
+        values = pose.get(field_name) if isinstance(pose, dict) else None
+        if isinstance(values, list) and values and all(_is_number(v) for v in values):
+            out[name] = math.sqrt(sum(float(v) ** 2 for v in values) / len(values))
+    return out
+
+
+def _is_number(value: Any) -> bool:
+    return isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
 
 
 def check_scene(camera: FittedCamera, spec, scene_argument: str) -> None:
@@ -111,9 +135,22 @@ def check_scene(camera: FittedCamera, spec, scene_argument: str) -> None:
     if camera.scene is None:
         return
     names = {spec.name, scene_argument, Path(scene_argument).stem, Path(scene_argument).name}
-    if camera.scene not in names and Path(camera.scene).stem not in names:
+    if camera.scene not in names and Path(camera.scene).stem not in names and _file_scene_name(camera.scene) not in names:
         raise UserInputError(f"the calibration was made for the scene {camera.scene!r}, not {spec.name!r}",
                              file=camera.source, field="scene", expected=f"a calibration of {spec.name!r}")
+
+
+def _file_scene_name(scene: str) -> str | None:
+    """The ``name`` inside a scene file the calibration names (a verify run's RUN/scene.toml), so that a
+    scene derived from it (the scene fit's fitted_scene.toml keeps the name) is recognised."""
+    path = Path(scene)
+    if not path.is_file():
+        return None
+    try:
+        name = tomllib.loads(path.read_text()).get("name")
+    except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError):
+        return None
+    return name if isinstance(name, str) else None
 
 
 def read_response(path: str | Path) -> dict | None:

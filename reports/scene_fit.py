@@ -66,6 +66,7 @@ class FitSettings:
     scan: bool = True
     bootstrap_draws: int = BOOTSTRAP_DRAWS
     seed: int = 0
+    edge_fraction: float = 1.0  # the share of the photos' band edges used (workbench study fit)
 
 
 @dataclass
@@ -254,9 +255,9 @@ def fit_scene(model: EdgeModel, settings: FitSettings | None = None,
     x = nominal.copy()
     log = []
     for round_number in range(settings.rounds):
-        observed = model.observed_edges(x)
-        if len(observed) < len(x) + 2:
-            raise ValueError(f"{len(observed)} band edges of quality ok in the photos: too few to fit "
+        observed = model.observed_edges(x).subsample(settings.edge_fraction, settings.seed + round_number)
+        if observed.edge_count < len(x) + 2:
+            raise ValueError(f"{observed.edge_count} band edges of quality ok in the photos: too few to fit "
                              f"{len(x)} parameters")
         r0 = model.residuals(x, observed)
         cost = _Cost(model, observed, x, group_scales(r0, observed.groups()))

@@ -77,6 +77,15 @@ class ObservedEdges:
     def edge_count(self) -> int:
         return len(self.keys)
 
+    def subsample(self, fraction: float, seed: int) -> ObservedEdges:
+        """A share ``fraction`` of the band edges, drawn without replacement (the rim points all kept)."""
+        if fraction >= 1.0:
+            return self
+        count = max(1, int(round(fraction * len(self.keys))))
+        rows = np.sort(np.random.default_rng(seed).choice(len(self.keys), count, replace=False))
+        return ObservedEdges([self.keys[i] for i in rows], [self.edges[i] for i in rows], [self.grids[i] for i in rows],
+                             self.rims)
+
     def groups(self) -> np.ndarray:
         """Per residual: 0 for a band edge, 1 for a rim point (each group has its own noise)."""
         return np.concatenate([np.zeros(len(self.keys), int), np.ones(len(self) - len(self.keys), int)])

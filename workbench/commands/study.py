@@ -1,5 +1,5 @@
-"""``workbench study rcwa|render|calibrate``: accuracy-versus-time studies (rcwa.table_study, renderer.render_study,
-calibration.pose_study)."""
+"""``workbench study rcwa|render|calibrate|fit``: accuracy-versus-time studies (rcwa.table_study, renderer.render_study,
+calibration.pose_study, reports.scene_fit_study)."""
 
 from __future__ import annotations
 
@@ -15,7 +15,7 @@ CALIBRATE = "calibrate"
 
 
 def add_parser(commands: argparse._SubParsersAction) -> None:
-    """Add the ``study`` group: ``rcwa``, ``render`` and ``calibrate``."""
+    """Add the ``study`` group: ``rcwa``, ``render``, ``calibrate`` and ``fit``."""
     study = commands.add_parser("study", help="accuracy-versus-time studies")
     studies = study.add_subparsers(dest="study_command", required=True)
     study_rcwa = studies.add_parser("rcwa", help="truncation and interpolation error versus time for tables")
@@ -29,6 +29,22 @@ def add_parser(commands: argparse._SubParsersAction) -> None:
     study_render.add_argument("--out", required=True, metavar="DIR", help="folder for the JSON, CSV and figures")
     study_render.add_argument("--quiet", action="store_true", help="no progress bar")
     _add_calibrate(studies)
+    _add_fit(studies)
+
+
+def _add_fit(studies: argparse._SubParsersAction) -> None:
+    p = studies.add_parser(
+        "fit", help="scene-fit error (period, tilt, light) versus time, against the scene the photos were made from",
+        description="Fits DATASET's photos again and again with the forward model's resolution (sub-rays, wavelength "
+                    "step), the share of band edges used and the number of photos varied one at a time, and compares "
+                    "each fit with --truth-scene (the scene synth was given). Writes DIR/study_fit.json, study_fit.csv "
+                    "and study_fit.png/.svg.")
+    p.add_argument("dataset", metavar="DATASET", help="a dataset folder (photos/, brackets/)")
+    p.add_argument("--scene", required=True, metavar="SCENE", help="the nominal scene, as `workbench fit` takes it")
+    p.add_argument("--calibration", required=True, metavar="calibration.json", help="the photos' cameras")
+    p.add_argument("--truth-scene", required=True, metavar="SCENE", help="the scene the photos were made from")
+    p.add_argument("--out", required=True, metavar="DIR", help="folder for the JSON, CSV, figures and each fit")
+    p.add_argument("--quiet", action="store_true", help="no progress lines")
 
 
 def _add_calibrate(studies: argparse._SubParsersAction) -> None:
@@ -112,4 +128,16 @@ def run_calibrate(args: argparse.Namespace) -> int:
     return 0
 
 
-STUDIES: dict[str, Callable[[argparse.Namespace], int]] = {"rcwa": run_rcwa, "render": run_render, CALIBRATE: run_calibrate}
+def run_fit(args: argparse.Namespace) -> int:
+    from pathlib import Path
+
+    from reports.scene_fit_study import run_fit_study  # deferred: pulls in scipy, cv2 and nlopt (start-up time)
+
+    data = run_fit_study(Path(args.dataset), args.scene, Path(args.calibration), args.truth_scene, Path(args.out),
+                         progress=not args.quiet)
+    print(f"wrote {args.out}/study_fit.json, study_fit.csv and study_fit.png/.svg in {data['timings']['total_s']:.0f} s")
+    return 0
+
+
+STUDIES: dict[str, Callable[[argparse.Namespace], int]] = {"rcwa": run_rcwa, "render": run_render, CALIBRATE: run_calibrate,
+                                                          "fit": run_fit}

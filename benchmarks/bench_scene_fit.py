@@ -1,0 +1,120 @@
+"""Benchmark: the scene fit on datasets made from a scene other than the nominal one (issue 25).
+
+For each case a draft dataset is made from a perturbed copy of cornell_cd (the period 5 %
+longer, the CD tilted 2 deg more, the light moved 3 cm, or unperturbed for seeds 0-5 with
+``--seeds``), calibrated against the nominal scene, and fitted (``workbench fit``'s steps,
+reports.scene_fit_job). Printed per case: the fitted period's, tilt's and light centre's
+errors against the truth, the verdict and the parameters it names, the band-edge residuals
+after the fit, and the fit's time as a ratio to the reference workload
+(benchmarks/reference_speed.py) beside the 60 s bar; with ``--rerender`` the fitted scene's
+re-render at the verify preset's samples (its time beside the fit's). Over unperturbed
+seeds, the RMS of the normalised errors (fitted - truth) / std, which should lie in 0.5-2.
+Datasets are kept in ``--work`` (default: a temporary folder) so a second run reuses them.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+from benchmarks.reference_speed import SpeedBar, reference_seconds
+
+SPEED_BAR = SpeedBar("workbench fit (draft dataset, two photos)", 60.0)
+BARS = {"period_error_rel": 0.003, "tilt_error_deg": 0.2, "light_error_mm": 5.0}
+CASES = {"period+5%": ("period", 1.68), "tilt+2deg": ("tilt", 22.0), "light+3cm": ("light", 0.308)}
+
+
+def perturbed_scene(kind: str, value: float, folder: Path) -> Path:
+    """A copy of cornell_cd (and its structure, for a period) with one thing changed."""
+    from importlib import resources
+
+    scene = resources.files("renderer.scenes").joinpath("cornell_cd.toml").read_text()
+    folder.mkdir(parents=True, exist_ok=True)
+    if kind == "period":
+        structure = resources.files("rcwa.structures").joinpath("cd.toml").read_text()
+        (folder / "cd_perturbed.toml").write_text(structure.replace("period = [1.6]", f"period = [{value}]"))
+        scene = scene.replace('structure = "cd"', 'structure = "cd_perturbed.toml"')
+    elif kind == "tilt":
+        t = math.radians(value)
+        scene = scene.replace("normal = [0.0, 0.9397, -0.3420]", f"normal = [0.0, {math.cos(t):.6f}, {-math.sin(t):.6f}]")
+    elif kind == "light":
+        scene = scene.replace("[light]\n", f"[light]\ncenter = [{value}, 0.5487, 0.2795]\n")
+    path = folder / f"cornell_cd_{kind}.toml"
+    path.write_text(scene)
+    return path
+
+
+def dataset(truth_scene: str, seed: int, work: Path) -> tuple[Path, Path]:
+    """synth + calibrate (kept in ``work``)."""
+    from calibration.dataset import calibrate_dataset
+    from datasets_synthetic.synth import synth
+
+    name = f"{Path(truth_scene).stem}-seed{seed}"
+    folder, calibration = work / name / "dataset", work / name / "calibration"
+    if not (folder / "truth.json").exists():
+        synth(truth_scene, folder, seed=seed, progress=False)
+    if not (calibration / "calibration.json").exists():
+        calibrate_dataset(folder, "cornell_cd", calibration, progress=False)
+    return folder, calibration / "calibration.json"
+
+
+def run_case(label: str, truth_scene: str, seed: int, work: Path, reference_s: float, rerender: bool) -> dict:
+    from reports.scene_fit_job import FitInputs, run_fit
+    from reports.scene_fit_study import fit_errors, truth_values
+
+    folder, calibration = dataset(truth_scene, seed, work)
+    start = time.perf_counter()
+    record = run_fit(FitInputs(folder, "cornell_cd", calibration, work / f"fit-{label}-seed{seed}"))
+    seconds = time.perf_counter() - start
+    errors = fit_errors(record, truth_values(truth_scene))
+    named = [p["component"] for p in record["verdict"].get("parameters", [])]
+    print(f"{label} seed {seed}: verdict {record['verdict']['verdict']} {named}; "
+          + ", ".join(f"{k} {v:.4g}" + (f" (bar {BARS[k]:g})" if k in BARS else "") for k, v in errors.items())
+          + f"; residual median after {record['verdict']['residuals_after_px']['median']:.2f} px")
+    print("  " + SPEED_BAR.judge(seconds, reference_s))
+    if rerender:
+        from renderer.render import render
+
+        start = time.perf_counter()
+        render(work / f"fit-{label}-seed{seed}" / "fitted_scene.toml", work / f"rerender-{label}-seed{seed}.exr",
+               spp=256, resolution=(640, 480), progress=False, force=True)
+        print(f"  re-render of the fitted scene at 256 spp, 640 x 480: {time.perf_counter() - start:.1f} s "
+              f"(the fit: {seconds:.1f} s)")
+    return record
+
+
+def normalised_errors(records: list[dict]) -> np.ndarray:
+    """(fitted - nominal) / std of every component of unperturbed fits (the nominal is the truth there)."""
+    out = []
+    for r in records:
+        std = np.concatenate([np.atleast_1d(p["std"]) for p in r["parameters"].values()])
+        out.append((np.array(r["values"]) - np.array(r["nominal_values"])) / std)
+    return np.concatenate(out)
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description="scene fit: accuracy against perturbed truths, and its time")
+    parser.add_argument("--work", type=Path, default=None, help="folder for the datasets (kept; default: temporary)")
+    parser.add_argument("--seeds", type=int, default=0, help="also fit unperturbed datasets of seeds 0..N-1")
+    parser.add_argument("--rerender", action="store_true", help="time the fitted scene's re-render too")
+    args = parser.parse_args()
+    reference_s = reference_seconds()
+    with tempfile.TemporaryDirectory() as tmp:
+        work = args.work or Path(tmp)
+        for label, (kind, value) in CASES.items():
+            run_case(label, str(perturbed_scene(kind, value, work / "scenes")), 0, work, reference_s, args.rerender)
+        unperturbed = [run_case("unperturbed", "cornell_cd", seed, work, reference_s, False) for seed in range(args.seeds)]
+        if unperturbed:
+            z = normalised_errors(unperturbed)
+            verdicts = [r["verdict"]["verdict"] for r in unperturbed]
+            print(f"unperturbed seeds 0-{args.seeds - 1}: verdicts {verdicts}; normalised errors RMS "
+                  f"{float(np.sqrt(np.mean(z**2))):.2f} (bar 0.5-2), max |z| {float(np.max(np.abs(z))):.2f} (bar 3)")
+
+
+if __name__ == "__main__":
+    main()
