@@ -109,7 +109,7 @@ def parse_fit_table(value: Any, cds: tuple, light: Any) -> FitTable:
     if value is None:
         if not cds:
             return FitTable((), {}, False)
-        return FitTable(tuple(_parameter(name, {}, cds, light) for name in DEFAULT_FREE), {}, False)
+        return FitTable(tuple(p for p in (_default(name, cds, light) for name in DEFAULT_FREE) if p is not None), {}, False)
     if not isinstance(value, dict):
         raise UserInputError("must be a table of parameter names", field="fit",
                              expected='e.g. [fit] "cd[0].structure.period" = { bounds = [1.5, 1.7] }', got=value)
@@ -123,6 +123,15 @@ def parse_fit_table(value: Any, cds: tuple, light: Any) -> FitTable:
             continue
         free.append(_parameter(name, options, cds, light))
     return FitTable(tuple(free), held, True)
+
+
+def _default(name: str, cds: tuple, light: Any) -> FitParameter | None:
+    """A default parameter, or None where the scene's CD has no such field (a 2D structure has no
+    single period: the scene loads, and its fit leaves the period out)."""
+    try:
+        return _parameter(name, {}, cds, light)
+    except UserInputError:
+        return None
 
 
 def _parameter(name: str, options: dict, cds: tuple, light: Any) -> FitParameter:

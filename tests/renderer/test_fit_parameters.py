@@ -182,6 +182,16 @@ def test_a_cd_with_a_2d_structure_has_no_period_to_fit(tmp_path):
     assert "has no single period" in _refused(path, "fit.cd[0].structure.period")
 
 
+def test_the_defaults_leave_out_a_period_a_2d_cd_lacks(tmp_path):
+    """A scene without [fit] whose CD is 2D still loads: its default fit has no period (every
+    command loads scenes, and the user never wrote the field)."""
+    path = tmp_path / "scene.toml"
+    path.write_text(SCENE_TEXT.replace('structure = "cd"', 'structure = "gold2d"'))
+    spec = load_scene(path)
+    assert spec.fit is not None and "cd[0].structure.period" not in {p.name for p in spec.fit.free}
+    assert {p.name for p in spec.fit.free} == {"cd[0].normal", "light.center"}
+
+
 def test_fit_must_be_a_table(tmp_path):
     """``fit = 3`` (not a table) names the field ``fit``."""
     path = tmp_path / "scene.toml"
