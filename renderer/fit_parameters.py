@@ -48,7 +48,7 @@ from workbench.core.errors import UserInputError
 DEFAULT_FREE = ("cd[0].structure.period", "cd[0].normal", "light.center")
 HELD = {"light.power_w": "one photo's brightness fixes only exposure x light power; calibration fits that product "
                          "(its photometric scale), so the power is held at the scene file's value"}
-DEFAULT_WITHIN = {"structure.period": ("relative", 0.10), "thickness": ("relative", 0.5), "center": ("absolute", 0.03),
+DEFAULT_WITHIN = {"structure.period": ("relative", 0.10), "thickness": ("relative", 0.3), "center": ("absolute", 0.03),
                   "normal": ("absolute", 10.0), "light.center": ("absolute", 0.15), "light.size": ("relative", 0.6)}
 _CD_NAME = re.compile(r"^cd\[(\d+)\]\.(center|normal|rotation_deg|structure\.period|structure\.layers\[(\d+)\]\.thickness)$")
 _OPTIONS = {"bounds", "within", "within_deg", "prior_std"}

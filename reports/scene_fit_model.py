@@ -12,7 +12,9 @@ The photo's edges are found with the windows of a prediction (fringes.find_edges
 measures them once per round with the round's starting values (ObservedEdges), and they
 stay fixed while the optimiser moves the prediction.
 
-Approximation, stated: the efficiency table is the scene file's (its period and depth);
+A fitted layer thickness (the groove depth) reads its efficiencies from tables built at a
+few thicknesses (reports.scene_fit_efficiency). Approximation, stated: otherwise the
+efficiency table is the scene file's (its period and depth);
 a fitted period moves the orders' directions exactly (the grating equation) but their
 efficiencies are read at the table's period, a change of eta by a few per cent for a
 period a few per cent off, which moves a half-maximum edge by far less than its slope's
@@ -34,6 +36,8 @@ from reports import fringes, polar, rim
 from reports.images import Photo
 from reports.prediction import PREDICTION_STEP_NM, Prediction, cd_geometry, predict
 from reports.prediction_efficiency import Efficiency, scene_efficiency
+from reports.scene_fit_efficiency import BlendedEfficiency, ThicknessEfficiencies
+from workbench.core.errors import UserInputError
 
 FIT_SUPERSAMPLE = 1  # sub-rays per pixel axis in the fit's predictions (the report's is 2)
 RIM_POINTS_USED = 90  # photo rim points per view (of reports.rim's 720 searches; neighbours share pixels)
@@ -154,6 +158,11 @@ class EdgeModel:
         self.spec, self.table, self.views = spec, table, views
         self.supersample, self.step_nm = supersample, step_nm
         self.efficiency = efficiency if efficiency is not None else scene_efficiency(spec)
+        thickness = [p for p in table.free if p.kind == "thickness"]
+        if len(thickness) > 1 or any(p.cd_index != 0 for p in thickness):
+            raise UserInputError("the scene fit varies one layer thickness, of cd[0]", file=spec.source, field="fit",
+                                 got=[p.name for p in thickness])
+        self.thickness = ThicknessEfficiencies(spec, thickness[0]) if thickness else None
         self.evaluations = 0
         self.seconds = 0.0
 
@@ -167,11 +176,15 @@ class EdgeModel:
         period = applied.period_um(0)
         if period is not None:
             cd = dataclasses.replace(cd, period_um=period)
+        efficiency: Efficiency | BlendedEfficiency = self.efficiency
+        if self.thickness is not None:
+            changes = applied.structure_changes.get(0, {})
+            efficiency = self.thickness.at(next(v for k, v in changes.items() if k.endswith(".thickness")))
         out: list[Prediction | None] = []
         for view in self.views:
             try:
                 out.append(predict(applied.spec, view.camera, supersample=self.supersample, step_nm=self.step_nm,
-                                   efficiency=self.efficiency, geometry=cd))
+                                   efficiency=efficiency, geometry=cd))  # type: ignore[arg-type]
             except ValueError:  # UserInputError: the CD left the view
                 out.append(None)
         return out
