@@ -11,7 +11,8 @@ calibration    calibration.dataset on DATASET's photos/, brackets/, calibration/
 fit            reports.scene_fit_job: the scene's [fit] parameters from the photos'    photos, brackets,
                band edges, and the verdict (fit/scene_fit.json, fitted_scene.toml;    calibration,
                with the verdict ``model``, fit/scenes/NAME.toml: each photo's         RUN/scene.toml
-               calibrated scene with the fitted values)
+               calibrated scene with the fitted values; fit/not_fitted.txt says why
+               when there is nothing to fit or too few band edges)
 render         every photo's calibrated scene (calibration/scenes/NAME.toml),          the scenes
                rendered; with the verdict ``model`` its fitted scene too
                (render/NAME_fitted.exr: the re-render that confirms the fit)
@@ -91,6 +92,7 @@ SECONDS_RENDER_LOAD = 2.5  # building the Mitsuba scene, per photo
 SECONDS_PER_REPORT = 6.0  # one photo's report (masks, fringes, error maps, page)
 SECONDS_FIT = 50.0  # the scene fit of a two-photo draft dataset (benchmarks/bench_scene_fit.py)
 FITTED_SUFFIX = "_fitted"  # render/NAME_fitted.exr: the fitted scene's re-render
+NOT_FITTED = "not_fitted.txt"  # in RUN/fit when the scene has nothing to fit or the photos too few edges (why)
 
 
 
@@ -243,11 +245,18 @@ def _stage_fit(run: Run) -> dict:
               | {f"scenes/{p.name}": run.root / "calibration" / "scenes" / f"{p.stem}.toml" for p in run.photos})
 
     def work(folder: Path) -> dict[str, Any]:
-        record = run_fit(FitInputs(run.dataset, str(run.scene), calibration, folder, tuple(p.name for p in run.photos)))
+        spec = load_scene(run.scene)
+        if spec.fit is None or not spec.fit.free:
+            atomic_write_text(folder / NOT_FITTED, "the scene has no CD or no free [fit] parameter: nothing to fit\n")
+            return {"verdict": None, "rerender": False, "reason": "nothing to fit"}
+        try:
+            record = run_fit(FitInputs(run.dataset, str(run.scene), calibration, folder,
+                                       tuple(p.name for p in run.photos)))
+        except UserInputError as error:  # the photos do not constrain the scene (too few band edges): say so, go on
+            atomic_write_text(folder / NOT_FITTED, error.reason + "\n")
+            return {"verdict": None, "rerender": False, "reason": error.reason}
         rerender = record["verdict"]["verdict"] == "model"
         if rerender:
-            spec = load_scene(run.scene)
-            assert spec.fit is not None  # run_fit refuses a scene without free parameters
             for photo in run.photos:
                 calibrated = run.root / "calibration" / "scenes" / f"{photo.stem}.toml"
                 write_fitted_scene(spec, spec.fit, np.asarray(record["values"]), folder / "scenes",
@@ -258,7 +267,8 @@ def _stage_fit(run: Run) -> dict:
                 "residuals_before_px": record["residuals_before_px"], "residuals_after_px": record["residuals_after_px"],
                 "seconds": record["timings"]["total"]}
 
-    return run_stage(run, "fit", inputs, {}, SECONDS_FIT, work, lambda folder: (folder / "scene_fit.json").is_file())
+    return run_stage(run, "fit", inputs, {}, SECONDS_FIT, work,
+                     lambda folder: (folder / "scene_fit.json").is_file() or (folder / NOT_FITTED).is_file())
 
 
 def _render_scenes(run: Run) -> dict[str, Path]:
@@ -312,11 +322,12 @@ def _stage_report(run: Run) -> dict:
     scenes = _render_scenes(run)
     renders = {stem: run.root / "render" / f"{stem}.exr" for stem in scenes}
     calibration = run.root / "calibration" / "calibration.json"
-    scene_fit = run.root / "fit" / "scene_fit.json"
+    fitted_record = run.root / "fit" / "scene_fit.json"
+    scene_fit = fitted_record if fitted_record.is_file() else None  # none: nothing to fit, or too few edges
     brackets = _bracket_frames(run.dataset)
     inputs = ({f"photos/{p.name}": p for p in run.photos} | {f"render/{k}.exr": p for k, p in renders.items()}
-              | {f"brackets/{p.name}": p for p in brackets} | {"calibration.json": calibration, "scene.toml": run.scene,
-                                                                "scene_fit.json": scene_fit})
+              | {f"brackets/{p.name}": p for p in brackets} | {"calibration.json": calibration, "scene.toml": run.scene}
+              | ({"scene_fit.json": scene_fit} if scene_fit is not None else {}))
 
     def one(photo: Path, render_path: Path, scene: Path, out: Path, before: dict | None = None) -> dict[str, Any]:
         if (out / "report.html").is_file():  # finished by a killed run with these inputs (written after report.json)
