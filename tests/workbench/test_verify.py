@@ -182,8 +182,8 @@ def test_a_run_killed_during_calibration_and_rendering_resumes_to_the_same_resul
     record = json.loads((out / "run.json").read_text())
     assert record["status"] == "finished"
     assert record["stages"]["calibration"]["skipped"]  # finished before the second kill: not computed again
-    renders = record["stages"]["render"]["result"]["renders"]
-    assert renders["view0.dng"]["served"] and not renders["view1.dng"]["served"]  # view0 kept from the killed run
+    renders = record["stages"]["render"]["result"]["renders"]  # by output name: view0, and view0_fitted after a fit
+    assert renders["view0"]["served"] and not renders["view1"]["served"]  # view0 kept from the killed run
 
     ours, theirs = (json.loads((d / "calibration" / "calibration.json").read_text()) for d in (out, ref))
     _assert_same_calibration(ours, theirs)
