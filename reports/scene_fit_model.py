@@ -27,12 +27,13 @@ import dataclasses
 import time
 from dataclasses import dataclass
 
+import cv2
 import numpy as np
 
 from renderer.camera import CameraModel
 from renderer.fit_apply import AppliedScene, apply_values
 from renderer.fit_parameters import FitTable
-from reports import fringes, polar, rim
+from reports import fringes, polar, rim, rim_clutter
 from reports.images import Photo
 from reports.prediction import PREDICTION_STEP_NM, Prediction, cd_geometry, predict
 from reports.prediction_efficiency import Efficiency, scene_efficiency
@@ -122,19 +123,26 @@ def view_grids(spec, camera: CameraModel) -> tuple[polar.PolarGrid, ...]:
 
 def photo_rim_points(photo: Photo, camera: CameraModel, spec) -> np.ndarray:
     """The CD's rim in the photo (reports.rim: strongest gradient along the expected rim's normals),
-    points off the fitted ellipse by more than ``RIM_OUTLIER_PX`` dropped, ``RIM_POINTS_USED`` kept."""
+    ``RIM_POINTS_USED`` searched, those where the CD's shadow makes an edge nearby
+    dropped (reports.rim_clutter), then points off the others' ellipse by more than ``RIM_OUTLIER_PX``.
+
+    The rim searched for and compared with is the grating's (the disc's edge): the
+    transparent top shows a far weaker edge (measured with the true camera on a synthetic
+    photo: the grating's circle within 0.2-0.4 px by sector, the top's 0.5-1 px off)."""
     cd = cd_geometry(spec)
-    expected = camera.project(cd.rim_points(count=RIM_POINTS_USED, on_top=True))
-    found = rim.rim_points(photo.rgb, expected)
-    ellipse = rim.fit_rim(photo.rgb, camera.project(cd.rim_points(on_top=True)))
-    if ellipse is None or not len(found):
+    expected, clear = rim_clutter.clear_rim(spec, camera, cd, RIM_POINTS_USED, rim.RIM_SEARCH_PX)
+    found = rim.rim_points(photo.rgb, expected[clear])
+    if len(found) < rim.RIM_MIN_POINTS:
         return np.zeros((0, 2))
+    (cx, cy), (w, h), angle = cv2.fitEllipse(found.astype(np.float32))
+    ellipse = rim.Rim((float(cx), float(cy)), (float(w), float(h)), float(angle), len(found), 0.0)
     return found[np.abs(rim.ellipse_residual(found, ellipse)) <= rim.RIM_OUTLIER_PX]
 
 
 def rim_residuals(camera: CameraModel, cd, points: np.ndarray) -> np.ndarray:
-    """Signed distance (px, outward positive) of the photo's rim points from the predicted rim's curve."""
-    curve = camera.project(cd.rim_points(on_top=True))
+    """Signed distance (px, outward positive) of the photo's rim points from the predicted rim's
+    curve (the grating's edge, as ``photo_rim_points`` measures it)."""
+    curve = camera.project(cd.rim_points())
     nearest = np.argmin(((points[:, None, :] - curve[None]) ** 2).sum(axis=2), axis=1)
     tangent = np.roll(curve, -1, axis=0) - np.roll(curve, 1, axis=0)
     normal = np.stack([tangent[:, 1], -tangent[:, 0]], axis=1)
@@ -225,6 +233,13 @@ class EdgeModel:
                         grids.append(grid)
         rims = [(v, view.rim_points) for v, view in enumerate(self.views) if len(view.rim_points)]
         return ObservedEdges(keys, edges, grids, rims)
+
+    def rim_only_residuals(self, values: np.ndarray) -> np.ndarray:
+        """Every photo rim point's distance from the predicted rim (px; no prediction made: the
+        rim depends on the CD's placement alone)."""
+        cd = cd_geometry(self.applied(values).spec)
+        return np.concatenate([np.zeros(0)] + [rim_residuals(v.camera, cd, v.rim_points) for v in self.views
+                                               if len(v.rim_points)])
 
     def residuals(self, values: np.ndarray, observed: ObservedEdges) -> np.ndarray:
         """Predicted minus observed position along each observed edge's profile (px; an edge
