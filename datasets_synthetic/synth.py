@@ -28,8 +28,9 @@ response in its JPEGs: what the paper could not control. truth.json holds ``came
 ``exposure_time_s`` of every file, ``response`` (the JPEGs' curve as samples of normalised
 irradiance to normalised value), ``light_power_scale``, ``board`` (type, inner_corners,
 square_size_m, and ``board_to_world`` per calibration file), ``brackets`` and the
-``sensor`` model (with the DNGs' colour tags). File names are unique across the folders.
-Same seed, same bytes.
+``sensor`` model (with the DNGs' colour tags), and the ``render_seed`` of the renders'
+Monte Carlo (the seed unless synth is given another). File names are unique across the
+folders. Same seeds, same bytes.
 
 Every DNG carries the colour tags a raw developer needs (``colour_tags``): AsShotNeutral,
 the camera's RGB of a white diffuse surface under the scene light's spectrum (what a
@@ -173,8 +174,13 @@ class _Writer:
 
 
 def synth(scene: str, out: str | Path, *, seed: int = 0, preset: str = "draft", force: bool = False,
-          progress: bool = True, notify: Callable[[str], None] | None = None) -> dict:
+          progress: bool = True, notify: Callable[[str], None] | None = None, render_seed: int | None = None) -> dict:
     """Write the dataset for ``scene`` into ``out``; returns the truth (also in truth.json).
+
+    ``render_seed`` (default: ``seed``) seeds the renders' Monte Carlo alone: the same
+    ``seed`` with another ``render_seed`` is the same hidden camera, poses, exposures and
+    sensor noise streams over another realisation of the renders' noise, which is what a
+    dataset's numbers spread over when another CPU renders it (benchmarks/bench_calibration.py).
 
     Everything is checked before anything is written. The dataset is made in a work folder
     beside ``out`` (``.NAME.synth-partial``) and moved into place when complete, so an
@@ -185,15 +191,16 @@ def synth(scene: str, out: str | Path, *, seed: int = 0, preset: str = "draft", 
     """
     say = notify or (_say if progress else (lambda _message: None))
     spec, p, folder = _checked_request(scene, out, seed, preset)
+    render_seed = seed if render_seed is None else _checked_seed(render_seed, "render_seed")
     work = folder.parent / f".{folder.name}{WORK_SUFFIX}"
     _restore_interrupted_swap(folder, work)
     _check_output(folder, force)
-    renders = _RenderStore(work, _request_key(spec, seed, preset, p))
+    renders = _RenderStore(work, _request_key(spec, seed, preset, p, render_seed))
     if renders.count:
         say(f"resuming: {renders.count} renders finished by an earlier run of this request are reused ({work})")
     staging = work / "dataset"
     try:
-        truth = _generate(spec, scene, staging, renders, seed, preset, p, progress)
+        truth = _generate(spec, scene, staging, renders, (seed, render_seed), preset, p, progress)
         _check_output(folder, force)  # again: the folder may have changed while we rendered
         _move_into_place(staging, folder, work)
     except BaseException:
@@ -213,8 +220,7 @@ def _checked_request(scene: str, out: str | Path, seed: int, preset: str) -> tup
     """(scene spec, preset settings, absolute output path), or a UserInputError before anything is written."""
     if preset not in PRESETS:
         raise UserInputError("unknown preset", field="--preset", expected=f"one of {sorted(PRESETS)}", got=preset)
-    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or not 0 <= seed < 2**32:
-        raise UserInputError("must be an integer in 0..4294967295", field="--seed", got=seed)
+    _checked_seed(seed, "--seed")
     spec = load_scene(scene)
     if spec.camera is None:  # pragma: no cover - the scene format requires a camera
         raise UserInputError("the scene has no camera", field="camera")
@@ -225,9 +231,16 @@ def _checked_request(scene: str, out: str | Path, seed: int, preset: str) -> tup
     return spec, PRESETS[preset], out
 
 
-def _request_key(spec, seed: int, preset: str, settings: dict) -> str:
-    """What a dataset is of: the scene's text and tables, seed, preset, workbench version."""
+def _checked_seed(seed: int, field: str) -> int:
+    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or not 0 <= seed < 2**32:
+        raise UserInputError("must be an integer in 0..4294967295", field=field, got=seed)
+    return int(seed)
+
+
+def _request_key(spec, seed: int, preset: str, settings: dict, render_seed: int) -> str:
+    """What a dataset is of: the scene's text and tables, seeds, preset, workbench version."""
     request = {"scene": spec.text, "tables": table_keys(spec), "seed": seed, "preset": preset,
+               "render_seed": render_seed,
                "settings": {k: list(v) if isinstance(v, tuple) else v for k, v in settings.items()},
                "version": workbench_version}
     return hashlib.sha256(json.dumps(request, sort_keys=True).encode()).hexdigest()
@@ -398,10 +411,12 @@ def _remove(path: Path) -> None:
         path.unlink()
 
 
-def _generate(spec, scene: str, out: Path, renders: _RenderStore, seed: int, preset: str, p: dict,
+def _generate(spec, scene: str, out: Path, renders: _RenderStore, seeds: tuple[int, int], preset: str, p: dict,
               progress: bool) -> dict:
-    """Render and write the whole dataset into ``out`` (the staging folder); the truth."""
+    """Render and write the whole dataset into ``out`` (the staging folder); the truth.
+    ``seeds``: the dataset's seed and the renders' (synth's ``render_seed``)."""
     started = time.perf_counter()
+    seed, render_seed = seeds
     shutil.rmtree(out, ignore_errors=True)  # a half-written dataset of a killed run
     for sub in ("photos", "brackets", "calibration"):
         (out / sub).mkdir(parents=True, exist_ok=True)
@@ -418,7 +433,7 @@ def _generate(spec, scene: str, out: Path, renders: _RenderStore, seed: int, pre
     timings: dict[str, float] = {}
 
     tick = time.perf_counter()
-    rgb, exposure_s = _photos(hidden, camera, p, light_scale, exposure_scale, seed, writer, rng_views, rng_noise, bar,
+    rgb, exposure_s = _photos(hidden, camera, p, light_scale, exposure_scale, render_seed, writer, rng_views, rng_noise, bar,
                               renders)
     timings["photos_s"] = time.perf_counter() - tick
 
@@ -429,7 +444,8 @@ def _generate(spec, scene: str, out: Path, renders: _RenderStore, seed: int, pre
 
     tick = time.perf_counter()
     board = Checkerboard()
-    poses = _calibration_set(hidden, camera, board, p, light_scale, seed, writer, rng_board, rng_noise, bar, renders)
+    poses = _calibration_set(hidden, camera, board, p, light_scale, render_seed, writer, rng_board, rng_noise, bar,
+                             renders)
     atomic_write_text(out / "calibration" / "board.json", json.dumps(board_description(board), indent=2) + "\n")
     timings["calibration_s"] = time.perf_counter() - tick
     for ev in HIGHLIGHT_EV:
@@ -437,13 +453,14 @@ def _generate(spec, scene: str, out: Path, renders: _RenderStore, seed: int, pre
     bar.close()
 
     truth = _truth(spec, seed, preset, camera, writer, response, light_scale, exposure_scale, board, poses)
+    truth["render_seed"] = render_seed
     atomic_write_text(out / "truth.json", json.dumps(truth, indent=2))
     timings["total_s"] = time.perf_counter() - started
-    _write_run_record(out, scene, seed, preset, p, timings, renders.reused)
+    _write_run_record(out, scene, seed, preset, p | {"render_seed": render_seed}, timings, renders.reused)
     return truth
 
 
-def _photos(hidden, camera, p: dict, light_scale: float, exposure_scale: float, seed: int, writer: _Writer,
+def _photos(hidden, camera, p: dict, light_scale: float, exposure_scale: float, render_seed: int, writer: _Writer,
             rng_views, rng_noise, bar, renders: _RenderStore) -> tuple[np.ndarray, float]:
     """The views of the scene (photos/): view0 from the hidden camera, the others orbiting
     it; view0's render and exposure time, which the brackets re-expose."""
@@ -454,7 +471,7 @@ def _photos(hidden, camera, p: dict, light_scale: float, exposure_scale: float, 
         view_camera = camera if k == 0 else orbit(camera, rng_views.choice([-1, 1]) * rng_views.uniform(6, 12),
                                                    rng_views.uniform(-3, 3))
         fit.set(camera=view_camera)
-        rgb = renders.get(f"view{k}", partial(fit.render, seed=_frame_seed(seed, k)))
+        rgb = renders.get(f"view{k}", partial(fit.render, seed=_frame_seed(render_seed, k)))
         exposure_s = _auto_exposure(rgb, writer.sensor) * exposure_scale
         writer.capture("photos", f"view{k}", rgb, exposure_s, view_camera, rng_noise)
         if k == 0:
@@ -485,7 +502,7 @@ def _truth(spec, seed: int, preset: str, camera, writer: _Writer, response, ligh
     }
 
 
-def _calibration_set(hidden, camera, board: Checkerboard, p: dict, light_scale: float, seed: int, writer: _Writer,
+def _calibration_set(hidden, camera, board: Checkerboard, p: dict, light_scale: float, render_seed: int, writer: _Writer,
                      rng_board, rng_noise, bar, renders: _RenderStore) -> dict[str, np.ndarray]:
     """Board views from view0's camera, its flash on: seeded poses in which nothing hides the board."""
     import mitsuba as mi  # deferred: start-up time
@@ -503,7 +520,7 @@ def _calibration_set(hidden, camera, board: Checkerboard, p: dict, light_scale: 
                 break
             pose = sample_pose(board, camera, rng_board, view=i)
         name = f"board{i:02d}"
-        rgb = renders.get(name, partial(fit.render, seed=_frame_seed(seed, 500 + i)))
+        rgb = renders.get(name, partial(fit.render, seed=_frame_seed(render_seed, 500 + i)))
         writer.capture("calibration", name, rgb, _auto_exposure(rgb, writer.sensor), camera, rng_noise)
         poses[f"{name}.dng"] = pose
         if i + 1 < p["calibration_views"]:

@@ -5,6 +5,7 @@ smaller ones (fewer frames, same code path) to keep the suite short.
 """
 
 import json
+from pathlib import Path
 
 import cv2
 import numpy as np
@@ -349,13 +350,19 @@ def test_same_seed_same_bytes(tmp_path, monkeypatch):
     small = dict(PRESETS["draft"], views=2, calibration_views=2, spp=8, calibration_spp=8)
     monkeypatch.setitem(PRESETS, "draft", small)
     runs = {}
-    for name, seed in (("a", 3), ("b", 3), ("c", 4)):
-        synth("cornell_cd", tmp_path / name, seed=seed, progress=False)
+    for name, seed, render_seed in (("a", 3, None), ("b", 3, None), ("c", 4, None), ("d", 3, 4)):
+        synth("cornell_cd", tmp_path / name, seed=seed, progress=False, render_seed=render_seed)
         runs[name] = {f.relative_to(tmp_path / name): f.read_bytes() for f in (tmp_path / name).rglob("*")
                       if f.is_file() and f.name != "run.json"}
     assert runs["a"] == runs["b"]
     view0 = {run: next(k for k in files if k.name == "view0.dng") for run, files in runs.items()}
     assert runs["a"][view0["a"]] != runs["c"][view0["c"]]
+    # another render seed: other render noise over the same hidden camera, poses, response and light
+    assert runs["a"][view0["a"]] != runs["d"][view0["d"]]
+    truth = {run: json.loads(runs[run][Path("truth.json")]) for run in ("a", "d")}
+    assert (truth["a"]["render_seed"], truth["d"]["render_seed"]) == (3, 4)
+    for key in ("camera", "response", "light_power_scale", "exposure_scale", "board"):
+        assert truth["a"][key] == truth["d"][key], key
 
 
 def test_refuses_to_mix_datasets(dataset, tmp_path):
