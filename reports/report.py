@@ -57,6 +57,7 @@ from reports.fringe_plot import BAND_SIGMAS, fringe_plot
 from reports.hue import HUE_LEVELS_NM, find_hue_crossings, hue_scale
 from reports.prediction import CDGeometry, Prediction, cd_bbox, cd_geometry, predict
 from reports.rim import Rim, fit_rim
+from reports.run_index import thumbnail_png
 from reports.verdict_block import report_verdict, verdict_html
 from workbench.core.errors import UserInputError
 from workbench.core.files import atomic_write_text
@@ -506,6 +507,7 @@ def build_report(inputs: Inputs) -> dict[str, Any]:
     report["html_bytes"] = len(html_text.encode("utf-8"))
     clean = _clean(report)
     atomic_write_text(inputs.out / "report.json", json.dumps(clean, indent=2))
+    thumbnail_png(photo_display, exposure, inputs.out / "thumbnail.png")  # a run's index page shows it
     atomic_write_text(inputs.out / "report.html", html_text)
     return clean
 

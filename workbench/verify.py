@@ -69,6 +69,7 @@ from renderer.render import render
 from renderer.scene import CDSpec, GratingSpec, SceneSpec, load_scene
 from renderer.tables import table_plan
 from reports.report import Inputs, build_report
+from reports.run_index import write_run_index
 from reports.scene_fit_job import FitInputs, run_fit
 from reports.scene_fit_outputs import write_fitted_scene
 from workbench.core.errors import UserInputError
@@ -410,6 +411,7 @@ def _verify_locked(root: Path, dataset: Path, scene: str | Path, spec: SceneSpec
     if settings.preset == "paper" and size != PAPER_RESOLUTION:
         run.record["summary"]["notes"] = [f"the photos are {size[0]} x {size[1]}, not the paper's "
                                           f"{PAPER_RESOLUTION[0]} x {PAPER_RESOLUTION[1]}: rendered at the photos' size"]
+    run.record["summary"]["index"] = str(write_run_index(root, run.record))
     run.save()
     return run.record
 
@@ -457,5 +459,7 @@ def format_summary(record: dict[str, Any]) -> str:
         pose = f"pose residual RMS {p['pose_rms_px']:.3f} px" if p.get("pose_rms_px") is not None else "no pose residual"
         lines.append(f"{name}: {pose}; {offsets}")
         lines.append(f"  report: {p['report']}")
+    if summary.get("index"):
+        lines.append(f"index of the run: {summary['index']}")
     lines += [f"note: {n}" for n in summary.get("notes", [])]
     return "\n".join(lines)
