@@ -21,6 +21,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from tests import calibration_bounds as bounds
 from tests.conftest import synthetic_dataset
 from workbench.cli import main
 from workbench.verify import STAGES, VerifySettings, open_run, verify
@@ -40,8 +41,9 @@ SAME_ROTATION_DEG, SAME_CENTRE_MM, SAME_INTRINSICS, SAME_EXPOSURE, SAME_RESIDUAL
 PIXELS_RELATIVE = 1e-5
 KILL_POLL_S = 0.2
 KILL_TIMEOUT_S = 600.0
-# Issue 14's bars, met by calibrate DATASET on seed 0 (benchmarks/bench_calibration.py): score must report them.
-ROTATION_BAR_DEG, CENTRE_BAR_MM = 0.1, 1.0
+# score's errors within the bounds over render realisations (tests/calibration_bounds.py; issue 14's 0.1 deg and
+# 1 mm, missed by 1 realisation in 6, are judged in benchmarks/bench_calibration.py).
+ROTATION_BAR_DEG, CENTRE_BAR_MM = bounds.ROTATION_DEG, bounds.CENTRE_MM
 
 
 @pytest.fixture(scope="module")
@@ -107,6 +109,28 @@ def test_the_fit_stage_calls_an_unperturbed_scene_consistent(reference: tuple[Pa
         assert report["verdict"]["verdict"] == "consistent"
         page = (out / "report" / photo / "report.html").read_text()
         assert page.index("<section id='verdict'>") < page.index("<canvas")
+
+
+@pytest.mark.slow
+def test_report_pages_print_numbers_to_their_precision(reference: tuple[Path, dict, float]) -> None:
+    """Issue 27, item 2, on the pages a real run wrote: no Python repr ({'...}, [[...) and no number
+    with more than 6 decimals in the visible text (scripts and data: URIs left out; the page's
+    numbers go through reports.page.format_value, 4 significant figures), and the calibration's
+    table gives fx with its standard deviation from calibration.json."""
+    import html as html_module
+    import re
+
+    out, _, _ = reference
+    calibration = json.loads((out / "calibration" / "calibration.json").read_text())
+    for photo in ("view0", "view1"):
+        text = (out / "report" / photo / "report.html").read_text()
+        text = re.sub(r"<script.*?</script>", " ", text, flags=re.S)
+        visible = html_module.unescape(re.sub(r"<[^>]+>", " ", re.sub(r"data:[^'\"]+", "", text)))
+        assert "{'" not in visible and "[[" not in visible, re.search(r".{40}(\{'|\[\[).{40}", visible)
+        assert not re.search(r"\d\.\d{7,}", visible), re.search(r".{40}\d\.\d{7,}.{20}", visible)
+        row = re.search(r"<tr><td>fx</td><td>([^<]+)</td><td>([^<]+)</td><td>px</td></tr>", text)
+        assert row, "no fx row in the calibration table"
+        assert float(row.group(2)) == pytest.approx(calibration["std"]["fx"], rel=1e-3)  # 4 significant figures
 
 
 @pytest.mark.slow
