@@ -71,9 +71,31 @@ def _finite(value: Any) -> Any:
     raise TypeError(f"not JSON serialisable: {type(value).__name__}")
 
 
-def _cell(value: Any) -> str:
-    if isinstance(value, float):
-        return "-" if not np.isfinite(value) else f"{value:.4g}"
+def format_number(value: float, digits: int = 4) -> str:
+    """``digits`` significant figures, never a float's 17; '-' for NaN and None."""
+    if value is None or not np.isfinite(value):
+        return "-"
+    return f"{value:.{digits}g}"
+
+
+def format_value(value: Any) -> str:
+    """A value as a person reads it (escaped HTML): numbers to 4 significant figures, a list of
+    numbers as "a, b, c", a dict as a small table of its own, None as '-'; never a repr."""
+    if value is None:
+        return "-"
+    if isinstance(value, bool):
+        return "yes" if value else "no"
+    if isinstance(value, (float, np.floating)):
+        return format_number(float(value))
+    if isinstance(value, (int, np.integer)):
+        return str(int(value))
+    if isinstance(value, dict):
+        return key_values(value) if value else "-"
+    if isinstance(value, (list, tuple, np.ndarray)):
+        items = list(value)
+        if all(isinstance(v, (int, float, np.integer, np.floating)) and not isinstance(v, bool) for v in items):
+            return ", ".join(format_value(v) for v in items) if items else "-"
+        return "; ".join(format_value(v) for v in items) if items else "-"
     return html.escape(str(value))
 
 
@@ -83,13 +105,13 @@ def table(rows: list[dict], columns: list[str] | None = None, caption: str | Non
         return "<p class='none'>(none)</p>"
     columns = columns or list(rows[0])
     head = "".join(f"<th>{html.escape(c)}</th>" for c in columns)
-    body = "".join("<tr>" + "".join(f"<td>{_cell(r.get(c, ''))}</td>" for c in columns) + "</tr>" for r in rows)
+    body = "".join("<tr>" + "".join(f"<td>{format_value(r.get(c, ''))}</td>" for c in columns) + "</tr>" for r in rows)
     cap = f"<caption>{html.escape(caption)}</caption>" if caption else ""
     return f"<table>{cap}<thead><tr>{head}</tr></thead><tbody>{body}</tbody></table>"
 
 
 def key_values(pairs: dict[str, Any]) -> str:
-    body = "".join(f"<tr><th>{html.escape(str(k))}</th><td>{_cell(v)}</td></tr>" for k, v in pairs.items())
+    body = "".join(f"<tr><th>{html.escape(str(k))}</th><td>{format_value(v)}</td></tr>" for k, v in pairs.items())
     return f"<table class='kv'>{body}</table>"
 
 

@@ -512,6 +512,22 @@ def build_report(inputs: Inputs) -> dict[str, Any]:
     return clean
 
 
+CALIBRATION_ROWS = (("fx", "px", "fx"), ("fy", "px", "fy"), ("cx", "px", "cx"), ("cy", "px", "cy"),
+                    ("fov_x_deg", "deg", None), ("position_m", "m", "translation_m"))
+
+
+def calibration_table(summary: dict[str, Any]) -> str:
+    """The fitted camera as quantity / value / standard deviation / unit rows (the calibration's
+    ``std``; '-' where it gives none), then where it came from."""
+    std = summary.get("std") or {}
+    rows = [{"quantity": key, "value": summary.get(key), "std": std.get(std_key) if std_key else None, "unit": unit}
+            for key, unit, std_key in CALIBRATION_ROWS]
+    rows.append({"quantity": "rotation", "value": None, "std": std.get("rotation_deg"), "unit": "deg"})
+    rows.append({"quantity": "dist (k1, k2, p1, p2, k3)", "value": summary.get("dist"), "std": None, "unit": ""})
+    where = {k: summary.get(k) for k in ("source", "pose_of", "scene", "width", "height")}
+    return page.table(rows, caption="the fitted camera; std from the calibration") + page.key_values(where)
+
+
 def _page(report, inputs: Inputs, photo_display, render_display, exposure, maps, limits, masks, cd, pair_rows,
           study_sections) -> str:
     height, width = photo_display.shape[:2]
@@ -528,9 +544,11 @@ def _page(report, inputs: Inputs, photo_display, render_display, exposure, maps,
     for name, s in ((cd.get("hue") or {}).get("offsets") or {}).items():
         summary_rows.append({"comparison": "hue crossings: " + OFFSET_LABELS.get(name, name), "median px": s.get("median"),
                              "p95 px": s.get("p95"), "edges": s.get("count")})
-    fringe_html = page.table(summary_rows, caption=f"band-edge offsets (fringe_offset_px: median {fo.get('median')}, "
-                                                   f"p95 {fo.get('p95')}, count {fo.get('count')}); hue crossings "
-                                                   f"(equivalent wavelength {(cd.get('hue') or {}).get('levels_nm')} nm)")
+    levels = (cd.get("hue") or {}).get("levels_nm")
+    fringe_html = page.table(summary_rows, caption=f"band-edge offsets (fringe_offset_px: median "
+                                                   f"{page.format_number(fo.get('median'), 3)} px, p95 "
+                                                   f"{page.format_number(fo.get('p95'), 3)} px, {fo.get('count')} edges); "
+                                                   f"hue crossings (equivalent wavelength {page.format_value(levels)} nm)")
     if "_measured" in cd:
         radius_px = cd["_radius_px"]
         plot = fringe_plot(cd["_measured"], radius_px, cd.get("_band"))
@@ -553,7 +571,7 @@ def _page(report, inputs: Inputs, photo_display, render_display, exposure, maps,
             row[f"{metric} p95"] = stats.get("p95", float("nan"))
         region_rows.append(row)
     sections.append(("error per region", page.table(region_rows)))
-    sections.append(("calibration (the fitted camera)", page.key_values(report["calibration"])))
+    sections.append(("calibration (the fitted camera)", calibration_table(report["calibration"])))
     sections.append(("inputs", page.key_values({"photo": report["photo"], "render": report["render"],
                                                 "scene": report["scene"], "scene file": report["scene_source"],
                                                 "photometric scale": report["photometric_scale"]["render_to_photo"],

@@ -113,3 +113,15 @@ def test_page_in_chromium(tmp_path):
         assert not console_errors, console_errors
         browser.close()
     assert (tmp_path / SCREENSHOT).stat().st_size > 1000
+
+
+def test_values_print_as_a_person_reads_them():
+    """reports.page.format_value: 4 significant figures, lists of numbers joined, dicts as tables,
+    None as '-', text escaped; never a Python repr."""
+    assert page.format_value(0.13352388710915497) == "0.1335"
+    assert page.format_value([306.3776550292969, 277.96197509765625]) == "306.4, 278"
+    assert page.format_value(None) == "-" and page.format_value(float("nan")) == "-"
+    assert page.format_value(np.float32(2.5)) == "2.5" and page.format_value(np.int64(7)) == "7"
+    nested = page.format_value({"center": (306.3776550292969, 277.96), "counts": {"ok": 250, "<b>": 1}})
+    assert "{" not in nested and "(" not in nested and "<b>" not in nested
+    assert "<th>center</th><td>306.4, 278</td>" in nested and "&lt;b&gt;" in nested
