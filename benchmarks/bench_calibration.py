@@ -113,17 +113,21 @@ def print_row(label: str, e: dict) -> None:
 def print_spread(rows: list[dict]) -> None:
     """Each accuracy bar's spread over realisations and the normal tail beyond the bar."""
     import numpy as np
-    from scipy.stats import norm
+    from scipy.stats import norm, t
 
-    print(f"spread over {len(rows)} render realisations (mean +- SD; the bar's distance in SD; "
-          "chance that one realisation misses it, normal tail)")
+    n = len(rows)
+    print(f"spread over {n} render realisations (mean +- SD; the bar's distance in SD; the chance that one more "
+          "realisation misses it: normal tail, and Student's t predictive tail with n - 1 dof, which allows for the "
+          "SD itself being estimated from n)")
     for key, bar in BARS.items():
         if key == "seconds":
             continue
         values = np.array([r[key] for r in rows])
         mean, sd = float(values.mean()), float(values.std(ddof=1))
         z = (bar - mean) / sd if sd > 0 else float("inf")
-        print(f"  {key:>20}: {mean:.3g} +- {sd:.2g}  bar {bar:g} at {z:.1f} SD  P(miss) {norm.sf(z):.1g}")
+        predictive = t.sf(z / np.sqrt(1 + 1 / n), n - 1)
+        print(f"  {key:>20}: {mean:.3g} +- {sd:.2g}  bar {bar:g} at {z:.1f} SD  P(miss) normal {norm.sf(z):.1g}, "
+              f"t {predictive:.1g}")
 
 
 def main() -> None:
