@@ -71,7 +71,7 @@ def _finite(value: Any) -> Any:
     raise TypeError(f"not JSON serialisable: {type(value).__name__}")
 
 
-def format_number(value: float, digits: int = 4) -> str:
+def format_number(value: float | None, digits: int = 4) -> str:
     """``digits`` significant figures, never a float's 17; '-' for NaN and None."""
     if value is None or not np.isfinite(value):
         return "-"

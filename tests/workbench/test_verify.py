@@ -115,7 +115,8 @@ def test_the_fit_stage_calls_an_unperturbed_scene_consistent(reference: tuple[Pa
 def test_report_pages_print_numbers_to_their_precision(reference: tuple[Path, dict, float]) -> None:
     """Issue 27, item 2, on the pages a real run wrote: no Python repr ({'...}, [[...) and no number
     with more than 6 significant digits in the visible text (scripts and data: URIs left out; the page's
-    numbers go through reports.page.format_value, 4 significant figures), and the calibration's
+    numbers go through reports.page.format_value, 4 significant figures); the summary block sits
+    between the verdict and the images with report.json's fringe offsets; the calibration's
     table gives fx with its standard deviation from calibration.json."""
     import html as html_module
     import re
@@ -129,6 +130,11 @@ def test_report_pages_print_numbers_to_their_precision(reference: tuple[Path, di
         assert "{'" not in visible and "[[" not in visible, re.search(r".{40}(\{'|\[\[).{40}", visible)
         long = [n for n in re.findall(r"\d+\.\d+", visible) if len(n.replace(".", "").lstrip("0")) > 6]
         assert not long, long[:5]
+        report = json.loads((out / "report" / photo / "report.json").read_text())
+        fo = report["fringe_offset_px"]
+        assert text.index("<section id='verdict'>") < text.index("<section id='summary'>") < text.index("<canvas")
+        summary = text[text.index("<section id='summary'>"):text.index("</section>", text.index("<section id='summary'>"))]
+        assert f"median {fo['median']:.3g} px, p95 {fo['p95']:.3g} px ({fo['count']} edges)" in summary
         row = re.search(r"<tr><td>fx</td><td>([^<]+)</td><td>([^<]+)</td><td>px</td></tr>", text)
         assert row, "no fx row in the calibration table"
         assert float(row.group(2)) == pytest.approx(calibration["std"]["fx"], rel=1e-3)  # 4 significant figures
