@@ -56,6 +56,7 @@ from reports.exposure_merge import merge_highlights
 from reports.fringe_plot import BAND_SIGMAS, fringe_plot
 from reports.hue import HUE_LEVELS_NM, find_hue_crossings, hue_scale
 from reports.prediction import CDGeometry, Prediction, cd_bbox, cd_geometry, predict
+from reports.report_summary import calibration_table, summary_block
 from reports.rim import Rim, fit_rim
 from reports.run_index import thumbnail_png
 from reports.verdict_block import report_verdict, verdict_html
@@ -510,47 +511,6 @@ def build_report(inputs: Inputs) -> dict[str, Any]:
     thumbnail_png(photo_display, exposure, inputs.out / "thumbnail.png")  # a run's index page shows it
     atomic_write_text(inputs.out / "report.html", html_text)
     return clean
-
-
-CALIBRATION_ROWS = (("fx", "px", "fx"), ("fy", "px", "fy"), ("cx", "px", "cx"), ("cy", "px", "cy"),
-                    ("fov_x_deg", "deg", None), ("position_m", "m", "translation_m"))
-
-
-def summary_block(report: dict[str, Any]) -> str:
-    """The page's first block after the verdict: the fringe offsets against the prediction's
-    camera uncertainty, the fitted camera with its standard deviations, the worst region."""
-    fo = report["fringe_offset_px"]
-    spread = report["cd"].get("prediction_uncertainty")
-    cal = report["calibration"]
-    std = cal.get("std") or {}
-    fmt = page.format_number
-    rows = {"photo vs render band edges": f"median {fmt(fo.get('median'), 3)} px, p95 {fmt(fo.get('p95'), 3)} px "
-                                          f"({fo.get('count')} edges)",
-            "the prediction's edges from the camera's uncertainty": (
-                f"RMS {fmt(spread['edge_rms_px_median'], 3)} px median, {fmt(spread['edge_rms_px_p95'], 3)} px p95 "
-                f"({spread['draws']} cameras drawn within the calibration's std)"
-                if isinstance(spread, dict) else str(spread)),
-            "fitted camera": f"fx {fmt(cal['fx'])} +- {fmt(std.get('fx'), 2)} px, field of view "
-                             f"{fmt(cal['fov_x_deg'])} deg, rotation +- {fmt(std.get('rotation_deg'), 2)} deg, centre +- "
-                             f"{fmt(1000 * std['translation_m'] if 'translation_m' in std else None, 2)} mm"}
-    regions: dict[str, float] = {name: float(entry["relative error"]["median"]) for name, entry in
-                                 report["metrics"]["per_region"].items() if name != "all" and entry.get("relative error")}
-    if regions:
-        worst = max(regions, key=lambda name: regions[name])
-        rows["worst region (relative error, median)"] = f"{worst}: {fmt(regions[worst], 3)}"
-    return "<section id='summary'>" + page.key_values(rows) + "</section>"
-
-
-def calibration_table(summary: dict[str, Any]) -> str:
-    """The fitted camera as quantity / value / standard deviation / unit rows (the calibration's
-    ``std``; '-' where it gives none), then where it came from."""
-    std = summary.get("std") or {}
-    rows = [{"quantity": key, "value": summary.get(key), "std": std.get(std_key) if std_key else None, "unit": unit}
-            for key, unit, std_key in CALIBRATION_ROWS]
-    rows.append({"quantity": "rotation", "value": None, "std": std.get("rotation_deg"), "unit": "deg"})
-    rows.append({"quantity": "dist (k1, k2, p1, p2, k3)", "value": summary.get("dist"), "std": None, "unit": ""})
-    where = {k: summary.get(k) for k in ("source", "pose_of", "scene", "width", "height")}
-    return page.table(rows, caption="the fitted camera; std from the calibration") + page.key_values(where)
 
 
 def _page(report, inputs: Inputs, photo_display, render_display, exposure, maps, limits, masks, cd, pair_rows,
