@@ -54,15 +54,20 @@ def _grey(image: np.ndarray) -> np.ndarray:
     return np.asarray(image, np.float32)[..., :3].mean(axis=2)
 
 
+def outward_normals(curve: np.ndarray) -> np.ndarray:
+    """Unit normals (N, 2) of a closed curve of pixels (N, 2), pointing away from its centroid
+    (central differences of the neighbours)."""
+    tangent = np.roll(curve, -1, axis=0) - np.roll(curve, 1, axis=0)
+    normal = np.stack([tangent[:, 1], -tangent[:, 0]], axis=1)
+    normal /= np.maximum(np.linalg.norm(normal, axis=1, keepdims=True), 1e-12)
+    return normal * np.sign(np.einsum("ij,ij->i", normal, curve - curve.mean(axis=0)))[:, None]
+
+
 def rim_points(image: np.ndarray, expected: np.ndarray, search_px: float = RIM_SEARCH_PX) -> np.ndarray:
     """Sub-pixel rim points: along the normal of the expected rim curve (pixels (N, 2), closed),
     the strongest brightness gradient within ``search_px`` (parabolic peak)."""
     grey = _grey(image)
-    centre = expected.mean(axis=0)
-    tangent = np.roll(expected, -1, axis=0) - np.roll(expected, 1, axis=0)
-    normal = np.stack([tangent[:, 1], -tangent[:, 0]], axis=1)
-    normal /= np.maximum(np.linalg.norm(normal, axis=1, keepdims=True), 1e-12)
-    normal *= np.sign(np.einsum("ij,ij->i", normal, expected - centre))[:, None]  # outward
+    normal = outward_normals(expected)
     steps = np.arange(-search_px, search_px + 1e-9, 0.25)
     points = expected[:, None, :] + steps[None, :, None] * normal[:, None, :]
     values = cv2.remap(grey, points[..., 0].astype(np.float32), points[..., 1].astype(np.float32), cv2.INTER_LINEAR,

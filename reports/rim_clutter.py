@@ -30,6 +30,7 @@ import numpy as np
 from calibration.scene_model import box_walls, light_corners
 from renderer.camera import CameraModel
 from reports.prediction import CDGeometry
+from reports.rim import outward_normals
 
 LIGHT_GRID = 4  # light samples per side (16 in all): the penumbra's lit fraction to 1/16
 SHADOW_STEP_PX = 0.5  # spacing of the tested pixels along a search
@@ -81,11 +82,7 @@ def lit_fraction(points: np.ndarray, lights: np.ndarray, cd: CDGeometry) -> np.n
 def shadow_in_reach(spec, camera: CameraModel, cd: CDGeometry, expected: np.ndarray, search_px: float) -> np.ndarray:
     """For each point of the expected rim (pixels (N, 2), a closed curve), whether a border of the
     CD's shadow lies within ``search_px`` outside it (bool (N,))."""
-    centre = expected.mean(axis=0)
-    tangent = np.roll(expected, -1, axis=0) - np.roll(expected, 1, axis=0)
-    outward = np.stack([tangent[:, 1], -tangent[:, 0]], axis=1)
-    outward /= np.maximum(np.linalg.norm(outward, axis=1, keepdims=True), 1e-12)
-    outward *= np.sign(np.einsum("ij,ij->i", outward, expected - centre))[:, None]
+    outward = outward_normals(expected)
     steps = np.arange(SHADOW_STEP_PX, search_px + SHADOW_STEP_PX, SHADOW_STEP_PX)
     pixels = (expected[:, None, :] + steps[None, :, None] * outward[:, None, :]).reshape(-1, 2)
     origin, directions = camera.pixel_rays(pixels)

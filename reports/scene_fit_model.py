@@ -144,10 +144,7 @@ def rim_residuals(camera: CameraModel, cd, points: np.ndarray) -> np.ndarray:
     curve (the grating's edge, as ``photo_rim_points`` measures it)."""
     curve = camera.project(cd.rim_points())
     nearest = np.argmin(((points[:, None, :] - curve[None]) ** 2).sum(axis=2), axis=1)
-    tangent = np.roll(curve, -1, axis=0) - np.roll(curve, 1, axis=0)
-    normal = np.stack([tangent[:, 1], -tangent[:, 0]], axis=1)
-    normal /= np.maximum(np.linalg.norm(normal, axis=1, keepdims=True), 1e-12)
-    normal *= np.sign(np.einsum("ij,ij->i", normal, curve - curve.mean(axis=0)))[:, None]
+    normal = rim.outward_normals(curve)
     return np.einsum("ij,ij->i", points - curve[nearest], normal[nearest])
 
 

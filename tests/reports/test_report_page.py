@@ -6,12 +6,11 @@ and key, wheel zoom and drag on one panel, the exposure slider. Chromium comes f
 Makefile's install rule (Playwright's own browser download is not available here).
 """
 
-import shutil
-
 import numpy as np
 import pytest
 
 from reports import page
+from tests.browser import chromium_page
 
 WIDTH, HEIGHT = 96, 72
 PIXEL_CHANGE = 8  # 8-bit levels: a flip or an exposure step must change the canvas by more than this somewhere
@@ -45,19 +44,8 @@ def test_text_from_files_is_escaped(tmp_path):
 
 @pytest.mark.slow
 def test_page_in_chromium(tmp_path):
-    chromium = shutil.which("chromium")
-    assert chromium, "Debian's chromium is missing: `make install` installs it"
-    sync_api = pytest.importorskip("playwright.sync_api", reason="playwright is in the test extras: `make install`")
     path = _page_html(tmp_path)
-    console_errors, requests = [], []
-    with sync_api.sync_playwright() as p:
-        browser = p.chromium.launch(executable_path=chromium, args=["--no-sandbox"])
-        view = browser.new_page(viewport={"width": 900, "height": 700})
-        view.on("console", lambda m: console_errors.append(m.text) if m.type == "error" else None)
-        view.on("pageerror", lambda e: console_errors.append(str(e)))
-        view.on("request", lambda r: requests.append(r.url))
-        view.goto(path.as_uri())
-        view.wait_for_load_state("load")
+    with chromium_page(path, {"width": 900, "height": 700}) as (view, console_errors, requests):
 
         assert not console_errors, console_errors
         assert all(url.startswith(("file://", "data:")) for url in requests), requests
@@ -111,7 +99,6 @@ def test_page_in_chromium(tmp_path):
         assert view.get_attribute("#map-img", "src") != first_map
         view.screenshot(path=str(tmp_path / SCREENSHOT), full_page=True)
         assert not console_errors, console_errors
-        browser.close()
     assert (tmp_path / SCREENSHOT).stat().st_size > 1000
 
 

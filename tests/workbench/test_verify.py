@@ -146,23 +146,12 @@ def test_the_run_index_links_every_report_in_chromium(reference: tuple[Path, dic
     without console errors or a request other than file: and data:, shows the scene fit's verdict
     first, one row per photo with a thumbnail whose link opens that photo's report, and the
     numbers of each row equal that report's report.json (formatted to 2 decimals)."""
-    import shutil
+    from tests.browser import chromium_page
 
-    sync_api = pytest.importorskip("playwright.sync_api", reason="playwright is in the test extras: `make install`")
-    chromium = shutil.which("chromium")
-    assert chromium, "Debian's chromium is missing: `make install` installs it"
     out, record, _ = reference
     index = out / "index.html"
     assert record["summary"]["index"] == str(index) and index.is_file()
-    errors, requests = [], []
-    with sync_api.sync_playwright() as p:
-        browser = p.chromium.launch(executable_path=chromium, args=["--no-sandbox"])
-        view = browser.new_page(viewport={"width": 1200, "height": 900})
-        view.on("console", lambda m: errors.append(m.text) if m.type == "error" else None)
-        view.on("pageerror", lambda e: errors.append(str(e)))
-        view.on("request", lambda r: requests.append(r.url))
-        view.goto(index.as_uri())
-        view.wait_for_load_state("load")
+    with chromium_page(index, {"width": 1200, "height": 900}) as (view, errors, requests):
         assert view.evaluate("document.body.firstElementChild.nextElementSibling.nextElementSibling.id") == "verdict"
         rows = view.evaluate("Array.from(document.querySelectorAll('#photos tbody tr')).map(r => ({"
                              "href: r.querySelector('a').getAttribute('href'), "
@@ -179,7 +168,6 @@ def test_the_run_index_links_every_report_in_chromium(reference: tuple[Path, dic
         view.click("#photos tbody tr:nth-child(2) a")
         view.wait_for_load_state("load")
         assert view.url == (out / "report" / "view1" / "report.html").as_uri()
-        browser.close()
     assert not errors, errors
     assert all(url.startswith(("file://", "data:")) for url in requests), requests
     assert (out.parent / "index_page.png").stat().st_size > 1000
