@@ -1,8 +1,14 @@
 """``workbench render``: a scene to linear camera RGB (EXR), a PNG preview and a JSON sidecar.
 
 Rendering runs in passes (different seeds, averaged: unbiased); after each pass the
-running sum is saved atomically beside the output, so an interrupted render resumes from
-its finished passes when the same command runs again. The sidecar records the request's
+running sums (of the passes and of their squares) are saved atomically beside the output, so
+an interrupted render resumes from its finished passes when the same command runs again.
+A render of two or more passes also writes ``NAME.variance.exr``: per pixel, the variance
+of the rendered mean from the spread between passes (s^2 / n, s^2 the passes' sample
+variance), through the same warp and exposure (squared). The warp is bilinear at about one
+plan pixel per output pixel (renderer.camera.CameraModel.pinhole_plan), so the warped
+variance is right for sums over regions (each plan pixel's weights add to about 1), which
+is what reports.region_compare uses; for one pixel alone it can overstate up to 4 times. The sidecar records the request's
 key, the EXR's SHA-256, the settings, versions, timings and the efficiency tables used.
 As with tables, the same request on a finished render is served at once, and a different
 one at the same path needs ``force``.
@@ -38,6 +44,7 @@ from workbench.core.version import versions
 PRESETS: dict[str, dict[str, Any]] = {"draft": {"spp": 256, "pass_spp": 64},
                                       "paper": {"spp": 2045, "pass_spp": 128, "resolution": (978, 734)}}
 SIDECAR_FORMAT = "workbench-render"
+MIN_PASSES = 4  # where spp allows: the variance between passes (variance_path) then has 3 degrees of freedom per pixel
 
 
 def with_resolution(spec: SceneSpec, resolution: tuple[int, int] | None) -> SceneSpec:
@@ -103,12 +110,14 @@ def render(scene: str | Path, out: str | Path, *, preset: str = "draft", spp: in
 
     started = time.perf_counter()
     scene_d, built = scene_dict(mi, spec, spp=pass_spp, integrator=integrator, mode=mode, plan=plan, progress=progress)
-    total, done = _resume(partial, key)
+    total, total_sq, done = _resume(partial, key)
     bar = tqdm(total=passes.count, initial=done, unit="pass", disable=not progress, desc=f"render {spec.name}")
     pass_seconds = []
     for p, (image, seconds) in _pass_images(mi, scene_d, passes, done, executor):
+        image = np.asarray(image, np.float64)
         total = image if total is None else total + image
-        _atomic_npz(partial, total=total, done=p + 1, key=key)
+        total_sq = image**2 if total_sq is None else total_sq + image**2
+        _atomic_npz(partial, total=total, total_sq=total_sq, done=p + 1, key=key)
         pass_seconds.append(seconds)
         bar.update(1)
     bar.close()
@@ -118,10 +127,28 @@ def render(scene: str | Path, out: str | Path, *, preset: str = "draft", spp: in
     out.parent.mkdir(parents=True, exist_ok=True)
     _atomic(out, lambda tmp: mi.Bitmap(rgb.astype(np.float32), mi.Bitmap.PixelFormat.RGB).write(str(tmp)))
     _atomic(out.with_suffix(".png"), lambda tmp: _write_preview(rgb, tmp))
+    variance = _mean_variance(total, total_sq, passes.count)
+    if variance is not None:
+        variance = np.maximum(spec.camera.model.warp(variance, built["plan"]), 0.0) * spec.camera.exposure**2
+        _atomic(variance_path(out), lambda tmp: mi.Bitmap(variance.astype(np.float32), mi.Bitmap.PixelFormat.RGB).write(str(tmp)))
     info = _sidecar(out, key, preset, passes, variant, built["tables"], time.perf_counter() - started, pass_seconds, done)
     atomic_write_text(out.with_suffix(".json"), json.dumps(info, indent=2))
     partial.unlink(missing_ok=True)
     return info | {"served": False}
+
+
+def variance_path(out: str | Path) -> Path:
+    """Where the render at ``out`` keeps its per-pixel variance (module docstring)."""
+    out = Path(out)
+    return out.with_name(out.stem + ".variance.exr")
+
+
+def _mean_variance(total: np.ndarray, total_sq: np.ndarray, count: int) -> np.ndarray | None:
+    """The variance of the mean of ``count`` passes, from their sum and sum of squares; None for one pass."""
+    if count < 2:
+        return None
+    mean = total / count
+    return np.maximum(total_sq / count - mean**2, 0.0) * count / (count - 1) / count
 
 
 def _pass_images(mi, scene_d: dict, passes: _Passes, done: int, executor) -> Iterator[tuple[int, tuple[np.ndarray, float]]]:
@@ -145,6 +172,7 @@ def _sidecar(out: Path, key: str, preset: str, passes: _Passes, variant: str, ta
         "format": SIDECAR_FORMAT, "request_key": key, "output_sha256": file_sha256(out),
         "scene": spec.name, "scene_source": spec.source, "scene_sha256": hashlib.sha256(spec.text.encode()).hexdigest(),
         "output": str(out), "preview": str(out.with_suffix(".png")), "preset": preset,
+        "variance": str(variance_path(out)) if passes.count > 1 else None,
         "spp": passes.count * passes.pass_spp, "passes": passes.count,
         "resolution": [model.width, model.height], "integrator": passes.integrator, "mode": passes.mode,
         "seed": passes.seed, "variant": variant, "planned_tables": passes.plan, "tables": tables,
@@ -174,7 +202,8 @@ def summary(info: dict) -> str:
                 f"({size}, {info['seconds_total']:.1f} s when it was made) is served; nothing rendered")
     resumed = (f"; resumed after {info['resumed_passes']} of {info['passes']} passes finished earlier"
                if info.get("resumed_passes") else "")
-    return (f"wrote {info['output']} (linear camera RGB), {info['preview']} and the sidecar "
+    noise = f", the passes' variance {info['variance']}" if info.get("variance") else ""
+    return (f"wrote {info['output']} (linear camera RGB), {info['preview']}{noise} and the sidecar "
             f"{info['output'][:-4]}.json: {size}, {info['seconds_total']:.1f} s ({info['variant']}){resumed}")
 
 
@@ -201,7 +230,8 @@ def _checked_request(scene: str | Path, out: str | Path, preset: str, spp: int |
     if out.is_dir():
         raise UserInputError("is a folder, not a file", field="--out", expected="a path ending in .exr", got=str(out))
     spec = with_resolution(load_scene(scene), resolution or settings.get("resolution"))
-    return spp, min(spp, settings["pass_spp"]), spec, out
+    # MIN_PASSES passes where spp allows: their spread is the render's noise (variance_path)
+    return spp, min(settings["pass_spp"], max(1, math.ceil(spp / MIN_PASSES))), spec, out
 
 
 def _request_key(spec: SceneSpec, spp: int, pass_spp: int, integrator: str, mode: str, seed: int, plan: bool) -> str:
@@ -219,6 +249,11 @@ def _outputs(out: Path) -> list[Path]:
     return [out, out.with_suffix(".png"), out.with_suffix(".json")]
 
 
+def _all_outputs(out: Path, info: dict) -> list[Path]:
+    """The files a finished render wrote: its EXR, preview, sidecar and (with two passes or more) the variance."""
+    return _outputs(out) + ([variance_path(out)] if info.get("variance") else [])
+
+
 def _read_sidecar(out: Path) -> dict | None:
     try:
         info = json.loads(out.with_suffix(".json").read_text())
@@ -232,7 +267,7 @@ def _finished_render(out: Path, key: str) -> dict | None:
     all there and the EXR is the one it describes.
     """
     info = _read_sidecar(out)
-    if info is None or info.get("request_key") != key or not all(p.is_file() for p in _outputs(out)):
+    if info is None or info.get("request_key") != key or not all(p.is_file() for p in _all_outputs(out, info)):
         return None
     if file_sha256(out) != info.get("output_sha256"):
         return None
@@ -243,8 +278,8 @@ def _refuse_to_overwrite(out: Path, partial: Path, key: str, force: bool) -> Non
     """A different render (or other files) at ``out`` is replaced only with ``force``; an
     interrupted render of this request may carry on.
     """
-    present = [p for p in _outputs(out) if p.exists()]
-    if not present or force or _resume(partial, key)[1] > 0:
+    present = [p for p in _outputs(out) + [variance_path(out)] if p.exists()]
+    if not present or force or _resume(partial, key)[2] > 0:
         return
     info = _read_sidecar(out)
     if info is None:
@@ -271,10 +306,10 @@ def _resume(partial: Path, key: str):
     try:
         with np.load(partial) as d:
             if str(d["key"]) == key:
-                return d["total"], int(d["done"])
+                return d["total"], d["total_sq"], int(d["done"])
     except (OSError, KeyError, ValueError):
         pass
-    return None, 0
+    return None, None, 0
 
 
 def _atomic_npz(path: Path, **arrays) -> None:

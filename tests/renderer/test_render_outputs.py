@@ -11,7 +11,7 @@ import json
 import numpy as np
 import pytest
 
-from renderer.render import render, summary
+from renderer.render import render, summary, variance_path
 from workbench.cli import main
 from workbench.core.errors import UserInputError
 
@@ -52,13 +52,13 @@ def test_a_changed_or_foreign_output_is_not_overwritten_without_force(mitsuba_va
 
 
 def test_an_interrupted_render_resumes_and_says_so(mitsuba_variant, tmp_path, monkeypatch):
-    """Two passes of 64 spp; the run stops after saving the first. The same command then
-    renders only the second and gives the uninterrupted image exactly."""
+    """Four passes of 32 spp; the run stops after saving the first. The same command then
+    renders only the other three and gives the uninterrupted image (and variance) exactly."""
     import renderer.render as module
 
     settings = TINY | {"spp": 128}
     clean = render("cornell_cd", tmp_path / "clean.exr", **settings)
-    assert clean["passes"] == 2
+    assert clean["passes"] == 4
     save = module._atomic_npz
     calls = []
 
@@ -73,8 +73,9 @@ def test_an_interrupted_render_resumes_and_says_so(mitsuba_variant, tmp_path, mo
     monkeypatch.setattr(module, "_atomic_npz", save)
     assert not (tmp_path / "r.exr").exists() and (tmp_path / "r.exr.partial.npz").exists()
     info = render("cornell_cd", tmp_path / "r.exr", **settings)
-    assert info["resumed_passes"] == 1 and "resumed after 1 of 2 passes" in summary(info)
+    assert info["resumed_passes"] == 1 and "resumed after 1 of 4 passes" in summary(info)
     assert np.array_equal(_exr(tmp_path / "r.exr"), _exr(tmp_path / "clean.exr"))
+    assert np.array_equal(_exr(variance_path(tmp_path / "r.exr")), _exr(variance_path(tmp_path / "clean.exr")))
     assert not (tmp_path / "r.exr.partial.npz").exists()
 
 
@@ -153,3 +154,30 @@ def test_the_largest_seed_the_command_line_takes_renders(mitsuba_variant, tmp_pa
     info = render("cornell_cd", tmp_path / "s.exr", seed=2**32 - 1, **TINY)
     assert info["seed"] == 2**32 - 1 and np.all(np.isfinite(_exr(tmp_path / "s.exr")))
     assert pass_seed(3, 1) == 3 * 100_003 + 1  # small seeds keep their passes' seeds (and images)
+
+
+VARIANCE_PAIRS = 6  # independent pairs of renders pooled: fireflies make one pair's ratio swing 0.5-1.2
+VARIANCE_RATIO_BOUNDS = (0.7, 1.4)  # pooled ratio measured 0.89, 1.01, 1.05, 0.95 over four sets (SD ~0.07)
+
+
+def test_the_passes_variance_predicts_how_far_two_renders_differ(mitsuba_variant, tmp_path):
+    """Two renders with different seeds differ, pixel by pixel, by var_a + var_b in the mean
+    (their noises are independent): the variance files written from the spread between
+    passes must predict the summed squared difference, pooled over pairs."""
+    squared, predicted = 0.0, 0.0
+    for k in range(VARIANCE_PAIRS):
+        images, variances = [], []
+        for j in (0, 1):
+            out = tmp_path / f"r{k}{j}.exr"
+            info = render("cornell_cd", out, spp=16, resolution=(96, 72), progress=False, seed=2 * k + j)
+            assert info["passes"] == 4 and info["variance"] == str(variance_path(out))
+            images.append(_exr(out))
+            variances.append(_exr(variance_path(out)))
+        squared += float(np.sum((images[0] - images[1]) ** 2))
+        predicted += float(np.sum(variances[0] + variances[1]))
+    assert VARIANCE_RATIO_BOUNDS[0] < squared / predicted < VARIANCE_RATIO_BOUNDS[1]
+
+
+def test_one_pass_writes_no_variance(mitsuba_variant, tmp_path):
+    info = render("cornell_cd", tmp_path / "r.exr", spp=1, resolution=(48, 36), progress=False)
+    assert info["passes"] == 1 and info["variance"] is None and not variance_path(tmp_path / "r.exr").exists()
