@@ -167,3 +167,21 @@ def read_response(path: str | Path) -> dict | None:
     except UserInputError as error:
         raise error.located(file=str(path), field_prefix="response") from None
     return {"points": response["points"]}
+
+
+def exposure_relative_std(path: str | Path, photo_name: str) -> float | None:
+    """The relative standard deviation of the photo's fitted exposure (calibration.json's
+    ``std.exposure_scale`` over ``exposure_scale``, per photo), or None where none is stated."""
+    try:
+        data = json.loads(Path(path).read_text())
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError):
+        return None  # read_camera has already refused an unreadable file
+    if not isinstance(data, dict):
+        return None
+    scale, std = data.get("exposure_scale"), (data.get("std") or {}).get("exposure_scale")
+    if isinstance(scale, dict) and isinstance(std, dict):
+        scale, std = scale.get(photo_name), std.get(photo_name)
+    if not (_is_number(scale) and _is_number(std)):
+        return None
+    scale_value, std_value = float(scale), float(std)  # type: ignore[arg-type]
+    return std_value / scale_value if scale_value > 0 else None

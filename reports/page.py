@@ -99,19 +99,29 @@ def format_value(value: Any) -> str:
     return html.escape(str(value))
 
 
-def table(rows: list[dict], columns: list[str] | None = None, caption: str | None = None) -> str:
-    """An HTML table of dicts (every value escaped)."""
+def _tip(text: str | None) -> str:
+    """A title attribute (the browser's tooltip): what a number means and how it was measured."""
+    return f" title='{html.escape(text)}'" if text else ""
+
+
+def table(rows: list[dict], columns: list[str] | None = None, caption: str | None = None,
+          tips: dict[str, str] | None = None) -> str:
+    """An HTML table of dicts (every value escaped); ``tips``: a tooltip per column heading."""
     if not rows:
         return "<p class='none'>(none)</p>"
     columns = columns or list(rows[0])
-    head = "".join(f"<th>{html.escape(c)}</th>" for c in columns)
+    tips = tips or {}
+    head = "".join(f"<th{_tip(tips.get(c))}>{html.escape(c)}</th>" for c in columns)
     body = "".join("<tr>" + "".join(f"<td>{format_value(r.get(c, ''))}</td>" for c in columns) + "</tr>" for r in rows)
     cap = f"<caption>{html.escape(caption)}</caption>" if caption else ""
     return f"<table>{cap}<thead><tr>{head}</tr></thead><tbody>{body}</tbody></table>"
 
 
-def key_values(pairs: dict[str, Any]) -> str:
-    body = "".join(f"<tr><th>{html.escape(str(k))}</th><td>{format_value(v)}</td></tr>" for k, v in pairs.items())
+def key_values(pairs: dict[str, Any], tips: dict[str, str] | None = None) -> str:
+    """A two-column table of names and values; ``tips``: a tooltip per name."""
+    tips = tips or {}
+    body = "".join(f"<tr><th{_tip(tips.get(str(k)))}>{html.escape(str(k))}</th><td>{format_value(v)}</td></tr>"
+                   for k, v in pairs.items())
     return f"<table class='kv'>{body}</table>"
 
 

@@ -56,7 +56,8 @@ from reports.exposure_merge import merge_highlights
 from reports.fringe_plot import BAND_SIGMAS, fringe_plot
 from reports.hue import HUE_LEVELS_NM, find_hue_crossings, hue_scale
 from reports.prediction import CDGeometry, Prediction, cd_bbox, cd_geometry, predict
-from reports.report_summary import calibration_table, summary_block
+from reports.region_compare import region_test
+from reports.report_summary import calibration_table, region_test_html, summary_block
 from reports.rim import Rim, fit_rim
 from reports.run_index import thumbnail_png
 from reports.verdict_block import report_verdict, verdict_html
@@ -479,6 +480,7 @@ def build_report(inputs: Inputs) -> dict[str, Any]:
     maps, exposure, flip_note = _error_maps(photo.rgb, aligned, photo_display, render_display, masks, messages)
     limits = {"relative error": RELATIVE_MAX, "CIEDE2000": DELTA_E_MAX, "FLIP": FLIP_MAX}
     statistics = metrics.region_statistics(maps, masks)
+    regions_tested = region_test(spec, fitted, as_taken, render, inputs.render, inputs.calibration, masks)
 
     report: dict[str, Any] = {
         "format": REPORT_FORMAT, "photo": str(inputs.photo), "render": str(inputs.render),
@@ -492,7 +494,7 @@ def build_report(inputs: Inputs) -> dict[str, Any]:
                     "exposure_for_mid_grey_walls": exposure},
         "regions": {name: int(mask.sum()) for name, mask in masks.items()},
         "metrics": {"per_region": statistics, "flip": flip_note, "limits_shown": limits},
-        "cd": cd, "problems": problems, "messages": messages,
+        "region_test": regions_tested, "cd": cd, "problems": problems, "messages": messages,
     }
     report |= _headline_offsets(cd)
     if inputs.scene_fit is not None:
@@ -556,6 +558,7 @@ def _page(report, inputs: Inputs, photo_display, render_display, exposure, maps,
             row[f"{metric} p95"] = stats.get("p95", float("nan"))
         region_rows.append(row)
     sections.append(("error per region", page.table(region_rows)))
+    sections.append(("photo against render per region, at the calibrated exposure", region_test_html(report["region_test"])))
     sections.append(("calibration (the fitted camera)", calibration_table(report["calibration"])))
     sections.append(("inputs", page.key_values({"photo": report["photo"], "render": report["render"],
                                                 "scene": report["scene"], "scene file": report["scene_source"],

@@ -36,6 +36,13 @@ def summary_block(report: dict[str, Any]) -> str:
     if regions:
         worst = max(regions, key=lambda name: regions[name])
         rows["worst region (relative error, median)"] = f"{worst}: {fmt(regions[worst], 3)}"
+    tested = (report.get("region_test") or {}).get("regions") or {}
+    compared = {name: row for name, row in tested.items() if "z" in row}
+    if compared:
+        flagged = [f"{name} (z {fmt(row['z'], 2)})" for name, row in compared.items() if not row["consistent"]]
+        rows["regions at the calibrated exposure"] = (
+            f"{len(compared) - len(flagged)} of {len(compared)} consistent (|z| <= "
+            f"{fmt(report['region_test']['z_consistent'], 2)})" + ("; not: " + ", ".join(flagged) if flagged else ""))
     return "<section id='summary'>" + page.key_values(rows) + "</section>"
 
 
@@ -49,3 +56,34 @@ def calibration_table(summary: dict[str, Any]) -> str:
     rows.append({"quantity": "dist (k1, k2, p1, p2, k3)", "value": summary.get("dist"), "std": None, "unit": ""})
     where = {k: summary.get(k) for k in ("source", "pose_of", "scene", "width", "height")}
     return page.table(rows, caption="the fitted camera; std from the calibration") + page.key_values(where)
+
+
+REGION_TEST_TIPS = {
+    "photo - render": "difference of the channel sums of the region means, in the photo's units (1 = white level)",
+    "relative": "that difference over the render's channel sum",
+    "z": "the difference over its standard deviation from the sources on the right",
+    "std photo noise": "the photo's own noise: its sensor model or the region's second differences, the larger",
+    "std render noise": "the render's Monte Carlo noise: the variance between its passes",
+    "std exposure": "the calibration's exposure standard deviation times the render's mean",
+}
+
+
+def region_test_html(test: dict[str, Any]) -> str:
+    """The per-region z-score table (reports.region_compare), with what each column means."""
+    rows = []
+    for name, row in (test.get("regions") or {}).items():
+        std = row.get("std") or {}
+        rows.append({"region": name, "pixels": row.get("pixels"), "photo - render": row.get("photo_minus_render"),
+                     "relative": row.get("relative"), "z": row.get("z"),
+                     "consistent": {True: "yes", False: "no"}.get(row.get("consistent"), "-"),
+                     "std photo noise": std.get("photo noise"), "std render noise": std.get("render noise"),
+                     "std exposure": std.get("exposure"), "status": row.get("status")})
+    noise = test.get("photo_noise") or {}
+    notes = page.key_values({"consistent when": f"|z| <= {page.format_number(test.get('z_consistent'), 2)}",
+                             "photo's sensor model": (f"variance = {page.format_number(noise.get('shot'), 3)} x level + "
+                                                      f"{page.format_number(noise.get('read'), 3)}" if noise else None),
+                             "cameras drawn for the regions": test.get("camera_draws"),
+                             "pixels left out at region borders": test.get("border_px"), "how": test.get("how"),
+                             "caveat": test.get("caveat")})
+    return "<div id='region-test'>" + page.table(rows, caption="per region: photo mean against render mean",
+                                                  tips=REGION_TEST_TIPS) + notes + "</div>"

@@ -21,6 +21,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from reports import page
 from tests import calibration_bounds as bounds
 from tests.conftest import synthetic_dataset
 from workbench.cli import main
@@ -138,6 +139,12 @@ def test_report_pages_print_numbers_to_their_precision(reference: tuple[Path, di
         row = re.search(r"<tr><td>fx</td><td>([^<]+)</td><td>([^<]+)</td><td>px</td></tr>", text)
         assert row, "no fx row in the calibration table"
         assert float(row.group(2)) == pytest.approx(calibration["std"]["fx"], rel=1e-3)  # 4 significant figures
+        tested = report["region_test"]  # issue 27, item 3: fed by the run's own render variance and calibration
+        assert tested["render_noise"] and tested["exposure_rel_std"] > 0 and tested["camera_draws"] > 0
+        table = text[text.index("<div id='region-test'>"):]
+        for name, entry in tested["regions"].items():
+            if "z" in entry:
+                assert f"<td>{name}</td>" in table and f"<td>{page.format_number(entry['z'])}</td>" in table
 
 
 @pytest.mark.slow
