@@ -7,7 +7,8 @@ numbers as JSON in a ``<script type="application/json">`` (with ``<`` escaped, s
 from a file can close it). Every text that comes from a file or the command line (scene
 names, file names, metadata, messages) goes through html.escape.
 
-Controls: A/B flip between photo and render (the button, or the F key or space),
+Controls: A/B flip between photo and render (the button, or the F key or space), the
+CD's band edges drawn over the image (the fringe-overlay toggle, or the O key),
 synchronised zoom (mouse wheel, or the + and - buttons) and pan (drag) across the image
 and error-map panels, an exposure slider acting on the linear data, a choice of error map.
 """
@@ -228,6 +229,19 @@ SCRIPT = r"""
     document.getElementById('map-legend').textContent = m.legend;
   }
   if (select) { select.addEventListener('change', showMap); showMap(); }
+  const overlay = document.getElementById('fringe-overlay'), toggle = document.getElementById('overlay-toggle');
+  function flipOverlay() {
+    const on = overlay.style.display === 'none';
+    overlay.style.display = on ? 'block' : 'none';
+    toggle.setAttribute('aria-pressed', on ? 'true' : 'false');
+  }
+  if (overlay && toggle) {
+    toggle.addEventListener('click', flipOverlay);
+    window.addEventListener('keydown', ev => {
+      if (ev.target && ev.target.tagName === 'INPUT') return;
+      if (ev.key === 'o' || ev.key === 'O') flipOverlay();
+    });
+  }
   draw(); applyView();
 })();
 """
@@ -235,10 +249,11 @@ SCRIPT = r"""
 
 def render_page(*, title: str, width: int, height: int, linear: dict[str, np.ndarray], exposure_ev: float,
                 maps: dict[str, dict], sections: list[tuple[str, str]], notes: list[str], errors: list[str],
-                verdict: str = "") -> str:
+                verdict: str = "", overlay: str = "", overlay_legend: str = "") -> str:
     """The whole page. ``linear``: name -> (H, W, 3) linear sRGB (photo first); ``maps``: name ->
     {"uri": data URI, "legend": text}; ``sections``: (heading, trusted HTML built with table());
-    ``verdict``: the scene fit's block (trusted HTML, reports.verdict_block), first on the page."""
+    ``verdict``: the scene fit's block (trusted HTML, reports.verdict_block), first on the page;
+    ``overlay``: an inline SVG over the A/B image (trusted, reports.fringe_overlay), with a toggle."""
     data = {"width": width, "height": height, "exposure_ev": exposure_ev, "order": list(linear),
             "linear": {name: float16_base64(image) for name, image in linear.items()},
             "maps": {name: {"legend": m["legend"]} for name, m in maps.items()}}
@@ -255,6 +270,8 @@ def render_page(*, title: str, width: int, height: int, linear: dict[str, np.nda
     note_html = "".join(f"<div class='note'>{html.escape(n)}</div>" for n in notes)
     error_html = "".join(f"<div class='error'>{html.escape(e)}</div>" for e in errors)
     body_sections = "".join(f"<h2>{html.escape(h)}</h2>{content}" for h, content in sections)
+    overlay_bar = (f"<div class='bar'><button id='overlay-toggle' aria-pressed='false' title='O key'>fringe overlay"
+                   f"</button> <span>{html.escape(overlay_legend)}</span></div>" if overlay else "")
     return f"""<!DOCTYPE html>
 <html lang="en"><head><meta charset="utf-8">
 <meta http-equiv="Content-Security-Policy"
@@ -269,10 +286,11 @@ def render_page(*, title: str, width: int, height: int, linear: dict[str, np.nda
   <button id="zoom-in">+</button><button id="zoom-out">&minus;</button><button id="zoom-reset">1:1</button>
   <span>(wheel: zoom, drag: pan; the panels move together)</span>
 </div>
+{overlay_bar}
 <div class="panels">
   <div class="panel"><div class="title">photo / render (linear camera RGB, one display transform)</div>
     <div class="viewport" style="width:{width}px;height:{height}px"><div class="stage">
-    <canvas id="ab-canvas" width="{width}" height="{height}"></canvas></div></div></div>
+    <canvas id="ab-canvas" width="{width}" height="{height}"></canvas>{overlay}</div></div></div>
   {map_panel}
 </div>
 {map_sources}

@@ -53,6 +53,7 @@ from reports import fringes, images, metrics, page, polar
 from reports.camera_draws import CAMERA_STD_KEYS, draw_cameras
 from reports.camera_file import FittedCamera, check_scene, read_camera, read_response
 from reports.exposure_merge import merge_highlights
+from reports.fringe_overlay import OVERLAY_LEGEND, offset_plot, overlay_svg
 from reports.fringe_plot import BAND_SIGMAS, fringe_plot
 from reports.hue import HUE_LEVELS_NM, find_hue_crossings, hue_scale
 from reports.prediction import CDGeometry, Prediction, cd_bbox, cd_geometry, predict
@@ -540,6 +541,8 @@ def _page(report, inputs: Inputs, photo_display, render_display, exposure, maps,
         radius_px = cd["_radius_px"]
         plot = fringe_plot(cd["_measured"], radius_px, cd.get("_band"))
         fringe_html += f"<div><img alt='fringe radius against azimuth' src='{plot}'></div>"
+        fringe_html += (f"<div><img alt='photo - render offsets against azimuth and radius' "
+                        f"src='{offset_plot(cd['_measured'], radius_px)}'></div>")
         fringe_html += "<div class='scroll'>" + page.table(pair_rows, caption="photo vs render, edge by edge") + "</div>"
         rim = cd.get("rim", {})
         fringe_html += page.key_values({"photo rim": rim.get("photo"), "render rim": rim.get("render"),
@@ -571,4 +574,11 @@ def _page(report, inputs: Inputs, photo_display, render_display, exposure, maps,
                             linear={"photo": photo_display, "render": render_display},
                             exposure_ev=float(np.log2(exposure)), maps=map_entries, sections=sections, notes=notes,
                             errors=errors, verdict=(verdict_html(report["verdict"]) if "verdict" in report else "")
-                            + summary_block(report))
+                            + summary_block(report), overlay=_overlay(cd, width, height), overlay_legend=OVERLAY_LEGEND)
+
+
+def _overlay(cd: dict[str, Any], width: int, height: int) -> str:
+    """The fringe overlay's SVG (reports.fringe_overlay), or nothing where the CD was not measured."""
+    if "_measured" not in cd:
+        return ""
+    return overlay_svg(cd["_measured"], cd.get("_band"), cd["rim"]["expected_center_px"], width, height)

@@ -181,6 +181,46 @@ def test_the_run_index_links_every_report_in_chromium(reference: tuple[Path, dic
 
 
 @pytest.mark.slow
+def test_the_fringe_overlay_draws_the_reports_own_edges_in_chromium(reference: tuple[Path, dict, float]) -> None:
+    """Issue 27, item 4, on a page the run wrote: the overlay is hidden until toggled (button, O
+    key); it draws one ring per photo band edge and one dot per predicted one that fringes.csv
+    lists (quality ok, overlap or clipped; hue crossings are not drawn), as many coloured (paired) rings as report.json's
+    photo-render pairs, and at least half of them green exactly when their median offset is
+    within 0.5 px."""
+    import csv
+
+    from reports.fringe_overlay import OFFSET_GOOD_PX, SHOWN_QUALITIES
+    from tests.browser import chromium_page
+
+    out, _, _ = reference
+    folder = out / "report" / "view0"
+    report = json.loads((folder / "report.json").read_text())
+    rows = [r for r in csv.DictReader((folder / "fringes.csv").open()) if r["quality"] in SHOWN_QUALITIES
+            and r["channel"] != "hue" and all(np.isfinite(float(r[k])) for k in ("position", "x", "y"))]  # band edges
+    photo_source = "photo_as_taken" if any(r["source"] == "photo_as_taken" for r in rows) else "photo"
+    pairs = report["cd"]["offsets"]["photo_render"]
+    with chromium_page(folder / "report.html", {"width": 1400, "height": 1000}) as (view, errors, requests):
+        shown = "getComputedStyle(document.getElementById('fringe-overlay')).display"
+        assert view.evaluate(shown) == "none"
+        view.click("#overlay-toggle")
+        assert view.evaluate(shown) != "none" and view.get_attribute("#overlay-toggle", "aria-pressed") == "true"
+
+        def count(selector: str) -> int:
+            return int(view.evaluate(f"document.querySelectorAll('#fringe-overlay {selector}').length"))
+
+        assert count("circle.photo") == sum(r["source"] == photo_source for r in rows) > 0
+        assert count("circle.prediction") == sum(r["source"] == "prediction" for r in rows)
+        paired = count("circle.good") + count("circle.fair") + count("circle.poor")
+        assert paired == pairs["count"] and count("path.render") == pairs["count"]
+        assert (count("circle.good") >= paired / 2) == (pairs["median"] <= OFFSET_GOOD_PX)
+        view.screenshot(path=str(out.parent / "report_overlay.png"))  # the test's artefact, beside RUN
+        view.keyboard.press("o")
+        assert view.evaluate(shown) == "none"
+    assert not errors, errors
+    assert all(url.startswith(("file://", "data:")) for url in requests), requests
+
+
+@pytest.mark.slow
 def test_a_rerun_skips_every_stage(reference: tuple[Path, dict, float], dataset: Path,
                                    capsys: pytest.CaptureFixture[str]) -> None:
     out, _, _ = reference
