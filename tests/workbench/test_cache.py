@@ -105,7 +105,7 @@ def test_renders_from_two_folders_share_one_cache_and_write_no_build_folder(tmp_
         (tmp_path / folder).mkdir()
         monkeypatch.chdir(tmp_path / folder)
         info = render("cornell_cd", "r.exr", spp=4, resolution=(48, 36), progress=False)
-        assert sorted(p.name for p in (tmp_path / folder).iterdir()) == ["r.exr", "r.json", "r.png"]
+        assert sorted(p.name for p in (tmp_path / folder).iterdir()) == ["r.exr", "r.json", "r.png", "r.variance.exr"]
         tables += info["tables"]
     assert len(tables) == 2 and tables[0] == tables[1]
     assert Path(tables[0]).parent == cache.cache_root() / "tables"
