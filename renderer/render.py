@@ -262,14 +262,21 @@ def _read_sidecar(out: Path) -> dict | None:
     return info if isinstance(info, dict) and info.get("format") == SIDECAR_FORMAT else None
 
 
+def described_render(out: str | Path) -> dict | None:
+    """The sidecar of the render at ``out`` if it describes that very EXR (same SHA-256), else None."""
+    out = Path(out)
+    info = _read_sidecar(out)
+    if info is None or not out.is_file() or file_sha256(out) != info.get("output_sha256"):
+        return None
+    return info
+
+
 def _finished_render(out: Path, key: str) -> dict | None:
     """The sidecar of the finished render of this very request at ``out``, if its images are
     all there and the EXR is the one it describes.
     """
-    info = _read_sidecar(out)
+    info = described_render(out)
     if info is None or info.get("request_key") != key or not all(p.is_file() for p in _all_outputs(out, info)):
-        return None
-    if file_sha256(out) != info.get("output_sha256"):
         return None
     return info | {"served": True}
 

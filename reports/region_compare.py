@@ -31,19 +31,17 @@ or above the photo's clip level, are left out.
 
 from __future__ import annotations
 
-import json
 from dataclasses import dataclass
 from pathlib import Path
 
 import cv2
 import numpy as np
 
-from renderer.render import variance_path
+from renderer.render import described_render, variance_path
 from reports.camera_draws import draw_cameras
 from reports.camera_file import exposure_relative_std
 from reports.images import read_linear, region_masks
 from reports.photo_noise import NoiseModel, fit_noise, second_differences
-from workbench.core.files import file_sha256
 
 # Two-sided 5.7e-7 per region under the stated noise (a physicist's five sigma): a report's six to eight regions
 # stay near 4e-6 flagged by chance, with room for the noise estimates' own error (3 degrees of freedom per render
@@ -88,9 +86,8 @@ def _counts(use: np.ndarray, channel: np.ndarray | None) -> np.ndarray:
     return np.array([float((use & (channel == c)).sum()) for c in range(3)])
 
 
-def _local_variance(diff: np.ndarray, use: np.ndarray, channel: np.ndarray | None) -> np.ndarray:
+def _local_variance(squared: np.ndarray, use: np.ndarray, channel: np.ndarray | None) -> np.ndarray:
     """Per channel, the mean squared second difference over ``use`` (photo_noise.second_differences)."""
-    squared = diff**2
     if channel is None:
         parts = [squared[..., c][use & np.isfinite(squared[..., c])] for c in range(3)]
     else:
@@ -98,23 +95,24 @@ def _local_variance(diff: np.ndarray, use: np.ndarray, channel: np.ndarray | Non
     return np.array([p.mean() if len(p) else np.nan for p in parts])
 
 
-def _photo_variance(photo_rgb: np.ndarray, diff: np.ndarray, use: np.ndarray, channel: np.ndarray | None,
-                    noise: NoiseModel | None, n: np.ndarray) -> float:
+def _photo_variance(squared: np.ndarray, sensor_var: np.ndarray | None, use: np.ndarray, channel: np.ndarray | None,
+                    n: np.ndarray) -> float:
     """The variance of the channel sum of the photo's region mean (module docstring)."""
-    local = _local_variance(diff, use, channel) / n
-    model = _sums(noise.variance(photo_rgb), use, channel) / n**2 if noise else np.zeros(3)
+    local = _local_variance(squared, use, channel) / n
+    model = _sums(sensor_var, use, channel) / n**2 if sensor_var is not None else np.zeros(3)
     return float(np.sum(np.fmax(local, model)))
 
 
-def compare_region(photo_rgb: np.ndarray, diff: np.ndarray, render: np.ndarray, render_var: np.ndarray | None,
-                   use: np.ndarray, channel: np.ndarray | None, noise: NoiseModel | None,
+def compare_region(photo_rgb: np.ndarray, squared: np.ndarray, sensor_var: np.ndarray | None, render: np.ndarray,
+                   render_var: np.ndarray | None, use: np.ndarray, channel: np.ndarray | None,
                    exposure_rel_std: float | None) -> dict:
-    """One region's row (module docstring); ``diff``: the photo's second differences."""
+    """One region's row (module docstring); ``squared``: the photo's squared second differences,
+    ``sensor_var``: its sensor model's variance per pixel (None without a model)."""
     n = _counts(use, channel)
     if n.min() < MIN_PIXELS:
         return {"pixels": int(n.sum()), "status": f"fewer than {MIN_PIXELS} usable pixels per channel"}
     photo_mean, render_mean = _sums(photo_rgb, use, channel) / n, _sums(render, use, channel) / n
-    terms = {"photo noise": _photo_variance(photo_rgb, diff, use, channel, noise, n),
+    terms = {"photo noise": _photo_variance(squared, sensor_var, use, channel, n),
              "render noise": float(np.sum(_sums(render_var, use, channel) / n**2)) if render_var is not None else None,
              "exposure": float((exposure_rel_std * render_mean.sum()) ** 2) if exposure_rel_std is not None else None}
     variance = sum(v for v in terms.values() if v is not None)
@@ -136,7 +134,8 @@ def compare_regions(photo_rgb: np.ndarray, clipped: np.ndarray, channel: np.ndar
     if clip_level is not None:
         usable &= render.max(axis=2) < clip_level
     _level, diff, _cut = second_differences(photo_rgb, ~clipped, channel)
-    rows = {name: compare_region(photo_rgb, diff, render, render_var, mask & usable, channel, noise,
+    squared, sensor_var = diff**2, noise.variance(photo_rgb) if noise else None  # once, for every region
+    rows = {name: compare_region(photo_rgb, squared, sensor_var, render, render_var, mask & usable, channel,
                                  inputs.exposure_rel_std)
             for name, mask in inputs.masks.items()}
     return {"regions": rows, "z_consistent": Z_CONSISTENT, "border_px": BORDER_PX, "camera_draws": inputs.camera_draws,
@@ -151,13 +150,10 @@ TRUSTED_SPP = 64  # below it the per-pass variance misses rare paths (the caveat
 
 
 def render_variance(render_path: Path) -> tuple[np.ndarray | None, int | None]:
-    """The render's pass variance (renderer.render.variance_path) and spp, where its sidecar says
-    the variance belongs to this very EXR (same SHA-256); (None, spp or None) otherwise."""
-    try:
-        info = json.loads(render_path.with_suffix(".json").read_text())
-    except (OSError, UnicodeDecodeError, ValueError):
-        return None, None
-    if not isinstance(info, dict) or info.get("output_sha256") != file_sha256(render_path):
+    """The render's pass variance (renderer.render.variance_path) and spp, where its sidecar
+    describes this very EXR (renderer.render.described_render); (None, spp or None) otherwise."""
+    info = described_render(render_path)
+    if info is None:
         return None, None
     spp = info.get("spp") if isinstance(info.get("spp"), int) else None
     variance = variance_path(render_path)
