@@ -12,7 +12,7 @@ BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed
 SOURCES := pyproject.toml CMakeLists.txt $(wildcard rcwa/cpp/*.cpp rcwa/cpp/*.hpp)
 
-.PHONY: install demo verify paper check test test-fast bench clean
+.PHONY: install demo verify paper check test test-fast test-heavy bench clean
 
 install: $(STAMP)
 
@@ -65,10 +65,13 @@ check: install
 	$(BIN)/python -m tests.check_layering
 
 test: install
-	$(BIN)/python -m pytest -q
+	$(BIN)/python -m pytest -q -m "not heavy"
 
 test-fast: install
-	$(BIN)/python -m pytest -q -m "not slow"
+	$(BIN)/python -m pytest -q -m "not slow and not heavy"
+
+test-heavy: install
+	$(BIN)/python -m pytest -q -m heavy
 
 bench: install
 	bash benchmarks/setup_peers.sh

@@ -271,7 +271,7 @@ def _assert_same_calibration(ours: dict, theirs: dict) -> None:
                                atol=SAME_INTRINSICS)  # from the bracket alone: no render, round-off only
 
 
-@pytest.mark.slow
+@pytest.mark.heavy  # 3.5 minutes: a second whole verify run (calibration and scene fit), `make test-heavy`
 def test_a_run_killed_during_calibration_and_rendering_resumes_to_the_same_result(
         reference: tuple[Path, dict, float], dataset: Path, tmp_path: Path) -> None:
     ref, _, _ = reference
