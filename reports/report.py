@@ -49,7 +49,7 @@ import numpy as np
 
 from calibration.decode import is_raw
 from renderer.scene import load_scene
-from reports import fringes, images, metrics, page, polar
+from reports import fringes, image_tiles, images, metrics, page, polar
 from reports.camera_draws import CAMERA_STD_KEYS, draw_cameras
 from reports.camera_file import FittedCamera, check_scene, read_camera, read_response
 from reports.exposure_merge import merge_highlights
@@ -58,7 +58,7 @@ from reports.fringe_plot import BAND_SIGMAS, fringe_plot
 from reports.hue import HUE_LEVELS_NM, find_hue_crossings, hue_scale
 from reports.prediction import CDGeometry, Prediction, cd_bbox, cd_geometry, predict
 from reports.region_compare import region_test
-from reports.report_summary import calibration_table, region_test_html, summary_block
+from reports.report_summary import ERROR_TIPS, FRINGE_TIPS, calibration_table, region_test_html, summary_block
 from reports.rim import Rim, fit_rim
 from reports.run_index import thumbnail_png
 from reports.verdict_block import report_verdict, verdict_html
@@ -506,7 +506,9 @@ def build_report(inputs: Inputs) -> dict[str, Any]:
 
     inputs.out.mkdir(parents=True, exist_ok=True)
     atomic_write_text(inputs.out / "fringes.csv", _csv_text(edge_rows))
-    html_text = _page(report, inputs, photo_display, render_display, exposure, maps, limits, masks, cd, pair_rows,
+    tiles = image_tiles.pyramid({"photo": photo_display, "render": render_display})
+    report["display"]["tiles"] = {key: value for key, value in tiles.items() if key != "tiles"}  # levels, codecs, quality
+    html_text = _page(report, inputs, tiles, exposure, maps, limits, masks, cd, pair_rows,
                       study_sections)
     report["html_bytes"] = len(html_text.encode("utf-8"))
     clean = _clean(report)
@@ -516,12 +518,12 @@ def build_report(inputs: Inputs) -> dict[str, Any]:
     return clean
 
 
-def _page(report, inputs: Inputs, photo_display, render_display, exposure, maps, limits, masks, cd, pair_rows,
+def _page(report, inputs: Inputs, tiles, exposure, maps, limits, masks, cd, pair_rows,
           study_sections) -> str:
-    height, width = photo_display.shape[:2]
+    width, height = tiles["levels"][0]["width"], tiles["levels"][0]["height"]
     map_entries = {}
-    for name, values in maps.items():
-        map_entries[name] = {"uri": page.png_data_uri(page.false_colour(values, limits[name])),
+    for name, values in maps.items():  # at the overview's resolution: a 24 MP photo's maps stay small
+        map_entries[name] = {"uri": page.png_data_uri(page.false_colour(image_tiles.overview_of(values), limits[name])),
                              "legend": f"0 to {limits[name]:g} ({'photo / render - 1' if name == 'relative error' else name})"}
     sections: list[tuple[str, str]] = []
     fo = report["fringe_offset_px"]
@@ -536,7 +538,8 @@ def _page(report, inputs: Inputs, photo_display, render_display, exposure, maps,
     fringe_html = page.table(summary_rows, caption=f"band-edge offsets (fringe_offset_px: median "
                                                    f"{page.format_number(fo.get('median'), 3)} px, p95 "
                                                    f"{page.format_number(fo.get('p95'), 3)} px, {fo.get('count')} edges); "
-                                                   f"hue crossings (equivalent wavelength {page.format_value(levels)} nm)")
+                                                   f"hue crossings (equivalent wavelength {page.format_value(levels)} nm)",
+                             tips=FRINGE_TIPS)
     if "_measured" in cd:
         radius_px = cd["_radius_px"]
         plot = fringe_plot(cd["_measured"], radius_px, cd.get("_band"))
@@ -560,7 +563,7 @@ def _page(report, inputs: Inputs, photo_display, render_display, exposure, maps,
             row[f"{metric} median"] = stats.get("median", float("nan"))
             row[f"{metric} p95"] = stats.get("p95", float("nan"))
         region_rows.append(row)
-    sections.append(("error per region", page.table(region_rows)))
+    sections.append(("error per region", page.table(region_rows, tips=ERROR_TIPS)))
     sections.append(("photo against render per region, at the calibrated exposure", region_test_html(report["region_test"])))
     sections.append(("calibration (the fitted camera)", calibration_table(report["calibration"])))
     sections.append(("inputs", page.key_values({"photo": report["photo"], "render": report["render"],
@@ -570,11 +573,10 @@ def _page(report, inputs: Inputs, photo_display, render_display, exposure, maps,
     sections += study_sections
     title = f"report: {report['scene']} - {Path(report['photo']).name} vs {Path(report['render']).name}"
     errors, notes = report["problems"], report["messages"]
-    return page.render_page(title=title, width=width, height=height,
-                            linear={"photo": photo_display, "render": render_display},
-                            exposure_ev=float(np.log2(exposure)), maps=map_entries, sections=sections, notes=notes,
-                            errors=errors, verdict=(verdict_html(report["verdict"]) if "verdict" in report else "")
-                            + summary_block(report), overlay=_overlay(cd, width, height), overlay_legend=OVERLAY_LEGEND)
+    verdict = (verdict_html(report["verdict"]) if "verdict" in report else "") + summary_block(report)
+    return page.render_page(title=title, pyramid=tiles, exposure_ev=float(np.log2(exposure)), maps=map_entries,
+                            sections=sections, notes=notes, errors=errors, verdict=verdict,
+                            overlay=_overlay(cd, width, height), overlay_legend=OVERLAY_LEGEND)
 
 
 def _overlay(cd: dict[str, Any], width: int, height: int) -> str:

@@ -14,6 +14,32 @@ CALIBRATION_ROWS = (("fx", "px", "fx"), ("fy", "px", "fy"), ("cx", "px", "cx"), 
                     ("fov_x_deg", "deg", None), ("position_m", "m", "translation_m"))
 
 
+SUMMARY_TIPS = {
+    "photo vs render band edges": "each band edge of the photo (a half-maximum crossing along the CD's polar grids) "
+                                  "paired with the render's; median and 95th percentile of |photo - render| in pixels",
+    "the prediction's edges from the camera's uncertainty": "the grating equation's prediction redrawn with cameras "
+                                                            "drawn from the calibration's standard deviations: how far "
+                                                            "each band edge moves (RMS over the draws)",
+    "fitted camera": "calibration.json's camera with one standard deviation from its fit",
+    "worst region (relative error, median)": "the region with the largest median |photo / render - 1| after the one "
+                                             "photometric scale (table: error per region)",
+    "regions at the calibrated exposure": "regions whose photo and render means agree within the z bound, from the "
+                                          "photo's, the render's and the exposure's noise (table below)",
+}
+CALIBRATION_TIPS = {"value": "as fitted (calibration.json)", "std": "one standard deviation from the calibration's fit",
+                    "quantity": "fx, fy: focal lengths; cx, cy: principal point; position: the camera centre in the "
+                                "scene's frame; dist: OpenCV's distortion coefficients"}
+FRINGE_TIPS = {"median px": "median |offset| over the paired band edges, in pixels",
+               "p95 px": "95th percentile of |offset|", "edges": "paired edges measured",
+               "comparison": "which two images' band edges (or hue crossings) are paired"}
+ERROR_TIPS = {"relative error median": "median over the region of |photo / render - 1| (channel sums, after the "
+                                       "photometric scale)",
+              "CIEDE2000 median": "median colour difference Delta E 2000 of the display images (1 is about one just "
+                                  "noticeable difference)",
+              "FLIP median": "median of NVIDIA's FLIP perceptual difference (0 same, 1 most different)",
+              "pixels": "pixels of the region in the image"}
+
+
 def summary_block(report: dict[str, Any]) -> str:
     """The page's first block after the verdict: the fringe offsets against the prediction's
     camera uncertainty, the fitted camera with its standard deviations, the worst region."""
@@ -43,7 +69,7 @@ def summary_block(report: dict[str, Any]) -> str:
         rows["regions at the calibrated exposure"] = (
             f"{len(compared) - len(flagged)} of {len(compared)} consistent (|z| <= "
             f"{fmt(report['region_test']['z_consistent'], 2)})" + ("; not: " + ", ".join(flagged) if flagged else ""))
-    return "<section id='summary'>" + page.key_values(rows) + "</section>"
+    return "<section id='summary'>" + page.key_values(rows, tips=SUMMARY_TIPS) + "</section>"
 
 
 def calibration_table(summary: dict[str, Any]) -> str:
@@ -55,7 +81,8 @@ def calibration_table(summary: dict[str, Any]) -> str:
     rows.append({"quantity": "rotation", "value": None, "std": std.get("rotation_deg"), "unit": "deg"})
     rows.append({"quantity": "dist (k1, k2, p1, p2, k3)", "value": summary.get("dist"), "std": None, "unit": ""})
     where = {k: summary.get(k) for k in ("source", "pose_of", "scene", "width", "height")}
-    return page.table(rows, caption="the fitted camera; std from the calibration") + page.key_values(where)
+    return (page.table(rows, caption="the fitted camera; std from the calibration", tips=CALIBRATION_TIPS)
+            + page.key_values(where))
 
 
 REGION_TEST_TIPS = {

@@ -9,7 +9,7 @@ Makefile's install rule (Playwright's own browser download is not available here
 import numpy as np
 import pytest
 
-from reports import page
+from reports import image_tiles, page
 from tests.browser import chromium_page
 
 WIDTH, HEIGHT = 96, 72
@@ -26,7 +26,7 @@ def _page_html(tmp_path, title="scene <script>alert(1)</script>"):
     maps = {"relative error": {"uri": page.png_data_uri(page.false_colour(error, 1.0)), "legend": "0 to 1"},
             "<b>bold</b>": {"uri": page.png_data_uri(page.false_colour(error, 0.5)), "legend": "0 to 0.5"}}
     sections = [("a table <script>", page.table([{"name": "<script>alert(2)</script>", "value": 1.5}]))]
-    text = page.render_page(title=title, width=WIDTH, height=HEIGHT, linear={"photo": photo, "render": render},
+    text = page.render_page(title=title, pyramid=image_tiles.pyramid({"photo": photo, "render": render}),
                             exposure_ev=0.0, maps=maps, sections=sections, notes=["note <img src=x onerror=alert(3)>"],
                             errors=[])
     path = tmp_path / "report.html"
@@ -57,6 +57,7 @@ def test_page_in_chromium(tmp_path):
         assert "<script>alert(1)</script>" in view.inner_text("h1")
 
         def pixels():
+            view.wait_for_function("window.reportViewer.settled()")
             return np.array(view.evaluate(
                 "Array.from(document.getElementById('ab-canvas').getContext('2d')"
                 f".getImageData(0, 0, {WIDTH}, {HEIGHT}).data)"), dtype=int).reshape(HEIGHT, WIDTH, 4)
