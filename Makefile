@@ -85,6 +85,7 @@ bench: install
 	$(BIN)/python -m benchmarks.bench_corners
 	$(BIN)/python -m benchmarks.bench_calibration
 	$(BIN)/python -m benchmarks.bench_report
+	$(BIN)/python -m benchmarks.bench_large_photo
 	$(BIN)/python -m benchmarks.bench_plan
 	$(BIN)/python -m benchmarks.bench_scene_fit --rerender
 

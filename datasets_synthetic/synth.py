@@ -91,6 +91,8 @@ from workbench.core.version import versions
 PRESETS = {
     "draft": {"resolution": (640, 480), "spp": 64, "views": 2, "calibration_views": 20, "calibration_spp": 16},
     "full": {"resolution": (978, 734), "spp": 512, "views": 3, "calibration_views": 15, "calibration_spp": 64},
+    # a 24-megapixel photo for the report's page of a large photo (issue 27); noisy, few boards: not for accuracy
+    "large": {"resolution": (6000, 4000), "spp": 2, "views": 1, "calibration_views": 4, "calibration_spp": 1},
 }
 BRACKET_EV = (-2, -1, 0, 1, 2)  # view0 re-exposed, 1 EV apart, RAW+JPEG: the response curve's bracket
 HIGHLIGHT_EV = (-4, -6)  # darker frames of view0 for the CD's first orders (30-60x the walls' level: clipped at ev-2);

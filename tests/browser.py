@@ -33,3 +33,14 @@ def chromium_page(path: Path, viewport: dict[str, int]) -> Iterator[tuple[Any, l
             yield view, errors, requests
         finally:
             browser.close()
+
+
+def wait_until(view: Any, expression: str, timeout_s: float = 60.0) -> None:
+    """Poll ``expression`` in the page until it is true. (Playwright's wait_for_function would
+    compile it inside the page, which the report's Content-Security-Policy refuses: no eval.)
+    The timeout only ends a hung page; nothing is judged by the time taken."""
+    waited = 0.0
+    while not view.evaluate(expression):
+        assert waited < timeout_s, f"the page never met {expression!r} ({timeout_s:g} s)"
+        view.wait_for_timeout(50)
+        waited += 0.05

@@ -16,7 +16,7 @@ import pytest
 from PIL import Image
 
 from reports import image_tiles, page
-from tests.browser import chromium_page
+from tests.browser import chromium_page, wait_until
 
 
 def _scene(height: int, width: int, seed: int = 0) -> np.ndarray:
@@ -78,11 +78,11 @@ def test_chromium_draws_every_level_of_a_large_photo(tmp_path):
     path.write_text(page.render_page(title="large", pyramid=pyramid, exposure_ev=0.0, maps={}, sections=[],
                                      notes=[], errors=[]))
     with chromium_page(path, {"width": 1100, "height": 900}) as (view, errors, requests):
-        view.wait_for_function("window.reportViewer.settled()")
+        wait_until(view, "window.reportViewer.settled()")
         fit = view.evaluate("window.reportState.zoom")
         assert fit == pytest.approx(min(page.MAX_VIEW[0] / width, page.MAX_VIEW[1] / height))
         view.click("#zoom-reset")
-        view.wait_for_function("window.reportViewer.settled()")
+        wait_until(view, "window.reportViewer.settled()")
         state = view.evaluate("({zoom: reportState.zoom, x: reportState.x, y: reportState.y})")
         assert state["zoom"] == 1
         w, h = view.evaluate("[document.getElementById('ab-canvas').width, document.getElementById('ab-canvas').height]")

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from reports import image_tiles, page
-from tests.browser import chromium_page
+from tests.browser import chromium_page, wait_until
 
 WIDTH, HEIGHT = 96, 72
 PIXEL_CHANGE = 8  # 8-bit levels: a flip or an exposure step must change the canvas by more than this somewhere
@@ -57,7 +57,7 @@ def test_page_in_chromium(tmp_path):
         assert "<script>alert(1)</script>" in view.inner_text("h1")
 
         def pixels():
-            view.wait_for_function("window.reportViewer.settled()")
+            wait_until(view, "window.reportViewer.settled()")
             return np.array(view.evaluate(
                 "Array.from(document.getElementById('ab-canvas').getContext('2d')"
                 f".getImageData(0, 0, {WIDTH}, {HEIGHT}).data)"), dtype=int).reshape(HEIGHT, WIDTH, 4)

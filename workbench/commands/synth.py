@@ -18,9 +18,10 @@ def add_parser(commands: argparse._SubParsersAction) -> None:
                        help="the dataset folder (photos/, brackets/, calibration/, truth.json)")
     synth.add_argument("--seed", type=count_argument(0, SEED_MAX), default=0,
                        help="seed of the hidden camera and the noise: same seed, same bytes")
-    synth.add_argument("--preset", choices=["draft", "full"], default="draft",
+    synth.add_argument("--preset", choices=["draft", "full", "large"], default="draft",
                        help="draft: 640 x 480, 2 views, 20 board views (about a minute); "
-                            "full: 978 x 734, 3 views (about 14 minutes)")
+                            "full: 978 x 734, 3 views (about 14 minutes); large: one 6000 x 4000 view at 2 spp and "
+                            "4 board views at 1 spp, for reports of large photos (about 5 minutes)")
     synth.add_argument("--force", action="store_true", help="replace an existing dataset in DIR")
     add_cache_option(synth)
 
