@@ -353,14 +353,13 @@ def render_page(*, title: str, pyramid: dict, exposure_ev: float,
     map_sources = "".join(f"<img id='map-src-{html.escape(name)}' src='{m['uri']}' alt='{html.escape(name)}' hidden>"
                           for name, m in maps.items())
     options = "".join(f"<option value='{html.escape(name)}'>{html.escape(name)}</option>" for name in maps)
-    first_map = next(iter(maps.values()))["uri"] if maps else ""
     viewport = f"class='viewport' style='width:{view_w}px;height:{view_h}px'"
     stage = f"class='stage' style='width:{width}px;height:{height}px'"
     map_panel = (f"""<div class="panel"><div class="title">error map:
       <select id="map-select">{options}</select> <span id="map-legend"></span>
       <span class="legend"><img alt="colour scale" src="{legend_data_uri()}"></span></div>
       <div {viewport}><div {stage}>
-      <img id="map-img" alt="error map" src="{first_map}" width="{width}" height="{height}"></div></div></div>"""
+      <img id="map-img" alt="error map" width="{width}" height="{height}"></div></div></div>"""
                  if maps else "")
     note_html = "".join(f"<div class='note'>{html.escape(n)}</div>" for n in notes)
     error_html = "".join(f"<div class='error'>{html.escape(e)}</div>" for e in errors)
