@@ -35,7 +35,6 @@ are reported on the page and in report.json under ``messages``.
 
 from __future__ import annotations
 
-import base64
 import csv
 import dataclasses
 import io
@@ -61,6 +60,7 @@ from reports.region_compare import region_test
 from reports.report_summary import ERROR_TIPS, FRINGE_TIPS, calibration_table, region_test_html, summary_block
 from reports.rim import Rim, fit_rim
 from reports.run_index import thumbnail_png
+from reports.study_figures import study_sections as study_sections_of
 from reports.verdict_block import report_verdict, verdict_html
 from workbench.core.errors import UserInputError
 from workbench.core.files import atomic_write_text
@@ -358,22 +358,6 @@ def _clean(value: Any) -> Any:
     return value
 
 
-def _studies(paths: tuple[Path, ...]) -> list[tuple[str, str]]:
-    """Accuracy-versus-time figures written by ``workbench study`` (their PNGs, embedded)."""
-    sections = []
-    for folder in paths:
-        if not folder.is_dir():
-            raise UserInputError("no such folder", field="--study", got=str(folder))
-        figures = sorted(folder.glob("study_*.png"))
-        if not figures:
-            raise UserInputError("holds no study figure (study_*.png)", field="--study", got=str(folder))
-        for figure in figures:
-            uri = "data:image/png;base64," + base64.b64encode(figure.read_bytes()).decode("ascii")
-            sections.append((f"study: {figure.name}", f"<img alt='{page.html.escape(figure.name)}' src='{uri}' "
-                                                      f"style='max-width:900px'>"))
-    return sections
-
-
 def _photo(inputs: Inputs, messages: list[str]) -> tuple[images.Photo, images.Photo]:
     """The report's photo, filled from its bracket (read_merged_photo)."""
     return read_merged_photo(inputs.photo, inputs.calibration, inputs.brackets, inputs.brackets_strict, messages)
@@ -470,7 +454,7 @@ def build_report(inputs: Inputs) -> dict[str, Any]:
     photo, as_taken = _photo(inputs, messages)
     render = images.read_linear(inputs.render, "--render")
     _check_sizes(photo.rgb, render, fitted, inputs)
-    study_sections = _studies(inputs.studies)
+    study_sections = study_sections_of(inputs.studies)
     masks = images.region_masks(spec)
     scale, wall_pixels = images.photometric_scale(photo.rgb, render, masks, photo.clipped)
     aligned = render * scale

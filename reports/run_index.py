@@ -3,7 +3,8 @@
 First the scene fit's verdict (reports.verdict_block, the block each report opens with);
 then a table with one row per photo: a thumbnail linking to that photo's report, the
 report's verdict, the calibration's pose residual, the photo-vs-render band-edge offsets
-(median, 95th percentile, count) and the report's problems; then the stages (time, or
+(median, 95th percentile, count) and the report's problems; the accuracy-versus-time
+figures of the run's ``--study`` folders (reports.study_figures); then the stages (time, or
 skipped as unchanged), the run's settings and versions. Self-contained like the reports:
 the thumbnails are data: URIs (each report writes ``thumbnail.png`` beside report.json),
 the links relative paths inside RUN, and every text from a file goes through html.escape
@@ -22,6 +23,7 @@ import numpy as np
 from PIL import Image
 
 from reports import page
+from reports.study_figures import study_sections
 from reports.verdict_block import verdict_html
 from workbench.core.files import atomic_write_text
 
@@ -85,6 +87,12 @@ def _stages(record: dict[str, Any]) -> str:
     return page.table(rows)
 
 
+def _studies(record: dict[str, Any]) -> str:
+    """The accuracy-versus-time figures of the run's `--study` folders (none: nothing)."""
+    folders = tuple(Path(folder) for folder in record.get("settings", {}).get("studies", []))
+    return "".join(f"<h2>{html.escape(heading)}</h2>{figure}" for heading, figure in study_sections(folders))
+
+
 def index_html(root: Path, record: dict[str, Any]) -> str:
     """The page's HTML for the run in ``root`` whose run.json content is ``record``."""
     fit_file = root / "fit" / "scene_fit.json"
@@ -106,6 +114,7 @@ def index_html(root: Path, record: dict[str, Any]) -> str:
 scene {html.escape(str(identity.get('scene', '')))}</p>
 {verdict}{notes}
 <h2>photos</h2>{photo_rows(root, record)}
+{_studies(record)}
 <h2>stages</h2>{_stages(record)}
 <h2>settings</h2>{page.key_values(record.get('settings', {}))}
 <h2>versions</h2>{page.key_values(record.get('versions', {}))}

@@ -72,6 +72,7 @@ from reports.report import Inputs, build_report
 from reports.run_index import write_run_index
 from reports.scene_fit_job import FitInputs, run_fit
 from reports.scene_fit_outputs import write_fitted_scene
+from reports.study_figures import study_figures
 from workbench.core.errors import UserInputError
 from workbench.core.executor import DaskExecutor
 from workbench.core.files import atomic_write_text
@@ -328,13 +329,16 @@ def _stage_report(run: Run) -> dict:
     brackets = _bracket_frames(run.dataset)
     inputs = ({f"photos/{p.name}": p for p in run.photos} | {f"render/{k}.exr": p for k, p in renders.items()}
               | {f"brackets/{p.name}": p for p in brackets} | {"calibration.json": calibration, "scene.toml": run.scene}
-              | ({"scene_fit.json": scene_fit} if scene_fit is not None else {}))
+              | ({"scene_fit.json": scene_fit} if scene_fit is not None else {})
+              | {f"studies/{k}/{f.name}": f for k, folder in enumerate(run.settings.study_folders)
+                 for f in study_figures((folder,))})
 
     def one(photo: Path, render_path: Path, scene: Path, out: Path, before: dict | None = None) -> dict[str, Any]:
         if (out / "report.html").is_file():  # finished by a killed run with these inputs (written after report.json)
             return json.loads((out / "report.json").read_text())
         return build_report(Inputs(photo, render_path, calibration, str(scene), out, brackets=brackets,
-                                   brackets_strict=False, scene_fit=scene_fit, offsets_nominal_scene=before))
+                                   brackets_strict=False, scene_fit=scene_fit, offsets_nominal_scene=before,
+                                   studies=run.settings.study_folders))
 
     def work(folder: Path) -> dict[str, Any]:
         reports = {}
@@ -377,6 +381,7 @@ def verify(dataset: str | Path, scene: str | Path, out: str | Path, settings: Ve
     dataset, root = Path(dataset), Path(out)
     spec = load_scene(scene)
     photos = _selected_photos(dataset, settings.photos)
+    study_figures(settings.study_folders)  # a missing folder or one without figures is refused before anything runs
     size = _check_sizes(dataset, spec.source, (spec.camera.model.width, spec.camera.model.height))
     identity = {"dataset": str(dataset.resolve()), "scene": str(scene)}
     with run_lock(root):

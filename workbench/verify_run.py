@@ -51,8 +51,13 @@ class VerifySettings:
     photos: tuple[str, ...] = ()  # photo file names to render and report (default: every photo)
     board: tuple[int, int] | None = None  # checkerboard inner corners (default: calibration's)
     square_mm: float | None = None
+    studies: tuple[str, ...] = ()  # `workbench study` folders whose figures each report and the index show
     scheduler: str | None = field(default=None, compare=False)
     progress: bool = field(default=True, compare=False)
+
+    @property
+    def study_folders(self) -> tuple[Path, ...]:
+        return tuple(Path(folder) for folder in self.studies)
 
     @property
     def render_spp(self) -> int:
@@ -61,6 +66,7 @@ class VerifySettings:
     def to_json(self) -> dict[str, Any]:
         data = asdict(self)
         data["photos"], data["board"] = list(self.photos), list(self.board) if self.board else None
+        data["studies"] = list(self.studies)
         return data | {"render_spp": self.render_spp, "table_preset": PRESETS[self.preset]["tables"]}
 
 

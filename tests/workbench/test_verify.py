@@ -180,6 +180,44 @@ def test_the_run_index_links_every_report_in_chromium(reference: tuple[Path, dic
     assert (out.parent / "index_page.png").stat().st_size > 1000
 
 
+@pytest.mark.heavy  # 2-3 minutes: a whole verify run of three photos, `make test-heavy`
+def test_a_run_of_three_photos_indexes_three_reports(dataset: Path, tmp_path: Path) -> None:
+    """Issue 27: a dataset of three photos, the draft's two views and view0 taken again 1 EV
+    darker (synth's own bracket frame, copied into photos/), verified as a user would with a
+    study's folder: RUN/index.html has one row per photo, each row's link opens that photo's
+    report in chromium, and the index and every report show the study's figure."""
+    import shutil
+
+    from renderer.render_study import RenderStudyConfig, run_render_study
+    from tests.browser import chromium_page
+
+    three = tmp_path / "dataset"
+    shutil.copytree(dataset, three)
+    shutil.copy(dataset / "brackets" / "ev-1.dng", three / "photos" / "view0_ev-1.dng")
+    study = tmp_path / "study"  # a small `workbench study render`: its figure goes into the reports and the index
+    run_render_study("cornell_cd", study, RenderStudyConfig(resolution=(80, 60), spp_steps=(8, 32), reference_spp=64,
+                                                            deltas=(0.4,), delta_spp=16, furnace_samples=10_000),
+                     progress=False)
+    out = tmp_path / "run"
+    record = verify(three, "cornell_cd", out, VerifySettings(spp=SPP, progress=False, studies=(str(study),)))
+    index = Path(record["summary"]["index"])
+    with chromium_page(index, {"width": 1200, "height": 900}) as (view, errors, requests):
+        assert view.evaluate("Array.from(document.querySelectorAll('img.study'))"
+                             ".filter(i => i.complete && i.naturalWidth > 0).length") == 1
+        rows = view.evaluate("Array.from(document.querySelectorAll('#photos tbody tr')).map(r => ({"
+                             "href: r.querySelector('a').getAttribute('href'), name: r.querySelector('td').innerText.trim()}))")
+        assert sorted(r["name"] for r in rows) == ["view0.dng", "view0_ev-1.dng", "view1.dng"]
+        for number, row in enumerate(rows, start=1):
+            view.goto(index.as_uri())
+            view.click(f"#photos tbody tr:nth-child({number}) a")
+            view.wait_for_load_state("load")
+            assert view.url == (out / row["href"]).as_uri() and (out / row["href"]).is_file()
+            assert Path(row["name"]).stem in view.inner_text("h1")
+            assert view.evaluate("document.querySelectorAll('img.study').length") == 1
+    assert not errors, errors
+    assert all(url.startswith(("file://", "data:")) for url in requests), requests
+
+
 @pytest.mark.slow
 def test_the_fringe_overlay_draws_the_reports_own_edges_in_chromium(reference: tuple[Path, dict, float]) -> None:
     """Issue 27, item 4, on a page the run wrote: the overlay is hidden until toggled (button, O
@@ -348,6 +386,16 @@ def test_a_dataset_without_photos_is_refused(tmp_path: Path, capsys: pytest.Capt
     (tmp_path / "data" / "photos").mkdir(parents=True)
     err = _error(["verify", str(tmp_path / "data"), "--scene", "cornell_cd", "--out", str(tmp_path / "run")], capsys)
     assert str(tmp_path / "data" / "photos") in err and "no photos" in err
+    assert not (tmp_path / "run").exists()  # refused before anything was written
+
+
+def test_a_study_folder_without_figures_is_refused(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    data = _fake_dataset(tmp_path / "data")
+    (tmp_path / "study").mkdir()
+    (tmp_path / "study" / "notes.txt").write_text("not a figure")
+    err = _error(["verify", str(data), "--scene", "cornell_cd", "--out", str(tmp_path / "run"), "--study",
+                  str(tmp_path / "study")], capsys)
+    assert "--study" in err and str(tmp_path / "study") in err and "study_*.png" in err
     assert not (tmp_path / "run").exists()  # refused before anything was written
 
 

@@ -9,6 +9,7 @@ The run itself, its stages and their folders: workbench/verify.py.
 from __future__ import annotations
 
 import argparse
+from pathlib import Path
 
 from workbench.commands.arguments import SEED_MAX, board_argument, count_argument, positive_number
 from workbench.commands.cache import add_cache_option
@@ -37,6 +38,9 @@ def add_parser(commands: argparse._SubParsersAction) -> None:
                         help="inner corners of the checkerboard in calibration/ (default: calibrate DATASET's)")
     verify.add_argument("--square-mm", type=positive_number(float), metavar="S",
                         help="the board's square size (default: calibrate DATASET's)")
+    verify.add_argument("--study", action="append", default=[], metavar="DIR",
+                        help="a `workbench study` folder: its accuracy-versus-time figures go into each report and the "
+                             "run's index (repeatable)")
     verify.add_argument("--scheduler", metavar="ADDRESS",
                         help="build table chunks and render passes on this dask.distributed scheduler (default: in this process)")
     verify.add_argument("--force", action="store_true", help="replace another run (or write beside other files) in RUN")
@@ -49,6 +53,7 @@ def run(args: argparse.Namespace) -> int:
 
     settings = VerifySettings(preset=args.preset, spp=args.spp, seed=args.seed, photos=tuple(args.photo),
                               board=args.board, square_mm=args.square_mm, scheduler=args.scheduler,
+                              studies=tuple(str(Path(d).resolve()) for d in args.study),
                               progress=not args.quiet)
     record = verify(args.dataset, args.scene, args.out, settings, force=args.force)
     print(format_summary(record))
