@@ -111,7 +111,8 @@ def lossy_quality(levels: dict[str, list[np.ndarray]], code: LogCode, budget: in
     from up to SAMPLE_TILES full-resolution tiles per image (noise, which costs most, is finest
     there, so the estimate errs high); the lowest where none fits."""
     lossy_pixels = sum(level.shape[0] * level.shape[1] for stack in levels.values() for level in stack[:-1])
-    samples = [t for stack in levels.values() for t in _tiles(stack[0])[:: max(1, len(_tiles(stack[0])) // SAMPLE_TILES)]]
+    finest = [_tiles(stack[0]) for stack in levels.values()]
+    samples = [t for tiles in finest for t in tiles[:: max(1, len(tiles) // SAMPLE_TILES)]]
     sampled_pixels = sum(t.shape[0] * t.shape[1] for t in samples)
     for quality in JPEG_QUALITIES:
         characters = sum(len(_lossy(t, code, quality)) for t in samples)
