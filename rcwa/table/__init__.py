@@ -13,7 +13,9 @@ One job per module:
 * ``compute``: one chunk (one wavelength) of efficiencies, by rcwa.sweep;
 * ``store``: the zarr store on disk, built, resumed and repaired under the table's lock
   (build_table);
-* ``reader``: a finished table opened and verified (open_table, Table).
+* ``reader``: a finished table opened and verified (open_table, Table);
+* ``truncation``: the table's own truncation error, sampled per wavelength
+  (estimate_truncation; truncation_summary, what ``workbench rcwa info`` prints).
 """
 
 from rcwa.table.compute import compute_chunk, flipped
@@ -38,10 +40,13 @@ from rcwa.table.settings import (
     transmits,
 )
 from rcwa.table.store import ARRAY_NAMES, PLANNED_NODES, TABLE_FILES, BuildReport, build_table
+from rcwa.table.truncation import estimate_truncation, format_summary, lower_orders, sample_nodes
+from rcwa.table.truncation import summary as truncation_summary
 
 __all__ = [
     "ARRAY_NAMES", "FORMAT_VERSION", "GRAZING_THETA_DEG", "PLANNED_NODES", "POLARIZATIONS", "PRESETS", "TABLE_FILES",
     "BuildReport", "NodePlan", "Table", "TableSettings", "angle_grid", "build_table", "check_materials",
-    "compute_chunk", "flipped", "kept_indices", "open_table", "parse_wavelengths", "planned", "pol_names",
-    "read_table_metadata", "request_key", "settings_for", "symmetry_for", "table_symmetry", "transmits",
+    "compute_chunk", "estimate_truncation", "flipped", "format_summary", "kept_indices", "lower_orders", "open_table",
+    "parse_wavelengths", "planned", "pol_names", "read_table_metadata", "request_key", "sample_nodes", "settings_for",
+    "symmetry_for", "table_symmetry", "transmits", "truncation_summary",
 ]

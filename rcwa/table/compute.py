@@ -24,26 +24,44 @@ def compute_chunk(structure: Structure, settings: TableSettings, wavelength_nm: 
     ``mask`` (theta, phi) of a planned table: the nodes solved with the table's orders;
     the rest with ``settings.fill_orders``.
     """
-    theta = np.array([min(t, GRAZING_THETA_DEG) for t in settings.theta_deg])
-    th, ph = np.meshgrid(theta, np.array(settings.phi_deg), indexing="ij")
+    th, ph = np.meshgrid(clamped(settings.theta_deg), np.array(settings.phi_deg), indexing="ij")
     exact = np.ones(th.size, bool) if mask is None else np.asarray(mask, bool).ravel()
     groups = [(exact, settings.orders), (~exact, settings.fill_orders or settings.orders)]
+    values: dict[str, np.ndarray] = {}
+    counts = np.zeros(3, int)
+    for nodes, orders in groups:
+        if not nodes.any():
+            continue
+        part, done = solve_directions(structure, settings, wavelength_nm, th.ravel()[nodes], ph.ravel()[nodes], orders,
+                                      settings.factorization, threads)
+        counts += done
+        for name, array in part.items():
+            values.setdefault(name, np.empty((th.size,) + array.shape[1:], np.float32))[nodes] = array
+    out = {name: whole.reshape(th.shape + whole.shape[1:]) for name, whole in values.items()}
+    return out, (int(counts[0]), int(counts[1]), int(counts[2]))
+
+
+def clamped(theta_deg) -> np.ndarray:
+    """The polar angles solved for a table's: theta = 90 deg at GRAZING_THETA_DEG."""
+    return np.array([min(t, GRAZING_THETA_DEG) for t in theta_deg])
+
+
+def solve_directions(structure: Structure, settings: TableSettings, wavelength_nm: float, theta_deg: np.ndarray,
+                     phi_deg: np.ndarray, orders: tuple[int, ...], factorization: str,
+                     threads: int) -> tuple[dict[str, np.ndarray], tuple[int, int, int]]:
+    """The table's arrays (its sides, its polarizations, float32) at the P directions given,
+    solved with ``orders`` and ``factorization`` in one sweep per side (rcwa.sweep):
+    name -> (P, kept order, pol); and the sweeps' counts as compute_chunk's."""
     out, solves, refined, sectors = {}, 0, 0, 0
     sides = [("", structure)] + ([("_below", flipped(structure))] if settings.both_sides else [])
     for suffix, s in sides:
-        values: dict[str, np.ndarray] = {}
-        for nodes, orders in groups:
-            if not nodes.any():
-                continue
-            sw = sweep_directions(s, wavelength_nm, th.ravel()[nodes], ph.ravel()[nodes], orders, keep=settings.keep,
-                                  factorization=settings.factorization, threads=threads)
-            solves, refined, sectors = solves + sw.eigen_solves, refined + sw.eigen_refined, sectors + sw.sector_points
-            for name, part in (("R", sw.R), ("T", sw.T)):
-                values.setdefault(name, np.empty((th.size,) + part.shape[1:]))[nodes] = part
-        for name, whole in values.items():
+        sw = sweep_directions(s, wavelength_nm, theta_deg, phi_deg, orders, keep=settings.keep,
+                              factorization=factorization, threads=threads)
+        solves, refined, sectors = solves + sw.eigen_solves, refined + sw.eigen_refined, sectors + sw.sector_points
+        for name, whole in (("R", sw.R), ("T", sw.T)):
             if name == "T" and (settings.reflection_only or not transmits(s, settings)):
                 continue
-            out[name + suffix] = _select_pol(whole, settings.pol).reshape(th.shape + (whole.shape[1], -1)).astype(np.float32)
+            out[name + suffix] = _select_pol(whole, settings.pol).astype(np.float32)
     return out, (solves, refined, sectors)
 
 

@@ -13,6 +13,13 @@ before anything is written; a build that fails before finishing a chunk removes 
 created; ``force`` replaces only a table (a folder holding nothing but a table's files),
 never anything else. A build holds the table's file lock (workbench.core.cache), so a
 second process asking for the same table waits and then reuses it.
+
+Truncation error (rcwa.table.truncation): each chunk's record (a few nodes solved again at
+a lower truncation and, in 2D, with the other factorization rule) is computed with the
+chunk and checkpointed in the same progress.json entry, so a resumed build keeps the
+finished chunks' records; chunks finished by a build from before records existed get
+theirs when the build resumes. A finished table holds them all in ``truncation_error``
+(by chunk index); a table finished before lacks it (read as not recorded).
 """
 
 from __future__ import annotations
@@ -43,6 +50,7 @@ from rcwa.table.settings import (
     symmetry_for,
     transmits,
 )
+from rcwa.table.truncation import estimate_truncation
 from workbench.core.cache import entry_lock, is_locked
 from workbench.core.errors import UserInputError
 from workbench.core.files import atomic_write_text
@@ -126,7 +134,8 @@ def _build_locked(structure: Structure, settings: TableSettings, out: Path, key:
         if created and not done:  # nothing worth resuming: leave nothing behind (a folder the user made stays, empty)
             _remove_contents(out, keep_folder=existed)
         raise
-    store.attrs.update({"complete": True, "chunk_seconds": {k: v["seconds"] for k, v in done.items()}})
+    store.attrs.update({"complete": True, "chunk_seconds": {k: v["seconds"] for k, v in done.items()},
+                        "truncation_error": {k: v["truncation"] for k, v in done.items() if "truncation" in v}})
     report.seconds = time.perf_counter() - start
     report.bytes_on_disk = _size(out)
     return report
@@ -147,16 +156,17 @@ def _compute_chunks(structure: Structure, settings: TableSettings, out: Path, st
                     report: BuildReport, threads: int | None, executor, nodes: NodePlan | None, bar) -> None:
     threads = threads or default_threads()
     masks = [None if nodes is None else nodes.mask[i] for i in range(len(settings.wavelengths_nm))]
+    _record_missing_estimates(structure, settings, out, done, masks)
     if executor is None:
-        results = ((i, timed(compute_chunk, structure, settings, settings.wavelengths_nm[i], threads, masks[i]))
-                   for i in todo)
+        results = ((i, timed(compute_chunk, structure, settings, settings.wavelengths_nm[i], threads, masks[i]),
+                    estimate_truncation(structure, settings, i, masks[i])) for i in todo)
     else:
-        futures = {i: executor.submit(timed, compute_chunk, structure, settings, settings.wavelengths_nm[i], 1, masks[i])
-                   for i in todo}
-        results = ((i, futures[i].result()) for i in todo)
+        futures = {i: (executor.submit(timed, compute_chunk, structure, settings, settings.wavelengths_nm[i], 1, masks[i]),
+                       executor.submit(estimate_truncation, structure, settings, i, masks[i])) for i in todo}
+        results = ((i, futures[i][0].result(), futures[i][1].result()) for i in todo)
     with bar:
-        for i, ((arrays, (solves, refined, sectors)), seconds) in results:
-            _write_chunk(out, store, i, arrays, seconds, done)
+        for i, ((arrays, (solves, refined, sectors)), seconds), estimate in results:
+            _write_chunk(out, store, i, arrays, seconds, done, estimate)
             report.chunks_computed += 1
             report.eigen_solves += solves
             report.eigen_refined += refined
@@ -293,10 +303,22 @@ def _open_arrays(out: Path, meta: dict):
     return group if intact else None
 
 
-def _write_chunk(out: Path, store, index: int, arrays: dict[str, np.ndarray], seconds: float, done: dict) -> None:
+def _record_missing_estimates(structure: Structure, settings: TableSettings, out: Path, done: dict,
+                              masks: list) -> None:
+    """Finished chunks without a truncation-error record (written by a build from before
+    records existed) get theirs, checkpointed one by one."""
+    for index in sorted((k for k, v in done.items() if "truncation" not in v), key=int):
+        done[index]["truncation"] = estimate_truncation(structure, settings, int(index), masks[int(index)])
+        _atomic_write_json(out / "progress.json", done)
+
+
+def _write_chunk(out: Path, store, index: int, arrays: dict[str, np.ndarray], seconds: float, done: dict,
+                 estimate: dict | None = None) -> None:
     for name, values in arrays.items():
         store[name][index] = values
     done[str(index)] = {"sha256": chunk_hash(arrays), "seconds": round(seconds, 4)}
+    if estimate is not None:
+        done[str(index)]["truncation"] = estimate
     _atomic_write_json(out / "progress.json", done)
 
 

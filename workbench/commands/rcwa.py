@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import json
 from collections.abc import Callable, Iterable
+from pathlib import Path
 from typing import TYPE_CHECKING
 
 import rcwa
@@ -159,8 +160,15 @@ def _table_summary(out: str, name: str, settings: TableSettings, report: BuildRe
 
 
 def run_info(args: argparse.Namespace) -> int:
+    from rcwa.table import format_summary, read_table_metadata, truncation_summary  # deferred: as in run_table
+    from rcwa.table.store import read_progress
+
     data = table_info(args.table)
-    print(json.dumps(data, indent=2) if args.json else format_table_info(data))
+    meta = read_table_metadata(args.table)
+    # the table's own truncation error (rcwa.table.truncation); None: not recorded (a table from before)
+    data["truncation_error"] = truncation_summary(meta, None if meta.get("complete") else read_progress(Path(args.table)))
+    text = "\n".join([format_table_info(data), *format_summary(data["truncation_error"])])
+    print(json.dumps(data, indent=2) if args.json else text)
     return 0
 
 
