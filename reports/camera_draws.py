@@ -24,15 +24,35 @@ def draw_cameras(camera: CameraModel, std: dict, count: int, seed: int = 0) -> l
     fixed). Each draw is ``camera + std * z`` with z standard normal from ``seed``, so the same
     seed with twice the std gives draws twice as far (the band's width scales with the std)."""
     rng = np.random.default_rng(seed)
+    sigma = {k: float(std[k]) if isinstance(std.get(k), (int, float)) else 0.0 for k in CAMERA_STD_KEYS}
     out = []
     for _ in range(count):
         z = rng.standard_normal(10)  # the same numbers whichever keys are given
-        sigma = {k: float(std[k]) if isinstance(std.get(k), (int, float)) else 0.0 for k in CAMERA_STD_KEYS}
-        changes = {k: getattr(camera, k) + sigma[k] * z[i] for i, k in enumerate(("fx", "fy", "cx", "cy"))}
-        pose = camera.world_to_camera.copy()
-        turn = Rotation.from_rotvec(np.radians(sigma["rotation_deg"] * z[4:7])).as_matrix()
-        pose[:3, :3], pose[:3, 3] = turn @ pose[:3, :3], turn @ pose[:3, 3]
-        pose[:3, 3] += sigma["translation_m"] * z[7:10]
-        out.append(dataclasses.replace(camera, world_to_camera=pose, **changes))
+        out.append(moved_camera(camera, [sigma[k] * z[i] for i, k in enumerate(("fx", "fy", "cx", "cy"))],
+                                sigma["rotation_deg"] * z[4:7], sigma["translation_m"] * z[7:10]))
     return out
 
+
+def moved_camera(camera: CameraModel, intrinsics: list[float], rotation_deg: np.ndarray,
+                 translation_m: np.ndarray) -> CameraModel:
+    """``camera`` with fx, fy, cx, cy moved by ``intrinsics`` (px), turned by the small rotation
+    vector ``rotation_deg`` about the camera's axes and shifted by ``translation_m`` along them."""
+    changes = {k: getattr(camera, k) + d for k, d in zip(("fx", "fy", "cx", "cy"), intrinsics, strict=True)}
+    pose = camera.world_to_camera.copy()
+    turn = Rotation.from_rotvec(np.radians(np.asarray(rotation_deg, float))).as_matrix()
+    pose[:3, :3], pose[:3, 3] = turn @ pose[:3, :3], turn @ pose[:3, 3]
+    pose[:3, 3] += np.asarray(translation_m, float)
+    return dataclasses.replace(camera, world_to_camera=pose, **changes)
+
+
+def unit_moves(key: str, step: float) -> list[tuple[list[float], np.ndarray, np.ndarray]]:
+    """The moves of one standard-deviation key by ``step`` along each of its components (one
+    for fx, fy, cx, cy; three axes for rotation_deg and translation_m), as moved_camera's arguments."""
+    zero = np.zeros(3)
+    if key in ("fx", "fy", "cx", "cy"):
+        intrinsics = [step if k == key else 0.0 for k in ("fx", "fy", "cx", "cy")]
+        return [(intrinsics, zero, zero)]
+    axes = [np.eye(3)[i] * step for i in range(3)]
+    if key == "rotation_deg":
+        return [([0.0] * 4, a, zero) for a in axes]
+    return [([0.0] * 4, zero, a) for a in axes]

@@ -36,19 +36,21 @@ Method (the forward model is reports.scene_fit_model.EdgeModel; no renderer in t
    Cauchy weights of the same scales) on a central-difference Jacobian J (steps ``FD_STEPS``),
    kept only where they lower the cost.
 5. Uncertainty at the answer: the edge noise sigma is measured, the residuals' robust spread
-   (1.4826 MAD); the covariance is sigma^2 (J^T W J + P)^-1, W the robust weights, P the
-   priors' precision [Nocedal 2006, 10.3]; the calibration's camera uncertainty is
-   added as (J^T J)^-1 J^T C J (J^T J)^-1, C the edges' covariance from the camera's
-   standard deviations (reports.scene_verdict.camera_edge_covariance). A bootstrap over
-   profiles (edges on one profile share its pixels, so they are resampled together;
-   ``BOOTSTRAP_DRAWS`` draws, each a weighted linear least-squares step on the same J)
-   checks the standard deviations; the larger of the two is reported.
+   (1.4826 MAD); the noise's covariance is sigma^2 (J^T W J + P)^-1, W the robust weights, P
+   the priors' precision [Nocedal 2006, 10.3], widened in every direction where a bootstrap
+   over profiles finds more spread (edges on one profile share its pixels, so they are
+   resampled together; ``BOOTSTRAP_DRAWS`` draws, each a weighted linear least-squares step
+   on the same J; ``widened``); the calibration's camera uncertainty is added as G C G^T,
+   G = (J^T W J + P)^-1 J^T W the fit's gain from edges to values and C the edges'
+   covariance from the camera's standard deviations (reports.scene_verdict.camera_effect):
+   the sandwich covariance of this estimator [White 1982].
 """
 
 from __future__ import annotations
 
 import time
 from dataclasses import dataclass, field
+from typing import Any
 
 import nlopt
 import numpy as np
@@ -101,9 +103,12 @@ class SceneFitResult:
     std_jacobian: np.ndarray
     std_bootstrap: np.ndarray
     correlations: np.ndarray
-    covariance: np.ndarray
+    covariance: np.ndarray  # the noise's (widened by the bootstrap) and the camera's
+    covariance_noise: np.ndarray
+    gain: np.ndarray  # (parameters, residuals): the fit's linear response to the residuals
     jacobian: np.ndarray  # (edges, parameters) at the answer, px per unit
     camera_covariance: np.ndarray | None  # (edges, edges) px^2 from the calibration's standard deviations
+    camera_effect: Any  # reports.scene_verdict.CameraEffect or None: the residuals per camera parameter's std
     observed: ObservedEdges
     residuals_nominal: np.ndarray  # px, the observed edges at the scene file's values
     residuals_fitted: np.ndarray
@@ -321,10 +326,10 @@ def _polish(cost: _Cost, x: np.ndarray, steps: int) -> tuple[np.ndarray, np.ndar
     return x, model.residuals(x, observed), J
 
 
-def _bootstrap_std(J: np.ndarray, r: np.ndarray, w: np.ndarray, precision: np.ndarray, observed: ObservedEdges,
-                   draws: int, seed: int) -> np.ndarray:
-    """Standard deviations of a linearised re-fit over blocks (ObservedEdges.blocks) drawn with
-    replacement; ``w`` the weights including 1 / sigma^2."""
+def _bootstrap_covariance(J: np.ndarray, r: np.ndarray, w: np.ndarray, precision: np.ndarray,
+                          observed: ObservedEdges, draws: int, seed: int) -> np.ndarray:
+    """The covariance of a linearised re-fit over blocks (ObservedEdges.blocks) drawn with
+    replacement [Efron 1993, ch. 8]; ``w`` the weights including 1 / sigma^2."""
     members = observed.blocks()
     rng = np.random.default_rng(seed)
     shifts = []
@@ -333,15 +338,27 @@ def _bootstrap_std(J: np.ndarray, r: np.ndarray, w: np.ndarray, precision: np.nd
         Jr, rr, wr = J[rows], r[rows], w[rows]
         A = Jr.T @ (wr[:, None] * Jr) + np.diag(precision)
         shifts.append(-np.linalg.lstsq(A, Jr.T @ (wr * rr), rcond=None)[0])
-    return np.std(np.array(shifts), axis=0, ddof=1)
+    return np.atleast_2d(np.cov(np.array(shifts), rowvar=False))
+
+
+def widened(V: np.ndarray, B: np.ndarray) -> np.ndarray:
+    """``V`` widened to ``B`` in every direction where ``B`` is wider: with V = L L^T and
+    L^-1 B L^-T = Q diag(lam) Q^T, L Q diag(max(lam, 1)) Q^T L^T, the smallest covariance of
+    that form above both (so each component's std is at least the larger of the two)."""
+    s, U = np.linalg.eigh(V)
+    s = np.maximum(s, 1e-12 * max(float(s.max()), 1e-300))
+    L, L_inv = U * np.sqrt(s), (U / np.sqrt(s)).T
+    lam, Q = np.linalg.eigh(L_inv @ B @ L_inv.T)
+    M = L @ Q
+    return (M * np.maximum(lam, 1.0)) @ M.T
 
 
 def fit_scene(model: EdgeModel, settings: FitSettings | None = None,
               camera_covariance=None) -> SceneFitResult:
     """Fit ``model.table``'s free parameters to the photos' band edges (module docstring).
-    ``camera_covariance(values, observed) -> (edges, edges) or None``: the edges' covariance
-    from the camera's uncertainty (px^2; reports.scene_verdict.camera_edge_covariance), added
-    to the parameters' covariance; None leaves it out."""
+    ``camera_covariance(values, observed) -> CameraEffect or None``: the residuals' response to
+    the camera's standard deviations (reports.scene_verdict.camera_effect), whose covariance is
+    propagated to the parameters' covariance; None leaves it out."""
     settings = settings or FitSettings()
     started = time.perf_counter()
     nominal = model.table.nominal()
@@ -368,16 +385,19 @@ def fit_scene(model: EdgeModel, settings: FitSettings | None = None,
     w = cauchy_weights(r, sigma)
     precision, _ = _prior_terms(model)
     information = J.T @ ((w / sigma**2)[:, None] * J) + np.diag(precision)
-    covariance = np.linalg.pinv(information)
-    C = camera_covariance(x, observed) if camera_covariance is not None else None
-    if C is not None:
-        G = covariance @ (J.T * (w / sigma**2))
-        covariance = covariance + G @ C @ G.T
-    std_jacobian = np.sqrt(np.maximum(np.diag(covariance), 0.0))
-    std_bootstrap = _bootstrap_std(J, r, w / sigma**2, precision, observed, settings.bootstrap_draws, settings.seed)
-    std = np.maximum(std_jacobian, std_bootstrap)
-    scale = np.outer(std_jacobian, std_jacobian)
+    jacobian_covariance = np.linalg.pinv(information)
+    bootstrap = _bootstrap_covariance(J, r, w / sigma**2, precision, observed, settings.bootstrap_draws, settings.seed)
+    covariance_noise = widened(jacobian_covariance, bootstrap)
+    gain = jacobian_covariance @ (J.T * (w / sigma**2))
+    effect = camera_covariance(x, observed) if camera_covariance is not None else None
+    C = effect.covariance() if effect is not None else None
+    camera_part = gain @ C @ gain.T if C is not None else np.zeros_like(information)
+    covariance = covariance_noise + camera_part
+    std = np.sqrt(np.maximum(np.diag(covariance), 0.0))
+    std_jacobian = np.sqrt(np.maximum(np.diag(jacobian_covariance + camera_part), 0.0))
+    std_bootstrap = np.sqrt(np.maximum(np.diag(bootstrap), 0.0))
+    scale = np.outer(std, std)
     correlations = np.divide(covariance, scale, out=np.zeros_like(covariance), where=scale > 0)
-    return SceneFitResult(nominal, x, std, std_jacobian, std_bootstrap, correlations, covariance, J, C, observed, r_nominal,
-                          r, float(sigma[0]) if observed.edge_count else float("nan"), sigma, w, model.evaluations,
-                          time.perf_counter() - started, log)
+    return SceneFitResult(nominal, x, std, std_jacobian, std_bootstrap, correlations, covariance, covariance_noise, gain, J,
+                          C, effect, observed, r_nominal, r, float(sigma[0]) if observed.edge_count else float("nan"),
+                          sigma, w, model.evaluations, time.perf_counter() - started, log)

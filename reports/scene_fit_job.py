@@ -5,7 +5,7 @@ Steps: every photo of DATASET/photos with its camera from the calibration
 bracket frames of its view (reports.report.read_merged_photo); the scene's ``[fit]`` table
 (renderer.fit_parameters; the defaults without one); the forward model
 (reports.scene_fit_model) fitted to all photos' band edges at once (reports.scene_fit),
-the camera's uncertainty propagated (reports.scene_verdict.camera_edge_covariance); the
+the camera's uncertainty propagated (reports.scene_verdict.camera_effect); the
 verdict (reports.scene_verdict); DIR/scene_fit.json and DIR/fitted_scene.toml
 (reports.scene_fit_outputs).
 """
@@ -30,7 +30,7 @@ from reports.report import read_merged_photo
 from reports.scene_fit import FitSettings, SceneFitResult, fit_scene
 from reports.scene_fit_model import FIT_SUPERSAMPLE, EdgeModel, View, photo_rim_points, view_grids
 from reports.scene_fit_outputs import parameters_json, write_fitted_scene
-from reports.scene_verdict import camera_edge_covariance, verdict
+from reports.scene_verdict import camera_effect, verdict
 from workbench.core.errors import UserInputError
 from workbench.core.files import atomic_write_text
 from workbench.core.version import versions
@@ -104,12 +104,12 @@ def run_fit(inputs: FitInputs) -> dict[str, Any]:
     loaded = time.perf_counter()
     model = EdgeModel(spec, table, views, supersample=inputs.supersample, step_nm=inputs.step_nm)
     try:
-        result = fit_scene(model, inputs.settings, lambda x, observed: camera_edge_covariance(model, x, observed))
+        result = fit_scene(model, inputs.settings, lambda x, observed: camera_effect(model, x, observed))
     except ValueError as error:
         raise UserInputError(f"the photos do not constrain the scene: {error}", file=inputs.dataset / "photos") from None
     fitted = time.perf_counter()
     judged = verdict(result, table.labels(), [p.name for p in table.free for _ in p.components],
-                     [v.name for v in views], result.camera_covariance)
+                     [v.name for v in views])
     inputs.out.mkdir(parents=True, exist_ok=True)
     write_fitted_scene(spec, table, result.values, inputs.out,
                        f"{spec.name} with the scene fit's values (workbench fit; verdict: {judged['verdict']})")

@@ -23,6 +23,7 @@ pixel.
 
 from __future__ import annotations
 
+import copy
 import dataclasses
 import time
 from dataclasses import dataclass
@@ -107,6 +108,21 @@ class ObservedEdges:
             at += len(points)
         return list(groups.values())
 
+    def of_view(self, view: int) -> tuple[ObservedEdges, np.ndarray]:
+        """One view's share, its keys renumbered as view 0 (for a model of that view alone), and
+        the rows of its residuals in this set's residual vector (band edges, then rim points)."""
+        rows = [i for i, key in enumerate(self.keys) if key.view == view]
+        at, rims = len(self.keys), []
+        for v, points in self.rims:
+            if v == view:
+                rows.extend(range(at, at + len(points)))
+                rims.append((0, points))
+            at += len(points)
+        picked = [i for i in rows if i < len(self.keys)]
+        share = ObservedEdges([EdgeKey(0, self.keys[i].key) for i in picked], [self.edges[i] for i in picked],
+                              [self.grids[i] for i in picked], rims)
+        return share, np.array(rows, int)
+
     def profiles(self) -> dict[tuple[int, str], set[int]]:
         """The profiles the edges lie on, by (view, grid kind)."""
         out: dict[tuple[int, str], set[int]] = {}
@@ -170,6 +186,13 @@ class EdgeModel:
         self.thickness = ThicknessEfficiencies(spec, thickness[0]) if thickness else None
         self.evaluations = 0
         self.seconds = 0.0
+
+    def with_views(self, views: list[View]) -> EdgeModel:
+        """The same model (its efficiencies shared, not rebuilt) for other views; its evaluations
+        and seconds are counted apart."""
+        other = copy.copy(self)
+        other.views, other.evaluations, other.seconds = views, 0, 0.0
+        return other
 
     def applied(self, values: np.ndarray) -> AppliedScene:
         return apply_values(self.spec, self.table, values)

@@ -26,7 +26,7 @@ def report_verdict(scene_fit: dict[str, Any], offsets_before: dict | None, offse
     v = scene_fit["verdict"]
     return {"verdict": v["verdict"], "why": v["why"], "test": v["test"], "parameters": v.get("parameters", []),
             "residuals_before_px": v["residuals_before_px"], "residuals_after_px": v["residuals_after_px"],
-            "largest_residuals": v.get("largest_residuals", []),
+            "largest_residuals": v.get("largest_residuals", []), "camera_fit": v.get("camera_fit"),
             "fitted_parameters": scene_fit["parameters"], "held": scene_fit.get("held", {}),
             "fringe_offset_px_nominal_scene": offsets_before, "fringe_offset_px_fitted_scene": offsets_after}
 
@@ -52,10 +52,15 @@ def verdict_html(verdict: dict[str, Any]) -> str:
             "band edges vs prediction, fitted scene": _offset_text(verdict["residuals_after_px"]),
             "photo vs render, scene file": _offset_text(verdict.get("fringe_offset_px_nominal_scene")),
             "photo vs render, fitted scene": _offset_text(verdict.get("fringe_offset_px_fitted_scene")),
-            "test": f"likelihood ratio {noise['statistic']:.1f} on {noise['dof']} dof, p = {noise['p_value']:.2g} "
+            "test": f"Wald statistic {noise['statistic']:.1f} on {noise['dof']} dof, p = {noise['p_value']:.2g} "
                     f"(edge noise {test['edge_noise_px']:.2f} px, measured; alpha {test['alpha']:g})",
             "with the camera's uncertainty": "-" if camera is None else
-            f"likelihood ratio {camera['statistic']:.1f}, p = {camera['p_value']:.2g}"}
+            f"Wald statistic {camera['statistic']:.1f}, p = {camera['p_value']:.2g}"}
+    camera_fit = verdict.get("camera_fit")
+    if camera_fit:
+        moved = ", ".join(f"{k} {v:.1f}" for k, v in list(camera_fit["moved_std"].items())[:3])
+        rows["camera alone, within its uncertainty"] = (f"band edges median {camera_fit['median_px']:.2f} px; "
+                                                        f"moved (std): {moved}")
     parts.append(page.key_values(rows))
     if verdict.get("largest_residuals"):
         parts.append(page.table(verdict["largest_residuals"], caption="largest residuals after the fit"))

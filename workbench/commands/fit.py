@@ -70,8 +70,8 @@ def format_fit(record: dict) -> str:
     lines.append(f"band-edge residuals: median {before['median']:.2f} px before, {after['median']:.2f} px after "
                  f"({after['count']} edges)")
     test = v["test"]["noise_only"]
-    lines.append(f"verdict: {v['verdict']} ({v['why']}; likelihood ratio {test['statistic']:.1f} on {test['dof']} "
-                 f"degrees of freedom, p = {test['p_value']:.2g})")
+    lines.append(f"verdict: {v['verdict']} ({v['why']}; Wald statistic {test['statistic']:.1f} on {test['dof']} "
+                 f"degrees of freedom, p = {test['p_value']:.2g}, noise only)")
     for p in v.get("parameters", []):
         lines.append(f"  {p['component']}: {p['nominal']:.5g} -> {p['fitted']:.5g} +- {p['std']:.2g} "
                      f"({p['sigmas']:+.1f} std)")
