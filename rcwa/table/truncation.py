@@ -43,7 +43,7 @@ from rcwa.structure import Structure
 from rcwa.table.compute import clamped, solve_directions
 from rcwa.table.settings import TableSettings, kept_indices, pol_names
 
-SAMPLE_NODES = 3       # nodes sampled per wavelength, at most
+SAMPLE_NODES = 8       # nodes sampled per wavelength, at most
 NODES_PER_SAMPLE = 30  # at most one sampled node per this many nodes of a wavelength
 GOLDEN = (math.sqrt(5.0) - 1.0) / 2.0
 OTHER_RULE = {"li": "nv", "nv": "li", "laurent": "li"}

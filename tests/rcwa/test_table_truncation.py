@@ -177,9 +177,10 @@ def test_rcwa_info_prints_the_truncation_error_or_says_it_is_not_recorded(tmp_pa
     out = tmp_path / "i.zarr"
     assert main(["rcwa", "table", "cd", "--out", str(out), "--preset", "draft", "--wavelengths", "500,600",
                  "--theta-step", "30", "--phi-step", "30", "--orders", "21", "--keep-orders", "7", "--quiet"]) == 0
-    capsys.readouterr()
+    built = capsys.readouterr().out
     records = read_table_metadata(out)["truncation_error"]
     worst = max(records.values(), key=lambda r: r["truncation"]["max_difference"])["truncation"]
+    assert f"largest vs lower truncation: {worst['max_difference']:.2e} (11)" in built, built  # the build says it too
     assert main(["rcwa", "info", str(out)]) == 0
     text = capsys.readouterr().out
     assert "truncation    error recorded at 2 of 2 wavelengths" in text, text

@@ -142,6 +142,9 @@ def run_table(args: argparse.Namespace) -> int:
         print(f"{args.out}: up to date (request {report.key[:12]}), served from the cache in {report.seconds * 1e3:.1f} ms")
         return 0
     print(_table_summary(args.out, structure.name, settings, report))
+    from rcwa.table import format_summary, read_table_metadata, truncation_summary  # deferred: as above
+
+    print("\n".join(format_summary(truncation_summary(read_table_metadata(args.out)))[:3]))  # the largest differences
     return 0
 
 
