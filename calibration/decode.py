@@ -11,12 +11,16 @@ samples (exact: LibRaw's own 16-bit output truncates, half a code low on average
 also point-symmetric, which the corner refinement relies on. The others (ahd, dht, aahd,
 vng, ppg) are LibRaw's, with white balance 1, raw colour, linear gamma, no brightening and
 its automatic maximum adjustment off (it would move the white level to the brightest
-pixel), half a code added back for the truncation. X-Trans and other non-Bayer sensors
-always go through LibRaw.
+pixel), half a code added back for the truncation. Other layouts (X-Trans, four-colour
+filters, 3-sample and monochrome raws without a filter array) are calibration.raw_layout's,
+and damaged or unsupported files are refused by calibration.raw_checks (truncated image
+data, all-zero blocks below the black level, a compression LibRaw lacks) with a one-line
+error naming the file. The sidecar records the layout, the demosaicing and why.
 
 A pixel is saturated where any raw sample its demosaiced channels were made from reached
 the white level: the raw mask dilated by the demosaicing footprint (3 x 3 for bilinear,
-5 x 5 for the others, which read up to two pixels away).
+5 x 5 for LibRaw's Bayer algorithms, which read up to two pixels away; see raw_layout for
+the others).
 
 Other images (8/16-bit JPEG, PNG, TIFF, grey or colour, read with OpenImageIO) are
 brought to [0, 1] by their integer range and passed through an inverse response when one
@@ -58,8 +62,6 @@ RAW_EXTENSIONS = frozenset({
 TIFF_BASED = frozenset({".dng", ".nef", ".nrw", ".cr2", ".arw", ".srf", ".sr2", ".pef", ".tif", ".tiff", ".iiq",
                         ".3fr", ".erf", ".kdc", ".dcr", ".mos", ".mef", ".rwl", ".srw"})
 DEMOSAIC_ALGORITHMS = ("linear", "ahd", "dht", "aahd", "vng", "ppg")
-DEMOSAIC_FOOTPRINT = {"linear": 3}    # pixels across the raw neighbourhood a demosaiced pixel reads; others: 5
-OTHER_FOOTPRINT = 5
 ResponseLike = Callable[[np.ndarray], np.ndarray] | str | Path | dict | None
 
 
@@ -82,6 +84,8 @@ class DecodeInfo:
     demosaic: str | None = None
     channels: list[str] = field(default_factory=lambda: ["R", "G", "B"])
     response: str | None = None          # where the inverse response came from
+    layout: str | None = None            # raw sensor layout: "Bayer 2 x 2 (RGGB)", "X-Trans 6 x 6", "monochrome ..."
+    demosaic_reason: str | None = None   # why that demosaicing (or "none": no filter array)
 
     def to_json(self) -> dict[str, Any]:
         return asdict(self)
@@ -114,41 +118,41 @@ def decode(path: str | Path, *, response: ResponseLike = None, demosaic: str = "
 
 
 def _decode_raw(path: Path, demosaic: str) -> DecodedImage:
+    """A raw file through LibRaw: refused when damaged (calibration.raw_checks), then read by its sensor layout
+    (calibration.raw_layout)."""
     import rawpy  # deferred: start-up time
 
+    from calibration import raw_checks, raw_layout
+
+    ifds = raw_checks.check_container(path)
     try:
         with rawpy.imread(str(path)) as raw:
             black = [float(b) for b in raw.black_level_per_channel]
             white = float(raw.white_level)
-            description = raw.color_desc.decode()
-            pattern = raw.raw_pattern
-            cfa = "".join(description[i] for i in pattern.ravel()) if pattern is not None else None
-            visible = raw.raw_image_visible.astype(np.float32)
-            colours = raw.raw_colors_visible.copy()
-            bayer = pattern is not None and pattern.shape == (2, 2) and sorted(description[i] for i in pattern.ravel()) \
-                == ["B", "G", "G", "R"]
-            rgb = None if (demosaic == "linear" and bayer) else _libraw_develop(raw, demosaic)
+            used = black[:max(1, int(raw.num_colors))] if raw.raw_type != rawpy.RawType.Flat or raw.num_colors == 1 \
+                else black
+            if white <= max(used):
+                raise UserInputError("the raw file's white level is not above its black level", file=path,
+                                     got={"black_level": used, "white_level": white})
+            raw_checks.check_samples(path, raw.raw_image_visible, min(used))
+            read = raw_layout.read_layout(raw, demosaic, bilinear_demosaic, lambda name: _libraw_develop(raw, name))
             fallback = {"exposure_time_s": float(raw.other.shutter_speed), "iso": float(raw.other.iso_speed)}
     except rawpy.LibRawError as exc:
-        raise UserInputError(f"cannot be decoded as a raw photograph ({_libraw_message(exc)})", file=path,
+        raise UserInputError(raw_checks.libraw_failure(_libraw_message(exc), ifds), file=path,
                              expected="a complete raw file LibRaw reads (DNG, NEF, CR2, ARW, ...)") from None
-    if white <= max(black):
-        raise UserInputError("the raw file's white level is not above its black level", file=path,
-                             got={"black_level": black, "white_level": white})
-    black_here = np.asarray(black, np.float32)[colours]
-    normalised = (visible - black_here) / (np.float32(white) - black_here)
-    if rgb is None:
-        rgb = bilinear_demosaic(np.clip(normalised, 0.0, None), np.where(colours == 3, 1, colours))
-    footprint = DEMOSAIC_FOOTPRINT.get(demosaic, OTHER_FOOTPRINT)
-    saturated = cv2.dilate((visible >= white).astype(np.uint8), np.ones((footprint, footprint), np.uint8)).astype(bool)
+    except UserInputError as exc:
+        raise exc.located(file=path) if exc.file is None else exc from None
+    rgb, saturated = read.pixels, read.saturated
     if saturated.shape != rgb.shape[:2]:
         raise UserInputError("LibRaw's developed image and its raw samples differ in size", file=path,
                              got={"raw": saturated.shape, "developed": rgb.shape[:2]})
     exif = read_exif(path)
     if path.suffix.lower() not in TIFF_BASED:  # no tag reader for this container: LibRaw's own fields
         exif.update({key: value if value > 0 else None for key, value in fallback.items()})
-    info = DecodeInfo(width=rgb.shape[1], height=rgb.shape[0], black_level=black, white_level=white, cfa=cfa,
-                      saturated_fraction=float(saturated.mean()), linear=True, source="raw", demosaic=demosaic, **exif)
+    info = DecodeInfo(width=rgb.shape[1], height=rgb.shape[0], black_level=read.black_level, white_level=white,
+                      cfa=read.cfa, saturated_fraction=float(saturated.mean()), linear=True, source="raw",
+                      demosaic=read.demosaic, channels=read.channels, layout=read.layout,
+                      demosaic_reason=read.reason, **exif)
     return DecodedImage(rgb, saturated, info)
 
 

@@ -1,0 +1,154 @@
+"""The sensor layouts LibRaw reads, each to linear camera values (calibration.decode's raw path).
+
+Every layout is normalised the same way, per channel (raw - black) / (white - black), no
+white balance, no colour matrix; what differs is how a pixel gets its channels:
+
+* **2 x 2 Bayer** (any order: RGGB, GRBG, ...): calibration.decode.bilinear_demosaic by
+  default (exact, point-symmetric), or LibRaw's own algorithm when asked.
+* **Other periodic RGB filter arrays** (Fujifilm X-Trans, 6 x 6): LibRaw's `raw_pattern`
+  gives each pixel's colour. ``linear`` is normalised convolution ([Knutsson 1993]) with a
+  3 x 3 tent over each channel's own samples, its own sample kept where the pixel has one:
+  every 3 x 3 window of an X-Trans array holds all three colours (checked on the pattern
+  at run time), so a missing value is the weighted mean of that channel's samples at most
+  one pixel away. Other algorithms go to LibRaw (its X-Trans path: Markesteijn's
+  demosaicing in LibRaw's xtrans_interpolate, or VNG), with the saturation mask dilated by
+  LIBRAW_FOOTPRINT.
+* **Four-colour arrays** (CMYG, RGBE) have no three-channel bilinear answer: LibRaw
+  develops them (its VNG, the only one of its algorithms that handles four colours).
+* **No filter array**: 3 samples per pixel (linear DNG with PhotometricInterpretation
+  LinearRaw, scanner NEFs, LibRaw's "stacked" raws) and monochrome sensors (one colour)
+  are read as they are, sample by sample: no demosaicing, and a pixel is saturated where
+  one of its own samples reached the white level.
+
+Each result records the layout, the demosaicing used and why (DecodeInfo.layout,
+.demosaic, .demosaic_reason).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import cv2
+import numpy as np
+
+TENT = np.array([[1, 2, 1], [2, 4, 2], [1, 2, 1]], np.float32)
+LIBRAW_FOOTPRINT = 7        # LibRaw's X-Trans / four-colour demosaicing reads up to 3 pixels away (measured)
+BAYER_LIBRAW_FOOTPRINT = 5  # its Bayer algorithms read up to two pixels away
+
+
+@dataclass
+class RawRead:
+    pixels: np.ndarray        # (H, W, C) float32, 1 = the white level
+    saturated: np.ndarray     # (H, W) bool
+    channels: list[str]
+    cfa: str | None           # row-major pattern letters ("RGGB", 36 letters for X-Trans); None without a CFA
+    layout: str
+    demosaic: str
+    reason: str
+    black_level: list[float]
+
+
+Develop = Callable[[str], np.ndarray]   # LibRaw's demosaicing by algorithm name, scaled like the samples
+
+
+def read_layout(raw, demosaic: str, bilinear: Callable[[np.ndarray, np.ndarray], np.ndarray],
+                develop: Develop) -> RawRead:
+    """The open rawpy ``raw`` as linear camera values, by its layout (see the module docstring)."""
+    import rawpy  # deferred: start-up time
+
+    black_all = [float(b) for b in raw.black_level_per_channel]
+    white = float(raw.white_level)
+    colours = int(raw.num_colors)
+    if raw.raw_type != rawpy.RawType.Flat:
+        return _stacked(raw.raw_image_visible, black_all, white, colours, raw.color_desc.decode())
+    if colours == 1:
+        return _monochrome(raw.raw_image_visible, black_all, white)
+    description = raw.color_desc.decode()
+    pattern = raw.raw_pattern
+    visible = raw.raw_image_visible.astype(np.float32)
+    cfa_index = raw.raw_colors_visible.copy()
+    cfa = "".join(description[i] for i in pattern.ravel()) if pattern is not None else None
+    black_here = np.asarray(black_all, np.float32)[cfa_index]
+    normalised = (visible - black_here) / (np.float32(white) - black_here)
+    raw_saturated = visible >= white
+    rgb_letters = cfa is not None and set(cfa) <= set("RGB") and set(cfa) == {"R", "G", "B"}
+    bayer = pattern is not None and pattern.shape == (2, 2) and sorted(cfa or "") == ["B", "G", "G", "R"]
+    if bayer:
+        layout = f"Bayer 2 x 2 ({cfa})"
+        if demosaic == "linear":
+            rgb = bilinear(np.clip(normalised, 0.0, None), np.where(cfa_index == 3, 1, cfa_index))
+            return RawRead(rgb, _dilate(raw_saturated, 3), ["R", "G", "B"], cfa, layout, "linear",
+                           "2 x 2 Bayer: bilinear in float on the raw samples (the default)", black_all)
+        return RawRead(develop(demosaic), _dilate(raw_saturated, BAYER_LIBRAW_FOOTPRINT), ["R", "G", "B"], cfa, layout,
+                       demosaic, f"LibRaw's {demosaic}, as asked", black_all)
+    size = f"{pattern.shape[0]} x {pattern.shape[1]}" if pattern is not None else "unknown"
+    if rgb_letters and colours == 3:
+        layout = f"{'X-Trans' if pattern.shape == (6, 6) else 'RGB'} {size}"
+        channel = np.where(cfa_index == 3, 1, cfa_index)
+        if demosaic == "linear" and covers_3x3(np.where(pattern == 3, 1, pattern)):
+            rgb = periodic_demosaic(np.clip(normalised, 0.0, None), channel)
+            return RawRead(rgb, _dilate(raw_saturated, 3), ["R", "G", "B"], cfa, layout, "linear",
+                           f"{layout} filter array: normalised convolution, 3 x 3, in float on the raw samples "
+                           "(every 3 x 3 window holds all three colours)", black_all)
+        why = f"LibRaw's {demosaic}, as asked" if demosaic != "linear" else \
+            "LibRaw's linear: a 3 x 3 window of this pattern misses a colour"
+        return RawRead(develop(demosaic), _dilate(raw_saturated, LIBRAW_FOOTPRINT), ["R", "G", "B"], cfa, layout,
+                       demosaic, why, black_all)
+    layout = f"{colours}-colour {size} ({cfa})"
+    return RawRead(develop("vng"), _dilate(raw_saturated, LIBRAW_FOOTPRINT), ["R", "G", "B"], cfa, layout, "vng",
+                   f"{colours}-colour filter array: LibRaw's VNG, its only algorithm for four colours", black_all)
+
+
+def _stacked(samples: np.ndarray, black: list[float], white: float, colours: int, description: str) -> RawRead:
+    from workbench.core.errors import UserInputError
+
+    if colours != 3:
+        raise UserInputError(f"a raw with {colours} samples per pixel and no colour filter array is not supported",
+                             expected="3 samples per pixel (RGB) or one (monochrome)")
+    values = samples[..., :3].astype(np.float32)
+    level = np.asarray(black[:3], np.float32)
+    pixels = np.clip((values - level) / (np.float32(white) - level), 0.0, None)
+    names = list(description[:3]) if sorted(description[:3]) == ["B", "G", "R"] else ["R", "G", "B"]
+    return RawRead(pixels, np.any(values >= white, axis=2), names, None, "3 samples per pixel (no filter array)",
+                   "none", "no colour filter array: each pixel's own 3 samples, read as they are", black[:3])
+
+
+def _monochrome(samples: np.ndarray, black: list[float], white: float) -> RawRead:
+    values = samples.astype(np.float32)
+    pixels = np.clip((values - np.float32(black[0])) / np.float32(white - black[0]), 0.0, None)[..., None]
+    return RawRead(pixels, values >= white, ["Y"], None, "monochrome (no filter array)", "none",
+                   "monochrome sensor: each pixel's own sample, read as it is", black[:1])
+
+
+def covers_3x3(pattern: np.ndarray) -> bool:
+    """Whether every 3 x 3 window of the periodic pattern (channel numbers 0, 1, 2) holds all three channels."""
+    for c in range(3):
+        mask = (pattern == c).astype(np.uint8)
+        near = sum(np.roll(np.roll(mask, dy, 0), dx, 1) for dy in (-1, 0, 1) for dx in (-1, 0, 1))
+        if not np.all(near > 0):
+            return False
+    return True
+
+
+def periodic_demosaic(mosaic: np.ndarray, channel: np.ndarray) -> np.ndarray:
+    """Demosaicing of any RGB filter array whose 3 x 3 windows hold every colour: per channel, normalised
+    convolution ([Knutsson 1993]) of its samples with a 3 x 3 tent, the pixel's own sample kept where it has one.
+    At the border (reflected, so a window may see fewer colours) a pixel with no sample of a channel within one
+    pixel takes the 5 x 5 tent's value."""
+    out = np.empty(mosaic.shape + (3,), np.float32)
+    wide = np.outer([1, 2, 3, 2, 1], [1, 2, 3, 2, 1]).astype(np.float32)
+    for c in range(3):
+        mask = (channel == c).astype(np.float32)
+        weight = cv2.filter2D(mask, -1, TENT, borderType=cv2.BORDER_REFLECT_101)
+        value = cv2.filter2D(mosaic * mask, -1, TENT, borderType=cv2.BORDER_REFLECT_101) / np.maximum(weight, 1e-12)
+        if np.any(weight == 0):
+            far = cv2.filter2D(mosaic * mask, -1, wide, borderType=cv2.BORDER_REFLECT_101) / np.maximum(
+                cv2.filter2D(mask, -1, wide, borderType=cv2.BORDER_REFLECT_101), 1e-12)
+            value = np.where(weight == 0, far, value)
+        out[..., c] = np.where(mask > 0, mosaic, value)
+    return out
+
+
+def _dilate(mask: np.ndarray, footprint: int) -> np.ndarray:
+    return cv2.dilate(mask.astype(np.uint8), np.ones((footprint, footprint), np.uint8)).astype(bool)
