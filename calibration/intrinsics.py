@@ -10,9 +10,15 @@ Views: any photograph calibration.decode reads (raw, 8/16-bit JPEG/PNG/TIFF, gre
 colour). Corners: calibration.corners (checkerboards) or calibration.charuco. A view
 whose board is not found is reported and skipped; so is a view whose checker pattern
 goes on past the requested corners, and when that happens in more than a quarter of the
-views the board size is wrong and the calibration stops. Outliers: while the worst view's
-RMS is above OUTLIER_FACTOR times the median view's (and above OUTLIER_FLOOR_PX), it is
-dropped and the calibration repeated, as long as MIN_VIEWS views remain.
+views the board size is wrong and the calibration stops. At least MIN_VIEWS (3) usable
+views calibrate; under FEW_VIEWS (6) the result carries a warning (intrinsics.json
+``warnings``, the command's summary line) and the standard deviations that few views give.
+Outlier views are left out by calibration.intrinsics_fit (in-sample rule among many views,
+leave-one-out among few, never below MIN_VIEWS).
+
+Distortion terms: OpenCV's flags choose them; the command's ``--no-tangential`` holds p1, p2
+at 0 (CALIB_ZERO_TANGENT_DIST) and ``--fit-k3`` frees k3, so a calibration can use the
+same model as another tool's (BoofCV's "radial 2, tangential false" is k1, k2 alone).
 """
 
 from __future__ import annotations
@@ -32,14 +38,15 @@ from calibration.charuco import CharucoSpec, charuco_board, find_charuco_corners
 from calibration.corners import find_board_corners, validate_pattern
 from calibration.decode import decode, versions
 from calibration.images import grey_unit
+from calibration.intrinsics_fit import CRITERIA, FEW_VIEWS, MIN_VIEWS, fit_without_outliers, held_out_rms
 from workbench.core.errors import UserInputError
 from workbench.core.files import atomic_write_text
 
-MIN_VIEWS = 6
-OUTLIER_FACTOR = 3.0        # a view whose RMS is this many times the median view's is an outlier ...
-OUTLIER_FLOOR_PX = 0.5      # ... unless it is within half a pixel anyway (clean sets have no outliers to find)
+__all__ = ["CRITERIA", "FEW_VIEWS", "MIN_VIEWS", "Calibration", "ViewReport", "board_points", "calibrate_board_views",
+           "distortion_difference_px", "write_intrinsics"]
+
 WRONG_SIZE_FRACTION = 0.25  # views whose pattern goes on past the grid, beyond which the board size is wrong
-CRITERIA = (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 100, 1e-12)
+POOR_FOCAL_REL = 0.01       # a focal length known to worse than 1 % (one std) is worth a warning: tilt the board more
 FLAG_NAMES = ("CALIB_USE_INTRINSIC_GUESS", "CALIB_FIX_ASPECT_RATIO", "CALIB_FIX_PRINCIPAL_POINT",
               "CALIB_ZERO_TANGENT_DIST", "CALIB_FIX_FOCAL_LENGTH", "CALIB_FIX_K1", "CALIB_FIX_K2", "CALIB_FIX_K3")
 UNSUPPORTED_FLAGS = ("CALIB_RATIONAL_MODEL", "CALIB_THIN_PRISM_MODEL", "CALIB_TILTED_MODEL")
@@ -69,6 +76,7 @@ class Calibration:
     image_points: list[np.ndarray]       # used views' corners (N, 1, 2)
     object_points: list[np.ndarray]      # and their board points (N, 3), metres
     timings: dict[str, float] = field(default_factory=dict)
+    warnings: list[str] = field(default_factory=list)   # what the user should know (few views, a kept outlier)
 
     @property
     def found(self) -> list[str]:
@@ -82,7 +90,8 @@ class Calibration:
         K = self.K
         return {"width": self.width, "height": self.height, "fx": float(K[0, 0]), "fy": float(K[1, 1]),
                 "cx": float(K[0, 2]), "cy": float(K[1, 2]), "dist": [float(d) for d in self.dist], "std": self.std,
-                "rms_px": self.rms_px, "views": [asdict(v) for v in self.views], "flags": flag_names(self.flags)}
+                "rms_px": self.rms_px, "views": [asdict(v) for v in self.views], "flags": flag_names(self.flags),
+                "warnings": list(self.warnings)}
 
 
 def board_points(inner_corners: tuple[int, int], square_size_m: float) -> np.ndarray:
@@ -180,29 +189,33 @@ def _check_enough_views(views: list[_View], what: str) -> None:
                              got={"not found": missed} if missed else None)
 
 
-def _calibrate(views: list[_View], size: tuple[int, int], flags: int):
-    rms, K, dist, _, _, std_intrinsics, _, per_view = cv2.calibrateCameraExtended(
-        [v.points for v in views], [v.corners for v in views], size, np.eye(3), np.zeros(5), flags=flags,
-        criteria=CRITERIA)
-    return float(rms), K, dist.ravel()[:5], std_intrinsics.ravel(), per_view.ravel()
-
-
 def _calibrate_without_outliers(views: list[_View], size: tuple[int, int], flags: int):
-    """Calibrate; while the worst view's RMS exceeds OUTLIER_FACTOR x the median's (and OUTLIER_FLOOR_PX), drop it
-    and calibrate again, keeping at least MIN_VIEWS. Returns the result and the views used."""
-    used = list(views)
-    while True:
-        rms, K, dist, std, per_view = _calibrate(used, size, flags)
-        worst = int(np.argmax(per_view))
-        threshold = max(OUTLIER_FACTOR * float(np.median(per_view)), OUTLIER_FLOOR_PX)
-        if per_view[worst] <= threshold or len(used) <= MIN_VIEWS:
-            break
-        dropped = used.pop(worst)
-        dropped.report.note = (f"outlier: RMS {per_view[worst]:.2f} px, over {threshold:.2f} px "
-                               f"({OUTLIER_FACTOR:g} x the median view's, at least {OUTLIER_FLOOR_PX} px)")
-    for view, error in zip(used, per_view, strict=True):
+    """calibration.intrinsics_fit.fit_without_outliers on the views' corners; the views' reports
+    get their RMS, whether used and why not. Returns the fit, the views used and warnings."""
+    robust = fit_without_outliers([v.points for v in views], [v.corners for v in views], size, flags)
+    for index, note in robust.notes.items():
+        report = views[index].report
+        report.note = "; ".join(n for n in (report.note, note) if n)
+    used = [views[i] for i in robust.kept]
+    for view, error in zip(used, robust.fit.per_view_px, strict=True):
         view.report.used, view.report.rms_px = True, float(error)
-    return rms, K, dist, std, used
+    warnings = [f"{Path(views[i].report.file).name} fits to {error:.2f} px RMS, perhaps an outlier, but with "
+                f"{MIN_VIEWS} views (the least that determine the intrinsics) none can be left out: add views"
+                for i, error in robust.suspects.items()]
+    return robust.fit, used, warnings
+
+
+def _few_view_warnings(used: int, K: np.ndarray, std: np.ndarray) -> list[str]:
+    """Warnings on how well the views determine the camera: fewer than FEW_VIEWS views, or fx
+    known to worse than POOR_FOCAL_REL."""
+    warnings = []
+    fx_rel = float(std[0] / K[0, 0])
+    if used < FEW_VIEWS:
+        warnings.append(f"only {used} views used (fewer than {FEW_VIEWS}): the intrinsics rest on few board poses "
+                        f"(fx +- {100 * fx_rel:.2f} %) and an outlier view is harder to find; add views at other tilts")
+    elif fx_rel > POOR_FOCAL_REL:
+        warnings.append(f"fx is determined to +- {100 * fx_rel:.2f} % only: add views with the board tilted more")
+    return warnings
 
 
 def calibrate_board_views(paths: Sequence[str | Path], board_size: tuple[int, int], square_size_m: float,
@@ -213,7 +226,7 @@ def calibrate_board_views(paths: Sequence[str | Path], board_size: tuple[int, in
     ``board_size``: inner corners (cols, rows) of a checkerboard, or with ``charuco`` the
     board's squares (cols, rows) as OpenCV's CharucoBoard counts them. ``square_size_m``:
     the side of a square. ``image_size``: (width, height) every view must have (default: the
-    first view's). Needs the board in at least MIN_VIEWS views.
+    first view's). Needs the board in at least MIN_VIEWS views; warns under FEW_VIEWS.
     """
     start = time.perf_counter()
     if not charuco:
@@ -229,25 +242,18 @@ def calibrate_board_views(paths: Sequence[str | Path], board_size: tuple[int, in
     what = (f"{board_size[0]} x {board_size[1]} squares (ChArUco)" if charuco
             else f"{board_size[0]} x {board_size[1]} inner corners")
     _check_enough_views(views, what)
-    rms, K, dist, std, used = _calibrate_without_outliers([v for v in views if v.usable], size, flags)
+    fit, used, warnings = _calibrate_without_outliers([v for v in views if v.usable], size, flags)
+    K, dist, std = fit.K, fit.dist, fit.std
     for view in views:
         if view.usable and not view.report.used:
-            view.report.rms_px = _view_rms(view.points, view.corners, K, dist)
+            view.report.rms_px = held_out_rms(view.points, view.corners, K, dist)
+    warnings = _few_view_warnings(len(used), K, std) + warnings
     std_json = {"fx": float(std[0]), "fy": float(std[1]), "cx": float(std[2]), "cy": float(std[3]),
                 "dist": [float(s) for s in std[4:9]]}
     timings = {"detection_s": detected_s, "calibration_s": time.perf_counter() - start - detected_s,
                "total_s": time.perf_counter() - start}
-    return Calibration(K, dist, std_json, rms, size[0], size[1], [v.report for v in views], flags,
-                       [v.corners for v in used], [v.points for v in used], timings)
-
-
-def _view_rms(object_points: np.ndarray, image_points: np.ndarray, K: np.ndarray, dist: np.ndarray) -> float:
-    """A dropped view's RMS reprojection error under the final intrinsics (its own best pose)."""
-    ok, rvec, tvec = cv2.solvePnP(object_points, image_points, K, dist)
-    if not ok:
-        return float("nan")
-    projected, _ = cv2.projectPoints(object_points, rvec, tvec, K, dist)
-    return float(np.sqrt(np.mean(np.sum((projected.reshape(-1, 2) - image_points.reshape(-1, 2)) ** 2, axis=1))))
+    return Calibration(K, dist, std_json, fit.rms_px, size[0], size[1], [v.report for v in views], flags,
+                       [v.corners for v in used], [v.points for v in used], timings, warnings)
 
 
 def write_intrinsics(calibration: Calibration, out: str | Path, settings: dict[str, Any]) -> dict[str, Any]:

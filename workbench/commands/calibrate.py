@@ -1,7 +1,7 @@
 """``workbench calibrate intrinsics|response|pose|DATASET``: camera calibration from photographs (calibration)::
 
     workbench calibrate intrinsics IMAGE... --board COLSxROWS --square-mm S [--charuco DICT,MARKER_MM]
-                                   --out intrinsics.json [--fit-k3] [--quiet]
+                                   --out intrinsics.json [--fit-k3] [--no-tangential] [--quiet]
     workbench calibrate response IMAGE... [--times T,...] --out response.json
     workbench calibrate pose PHOTO --scene SCENE [--intrinsics intrinsics.json] [--response response.json] --out DIR
     workbench calibrate DATASET --scene SCENE --out DIR [--board COLSxROWS] [--square-mm S]
@@ -60,12 +60,15 @@ def add_intrinsics(steps: argparse._SubParsersAction) -> None:
     p.add_argument("--out", required=True, metavar="intrinsics.json",
                    help="fx, fy, cx, cy, distortion with standard deviations, per-view errors, settings")
     p.add_argument("--fit-k3", action="store_true", help="fit k3 too (default: held at 0)")
+    p.add_argument("--no-tangential", action="store_true",
+                   help="hold the tangential terms p1, p2 at 0 (OpenCV's CALIB_ZERO_TANGENT_DIST): radial distortion "
+                        "only, as calibrations that report no tangential terms use (default: fitted)")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
 
 
 def run_intrinsics(args: argparse.Namespace) -> int:
     charuco = parse_charuco(args.charuco) if args.charuco else None
-    flags = 0 if args.fit_k3 else cv2.CALIB_FIX_K3
+    flags = (0 if args.fit_k3 else cv2.CALIB_FIX_K3) | (cv2.CALIB_ZERO_TANGENT_DIST if args.no_tangential else 0)
     result = calibrate_board_views(args.images, args.board, args.square_mm / 1000.0, flags=flags, charuco=charuco,
                                    progress=not args.quiet)
     settings = {"board": list(args.board), "board_counts": "squares" if charuco else "inner corners",
@@ -75,8 +78,9 @@ def run_intrinsics(args: argparse.Namespace) -> int:
     record = write_intrinsics(result, args.out, settings)
     used = [v for v in result.views if v.used]
     std = record["std"]
+    warned = f"; warning: {'; '.join(record['warnings'])}" if record["warnings"] else ""
     print(f"wrote {args.out}: {record['width']} x {record['height']}, {len(used)} of {len(result.views)} views used, "
-          f"RMS {record['rms_px']:.3f} px")
+          f"RMS {record['rms_px']:.3f} px{warned}")
     print(f"fx {record['fx']:.2f} +- {std['fx']:.2f}, fy {record['fy']:.2f} +- {std['fy']:.2f}, "
           f"cx {record['cx']:.2f} +- {std['cx']:.2f}, cy {record['cy']:.2f} +- {std['cy']:.2f} px; "
           f"dist {', '.join(f'{d:.4g}' for d in record['dist'])}")
