@@ -51,6 +51,7 @@ from typing import Any
 import cv2
 import numpy as np
 
+from calibration.raw_layout import periodic_demosaic
 from workbench.core.errors import UserInputError
 from workbench.core.files import atomic_write, atomic_write_text
 from workbench.core.version import versions as installed_versions
@@ -122,7 +123,7 @@ def _decode_raw(path: Path, demosaic: str) -> DecodedImage:
     (calibration.raw_layout)."""
     import rawpy  # deferred: start-up time
 
-    from calibration import raw_checks, raw_layout
+    from calibration import raw_checks, raw_layout  # raw_checks defers tifffile; both need rawpy
 
     ifds = raw_checks.check_container(path)
     try:
@@ -175,7 +176,11 @@ def bilinear_demosaic(mosaic: np.ndarray, channel: np.ndarray) -> np.ndarray:
     (0 R, 1 G, 2 B), in float: each channel's samples kept, the missing ones the mean of the nearest samples of that
     channel (4 edge neighbours for green, 2 or 4 for red and blue): normalised convolution
     ([Knutsson 1993]) with a cross kernel for green and a tent for
-    red and blue, so the image's borders need no special case."""
+    red and blue, so the image's borders need no special case. A channel map that does not repeat every 2 pixels
+    (X-Trans) goes to calibration.raw_layout.periodic_demosaic, the decode's own for those arrays."""
+    if min(channel.shape) > 2 and not (np.array_equal(channel[2:], channel[:-2])
+                                       and np.array_equal(channel[:, 2:], channel[:, :-2])):
+        return periodic_demosaic(mosaic, channel)
     cross = np.array([[0, 1, 0], [1, 4, 1], [0, 1, 0]], np.float32)
     tent = np.array([[1, 2, 1], [2, 4, 2], [1, 2, 1]], np.float32)
     out = np.empty(mosaic.shape + (3,), np.float32)
@@ -187,14 +192,15 @@ def bilinear_demosaic(mosaic: np.ndarray, channel: np.ndarray) -> np.ndarray:
 
 
 def cfa_channels(cfa: str | None, shape: tuple[int, int]) -> np.ndarray | None:
-    """Each pixel's colour-filter channel (0 R, 1 G, 2 B) for a 2 x 2 pattern such as "RGGB" (row-major); None
-    for anything else (no CFA, X-Trans)."""
-    if not cfa or len(cfa) != 4 or set(cfa) - set("RGB"):
+    """Each pixel's colour-filter channel (0 R, 1 G, 2 B) for a square row-major RGB pattern: 2 x 2 ("RGGB") or
+    n x n (36 letters for X-Trans); None for anything else (no CFA, four colours)."""
+    side = int(round(len(cfa) ** 0.5)) if cfa else 0
+    if not cfa or side < 2 or side * side != len(cfa) or set(cfa) - set("RGB"):
         return None
     channel = np.empty(shape, np.int64)
     for k, colour in enumerate(cfa):
-        dy, dx = divmod(k, 2)
-        channel[dy::2, dx::2] = "RGB".index(colour)
+        dy, dx = divmod(k, side)
+        channel[dy::side, dx::side] = "RGB".index(colour)
     return channel
 
 

@@ -2,14 +2,16 @@
 
 LibRaw (through rawpy) refuses many broken files itself, but not all: a DNG whose strips
 or tiles are missing, or whose lossless-JPEG tiles do not start with a JPEG header, is
-"decoded" into zeros without an error (LibRaw's lossless_dng_load_raw stops at the first
-tile whose ljpeg_start fails and leaves the rest of the buffer as allocated, zero). Three
+"decoded" without an error (LibRaw's lossless_dng_load_raw stops at the first tile whose
+ljpeg_start fails and leaves the rest of the buffer as allocated: zeros, or whatever the
+memory held before, seen in tests as values above the white level). Three
 checks, each a one-line UserInputError naming the file:
 
 * ``check_container`` (DNG, before LibRaw): every raw image IFD's strips or tiles
   (StripOffsets/StripByteCounts or TileOffsets/TileByteCounts, [TIFF 6.0, Sec. 3 and 15];
   the raw IFDs are those with NewSubFileType 0 and PhotometricInterpretation CFA 32803 or
-  LinearRaw 34892, [DNG 1.4, Ch. 3]) must end inside the file; a file cut short fails it.
+  LinearRaw 34892, [DNG 1.4, Ch. 3]) must end inside the file (a file cut short fails
+  it), and JPEG-compressed ones must start with a JPEG stream.
 * ``check_samples`` (every raw, after LibRaw): the raw samples may not be all zero, and
   where the black level is above zero, no more than MAX_ZERO_BLOCK_FRACTION of the 4 x 4
   sample blocks may be entirely zero. A live sensor's sample sits at the black level plus
@@ -37,6 +39,7 @@ CFA_PHOTOMETRIC = 32803
 LINEAR_RAW_PHOTOMETRIC = 34892
 COMPRESSION_NAMES = {1: "no", 7: "lossless JPEG", 8: "Deflate", 9: "GoPro VC-5", 34892: "lossy JPEG",
                      52546: "JPEG XL"}
+JPEG_COMPRESSIONS = (7, 34892)
 BLOCK = 4                          # side of the sample blocks tested for missing data
 MAX_ZERO_BLOCK_FRACTION = 1e-3     # all-zero 4 x 4 blocks tolerated (dead-pixel clusters), as a fraction of blocks
 
@@ -48,7 +51,12 @@ class RawIfd:
     width: int
     height: int
     compression: int
-    data_end: int      # one past the last byte of its strips or tiles
+    offsets: tuple[int, ...]   # where its strips or tiles start
+    data_end: int              # one past the last byte of its strips or tiles
+
+    @property
+    def data_size(self) -> int:
+        return self.data_end - min(self.offsets, default=self.data_end)
 
 
 def compression_name(code: int) -> str:
@@ -81,22 +89,38 @@ def _is_raw_page(page) -> bool:
 def _raw_ifd(page) -> RawIfd:
     ends = [int(o) + int(n) for o, n in zip(page.dataoffsets, page.databytecounts, strict=False)]
     return RawIfd(width=int(page.imagewidth), height=int(page.imagelength), compression=int(page.compression),
-                  data_end=max(ends, default=0))
+                  offsets=tuple(int(o) for o in page.dataoffsets), data_end=max(ends, default=0))
 
 
 def check_container(path: Path) -> list[RawIfd]:
-    """Refuse a DNG whose raw image data runs past the end of the file; returns its raw IFDs ([] for other formats)."""
+    """Refuse a DNG whose raw image data runs past the end of the file, or whose JPEG-compressed strips or tiles
+    do not start with a JPEG SOI marker (FF D8, [ITU T.81, B.1.1.3]; LibRaw's ljpeg_start gives up there and leaves
+    the image buffer as allocated: zeros or old memory, without an error); returns its raw IFDs ([] for others)."""
     if path.suffix.lower() != ".dng":
         return []
     ifds = dng_raw_ifds(path)
     size = path.stat().st_size
     for ifd in ifds:
         if ifd.data_end > size:
+            missing = min(ifd.data_end - size, ifd.data_size) / max(ifd.data_size, 1)
             raise UserInputError(
                 f"truncated: its {ifd.width} x {ifd.height} raw image's data needs {ifd.data_end} bytes but the file "
-                f"has {size} ({100.0 * (1.0 - size / ifd.data_end):.1f} % of the image data is missing)", file=path,
+                f"has {size} ({100.0 * missing:.1f} % of the image data is missing)", file=path,
                 expected="the complete file")
+        if ifd.compression in JPEG_COMPRESSIONS:
+            _check_jpeg_starts(path, ifd)
     return ifds
+
+
+def _check_jpeg_starts(path: Path, ifd: RawIfd) -> None:
+    with open(path, "rb") as handle:
+        for n, offset in enumerate(ifd.offsets):
+            handle.seek(offset)
+            if handle.read(2) != b"\xff\xd8":
+                raise UserInputError(
+                    f"damaged image data: strip or tile {n + 1} of {len(ifd.offsets)} of its {ifd.width} x "
+                    f"{ifd.height} raw image is not a JPEG stream (no SOI marker at byte {offset}), though its "
+                    f"{compression_name(ifd.compression)} says it is", file=path, expected="an undamaged raw file")
 
 
 def check_samples(path: Path, samples: np.ndarray, black_level: float) -> None:

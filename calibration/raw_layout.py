@@ -10,9 +10,14 @@ white balance, no colour matrix; what differs is how a pixel gets its channels:
   3 x 3 tent over each channel's own samples, its own sample kept where the pixel has one:
   every 3 x 3 window of an X-Trans array holds all three colours (checked on the pattern
   at run time), so a missing value is the weighted mean of that channel's samples at most
-  one pixel away. Other algorithms go to LibRaw (its X-Trans path: Markesteijn's
-  demosaicing in LibRaw's xtrans_interpolate, or VNG), with the saturation mask dilated by
-  LIBRAW_FOOTPRINT.
+  one pixel away. Other algorithms go to LibRaw: for X-Trans its ``vng`` is VNG, ``ppg``
+  Markesteijn's one-pass and ``ahd``, ``dht``, ``aahd`` his three-pass demosaicing
+  (LibRaw's xtrans_interpolate; it fails on images smaller than about 512 pixels, which is
+  refused naming --demosaic linear). The saturation mask is dilated by the footprint
+  measured on a synthetic X-Trans raw (tests/calibration/test_raw_layouts.py): the reach of
+  a change of one raw sample into pixels that move by more than one 16-bit code is 1 pixel
+  for ours, 2 for VNG, 11 for one-pass and 13 for three-pass Markesteijn, so
+  NON_BAYER_FOOTPRINT (3, 5, 27).
 * **Four-colour arrays** (CMYG, RGBE) have no three-channel bilinear answer: LibRaw
   develops them (its VNG, the only one of its algorithms that handles four colours).
 * **No filter array**: 3 samples per pixel (linear DNG with PhotometricInterpretation
@@ -33,7 +38,8 @@ import cv2
 import numpy as np
 
 TENT = np.array([[1, 2, 1], [2, 4, 2], [1, 2, 1]], np.float32)
-LIBRAW_FOOTPRINT = 7        # LibRaw's X-Trans / four-colour demosaicing reads up to 3 pixels away (measured)
+NON_BAYER_FOOTPRINT = {"linear": 3, "vng": 5}   # LibRaw's on non-Bayer arrays; Markesteijn's (the others): 27
+MARKESTEIJN_FOOTPRINT = 27
 BAYER_LIBRAW_FOOTPRINT = 5  # its Bayer algorithms read up to two pixels away
 
 
@@ -93,11 +99,27 @@ def read_layout(raw, demosaic: str, bilinear: Callable[[np.ndarray, np.ndarray],
                            "(every 3 x 3 window holds all three colours)", black_all)
         why = f"LibRaw's {demosaic}, as asked" if demosaic != "linear" else \
             "LibRaw's linear: a 3 x 3 window of this pattern misses a colour"
-        return RawRead(develop(demosaic), _dilate(raw_saturated, LIBRAW_FOOTPRINT), ["R", "G", "B"], cfa, layout,
-                       demosaic, why, black_all)
+        footprint = NON_BAYER_FOOTPRINT.get(demosaic, MARKESTEIJN_FOOTPRINT)
+        return RawRead(_libraw(develop, demosaic, layout, visible.shape), _dilate(raw_saturated, footprint),
+                       ["R", "G", "B"], cfa, layout, demosaic, why, black_all)
     layout = f"{colours}-colour {size} ({cfa})"
-    return RawRead(develop("vng"), _dilate(raw_saturated, LIBRAW_FOOTPRINT), ["R", "G", "B"], cfa, layout, "vng",
+    return RawRead(_libraw(develop, "vng", layout, visible.shape), _dilate(raw_saturated, NON_BAYER_FOOTPRINT["vng"]),
+                   ["R", "G", "B"], cfa, layout, "vng",
                    f"{colours}-colour filter array: LibRaw's VNG, its only algorithm for four colours", black_all)
+
+
+def _libraw(develop: Develop, demosaic: str, layout: str, shape: tuple[int, ...]) -> np.ndarray:
+    """LibRaw's demosaicing of a non-Bayer array; its failure (Markesteijn's on a small image) as a user error."""
+    import rawpy  # deferred: start-up time
+
+    from workbench.core.errors import UserInputError
+
+    try:
+        return develop(demosaic)
+    except rawpy.LibRawError as exc:
+        raise UserInputError(f"LibRaw's {demosaic} demosaicing failed on this {shape[1]} x {shape[0]} {layout} raw "
+                             f"({_message(exc)})", field="--demosaic",
+                             expected="linear (ours, for any RGB filter array)") from None
 
 
 def _stacked(samples: np.ndarray, black: list[float], white: float, colours: int, description: str) -> RawRead:
@@ -152,3 +174,8 @@ def periodic_demosaic(mosaic: np.ndarray, channel: np.ndarray) -> np.ndarray:
 
 def _dilate(mask: np.ndarray, footprint: int) -> np.ndarray:
     return cv2.dilate(mask.astype(np.uint8), np.ones((footprint, footprint), np.uint8)).astype(bool)
+
+
+def _message(exc: Exception) -> str:
+    text = exc.args[0] if exc.args else exc
+    return text.decode(errors="replace") if isinstance(text, bytes) else str(text)

@@ -8,10 +8,19 @@ CalibrationIlluminant1, AsShotNeutral, ExposureTime and ISOSpeedRatings; uncompr
 16-bit samples. tifffile writes the TIFF (its extratags); the file is written to a
 temporary name and renamed, so a crash never leaves half a file. LibRaw refuses tiny
 images, so both sides must be at least MIN_SIDE pixels.
+
+Besides a 2 x 2 Bayer mosaic, for decoding tests of other sensor layouts: a square RGB
+pattern of any period (``cfa_pattern`` of n * n letters, row-major: a Fujifilm X-Trans
+6 x 6 has 36), written with CFARepeatPatternDim (n, n); and, with ``cfa_pattern=""``, a
+raw without a filter array, PhotometricInterpretation LinearRaw (34892) [DNG 1.4, Ch. 4]:
+(H, W, 3) samples (a linear DNG) or (H, W) (a monochrome sensor). tifffile writes no
+one-sample LinearRaw, so that one is written as BlackIsZero and its
+PhotometricInterpretation value set to 34892 in place before the rename.
 """
 
 from __future__ import annotations
 
+import struct
 from dataclasses import dataclass
 from fractions import Fraction
 from pathlib import Path
@@ -24,6 +33,8 @@ from workbench.core.files import atomic_write
 CFA_CODES = {"R": 0, "G": 1, "B": 2}
 MIN_SIDE = 32
 D65 = 21  # EXIF LightSource code for CalibrationIlluminant1
+LINEAR_RAW = 34892  # PhotometricInterpretation LinearRaw [DNG 1.4]
+BLACK_IS_ZERO = 1
 
 
 @dataclass(frozen=True)
@@ -54,31 +65,62 @@ def _flat(values, signed: bool) -> tuple[int, ...]:
 
 
 def write_dng(path: str | Path, raw: np.ndarray, meta: DngMetadata) -> Path:
-    """Write a 2D uint16 Bayer mosaic as a DNG; returns the path."""
+    """Write a 2D uint16 mosaic (or, with ``meta.cfa_pattern == ""``, a linear (H, W, 3) or monochrome (H, W) raw)
+    as a DNG; returns the path."""
     raw = np.asarray(raw)
-    if raw.ndim != 2 or raw.dtype != np.uint16:
-        raise ValueError(f"raw must be a 2D uint16 mosaic, got {raw.dtype} {raw.shape}")
-    if min(raw.shape) < MIN_SIDE:
+    linear = meta.cfa_pattern == ""
+    if raw.dtype != np.uint16 or not (raw.ndim == 2 or (linear and raw.ndim == 3 and raw.shape[2] == 3)):
+        raise ValueError(f"raw must be a 2D uint16 mosaic (or (H, W, 3) without a CFA), got {raw.dtype} {raw.shape}")
+    if min(raw.shape[:2]) < MIN_SIDE:
         raise ValueError(f"raw images must be at least {MIN_SIDE} x {MIN_SIDE} pixels (LibRaw refuses smaller), got {raw.shape}")
-    if sorted(meta.cfa_pattern) != sorted("RGGB") or len(meta.cfa_pattern) != 4:
-        raise ValueError(f"cfa_pattern must be a 2x2 Bayer pattern such as 'RGGB', got {meta.cfa_pattern!r}")
+    side = _pattern_side(meta.cfa_pattern)
+    samples = 1 if raw.ndim == 2 else 3
     tags = [
         (50706, 1, 4, (1, 4, 0, 0), True),                                   # DNGVersion
         (50707, 1, 4, (1, 1, 0, 0), True),                                   # DNGBackwardVersion
         (50708, 2, 0, f"{meta.make} {meta.model}", True),                   # UniqueCameraModel
         (271, 2, 0, meta.make, True),                                       # Make
         (272, 2, 0, meta.model, True),                                      # Model
-        (33421, 3, 2, (2, 2), True),                                        # CFARepeatPatternDim
-        (33422, 1, 4, tuple(CFA_CODES[c] for c in meta.cfa_pattern), True),  # CFAPattern
-        (50714, 3, 1, (int(meta.black_level),), True),                      # BlackLevel
-        (50717, 3, 1, (int(meta.white_level),), True),                      # WhiteLevel
+        *([] if linear else [
+            (33421, 3, 2, (side, side), True),                              # CFARepeatPatternDim
+            (33422, 1, side * side, tuple(CFA_CODES[c] for c in meta.cfa_pattern), True)]),  # CFAPattern
+        (50714, 3, samples, (int(meta.black_level),) * samples, True),      # BlackLevel
+        (50717, 3, samples, (int(meta.white_level),) * samples, True),      # WhiteLevel
         (50721, 10, 9, _flat(meta.color_matrix, signed=True), True),        # ColorMatrix1 (SRATIONAL)
         (50778, 3, 1, (D65,), True),                                        # CalibrationIlluminant1
         (50728, 5, 3, _flat(meta.as_shot_neutral, signed=False), True),     # AsShotNeutral (RATIONAL)
         (33434, 5, 1, _rational(meta.exposure_time_s, signed=False), True),  # ExposureTime
         (34855, 3, 1, (int(meta.iso),), True),                              # ISOSpeedRatings
     ]
+    photometric = LINEAR_RAW if samples == 3 else (BLACK_IS_ZERO if linear else 32803)
+
     def write(tmp: Path) -> None:
-        tifffile.imwrite(tmp, raw, photometric=32803, extratags=tags, subfiletype=0, metadata=None, compression=None)
+        tifffile.imwrite(tmp, raw, photometric=photometric, extratags=tags, subfiletype=0, metadata=None,
+                         compression=None)
+        if linear and samples == 1:
+            _set_photometric(tmp, LINEAR_RAW)
 
     return atomic_write(path, write)
+
+
+def _pattern_side(pattern: str) -> int:
+    """The period of a square row-major CFA pattern (2 for Bayer, 6 for X-Trans); 0 for no CFA."""
+    if pattern == "":
+        return 0
+    side = int(round(len(pattern) ** 0.5))
+    if len(pattern) == 4 and sorted(pattern) == sorted("RGGB"):
+        return 2
+    if len(pattern) > 4 and side * side == len(pattern) and set(pattern) == set("RGB"):
+        return side
+    raise ValueError(f"cfa_pattern must be a 2x2 Bayer pattern such as 'RGGB', an n x n RGB pattern (36 letters for "
+                     f"X-Trans) or '' (no CFA), got {pattern!r}")
+
+
+def _set_photometric(path: Path, value: int) -> None:
+    """Overwrite IFD 0's PhotometricInterpretation (a SHORT held in its IFD entry) with ``value``."""
+    with tifffile.TiffFile(path) as tif:
+        tag = tif.pages.first.tags["PhotometricInterpretation"]
+        offset, order = tag.valueoffset, tif.byteorder
+    with open(path, "r+b") as handle:
+        handle.seek(offset)
+        handle.write(struct.pack(order + "H", value))
