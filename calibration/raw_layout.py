@@ -16,8 +16,8 @@ white balance, no colour matrix; what differs is how a pixel gets its channels:
   refused naming --demosaic linear). The saturation mask is dilated by the footprint
   measured on a synthetic X-Trans raw (tests/calibration/test_raw_layouts.py): the reach of
   a change of one raw sample into pixels that move by more than one 16-bit code is 1 pixel
-  for ours, 2 for VNG, 11 for one-pass and 13 for three-pass Markesteijn, so
-  NON_BAYER_FOOTPRINT (3, 5, 27).
+  for ours, 2 for VNG, 11 for one-pass and 14 for three-pass Markesteijn (2 codes there),
+  so footprints of 3, 5, 23 and 29 pixels (NON_BAYER_FOOTPRINT, MARKESTEIJN_FOOTPRINT).
 * **Four-colour arrays** (CMYG, RGBE) have no three-channel bilinear answer: LibRaw
   develops them (its VNG, the only one of its algorithms that handles four colours).
 * **No filter array**: 3 samples per pixel (linear DNG with PhotometricInterpretation
@@ -38,8 +38,8 @@ import cv2
 import numpy as np
 
 TENT = np.array([[1, 2, 1], [2, 4, 2], [1, 2, 1]], np.float32)
-NON_BAYER_FOOTPRINT = {"linear": 3, "vng": 5}   # LibRaw's on non-Bayer arrays; Markesteijn's (the others): 27
-MARKESTEIJN_FOOTPRINT = 27
+NON_BAYER_FOOTPRINT = {"linear": 3, "vng": 5, "ppg": 23}   # LibRaw's on non-Bayer arrays (ppg: 1-pass Markesteijn)
+MARKESTEIJN_FOOTPRINT = 29  # ahd, dht, aahd on X-Trans: LibRaw's 3-pass Markesteijn
 BAYER_LIBRAW_FOOTPRINT = 5  # its Bayer algorithms read up to two pixels away
 
 

@@ -85,8 +85,8 @@ def test_undecodable_samples_are_refused_not_black(tmp_path):
     stream; and one with 0.2 % of its samples present (the RW2 case), the rest zero below the black level."""
     whole = _whole(tmp_path)
     fake = _with_compression(whole, tmp_path / "fake_ljpeg.dng", 7)
-    with rawpy.imread(str(fake)) as raw:
-        assert raw.raw_image_visible.shape == (64, 96)   # LibRaw's own answer: an image, no error
+    with rawpy.imread(str(fake)) as libraw:
+        assert libraw.raw_image_visible.shape == (64, 96)   # LibRaw's own answer: an image, no error
     _refused(fake, "damaged image data", "strip or tile 1 of 1", "not a JPEG stream", "lossless JPEG")
     raw = np.zeros((64, 96), np.uint16)
     raw.flat[:int(0.002 * raw.size) + 1] = 6000          # the first 0.2 % of the samples, the rest never written
