@@ -20,6 +20,9 @@ checks, each a one-line UserInputError naming the file:
   neighbours all at zero (probability p**16 for a per-sample probability p) do not; missing
   data (a truncated stream, damaged tiles, a file with 0.2 % of its pixels present) is
   zero in whole rows or tiles.
+* ``check_raw_file``: both checks on a file before anything else reads it (``workbench
+  verify``'s up-front check of every raw in a dataset), returning its visible size: the
+  same refusals, word for word, as the decode's.
 * ``libraw_failure``: when LibRaw refuses a DNG whose raw image is compressed, the message
   names the compression (TIFF Compression tag), e.g. GoPro's VC-5, which LibRaw reads only
   when built with the GoPro GPR SDK, or Deflate without zlib.
@@ -159,3 +162,30 @@ def libraw_failure(message: str, ifds: list[RawIfd]) -> str:
         return (f"its raw image uses {compression_name(compressed[0])}, which this LibRaw ({version}) does not "
                 f"decode (LibRaw: {message})")
     return f"cannot be decoded as a raw photograph ({message})"
+
+
+def samples_black_level(raw) -> float:
+    """The lowest black level of the channels the open rawpy ``raw``'s samples use (its ``num_colors`` first for a
+    stacked or monochrome raw, all four CFA entries otherwise), as calibration.decode passes to check_samples."""
+    import rawpy  # deferred: start-up time
+
+    black = [float(b) for b in raw.black_level_per_channel]
+    colours = max(1, int(raw.num_colors))
+    return min(black[:colours] if raw.raw_type != rawpy.RawType.Flat or colours == 1 else black)
+
+
+def check_raw_file(path: Path) -> tuple[int, int]:
+    """(width, height) LibRaw sees of the raw file ``path``, after check_container and check_samples: the decode's
+    refusals, word for word (LibRaw's own refusal through libraw_failure), without demosaicing."""
+    import rawpy  # deferred: start-up time
+
+    ifds = check_container(path)
+    try:
+        with rawpy.imread(str(path)) as raw:
+            check_samples(path, raw.raw_image_visible, samples_black_level(raw))
+            return int(raw.sizes.width), int(raw.sizes.height)
+    except rawpy.LibRawError as exc:
+        text = exc.args[0] if exc.args else exc
+        message = text.decode(errors="replace") if isinstance(text, bytes) else str(text)
+        raise UserInputError(libraw_failure(message, ifds), file=path,
+                             expected="a complete raw file LibRaw reads (DNG, NEF, CR2, ARW, ...)") from None

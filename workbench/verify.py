@@ -62,6 +62,7 @@ from tqdm import tqdm
 
 from calibration.dataset import calibrate_dataset, dataset_files
 from calibration.decode import is_raw
+from calibration.raw_checks import check_raw_file
 from rcwa.structure import BUILTIN_STRUCTURES
 from rcwa.table import build_table
 from renderer.planner import format_plan, plan_scene
@@ -102,16 +103,14 @@ NOT_FITTED = "not_fitted.txt"  # in RUN/fit when the scene has nothing to fit or
 
 
 def photo_size(path: Path) -> tuple[int, int]:
-    """(width, height) of a photo as calibration decodes it (raw: LibRaw's visible size)."""
+    """(width, height) of a photo as calibration decodes it (raw: LibRaw's visible size, after
+    calibration.raw_checks refused a damaged or unsupported raw with the decode's own message)."""
+    if is_raw(path):
+        return check_raw_file(path)
     try:
-        if is_raw(path):
-            import rawpy  # deferred: LibRaw's binding, for raw photos only (start-up time)
-
-            with rawpy.imread(str(path)) as raw:
-                return int(raw.sizes.width), int(raw.sizes.height)
         with Image.open(path) as image:
             return image.size
-    except Exception as exc:  # noqa: BLE001 (LibRaw and Pillow raise many kinds for an unreadable file)
+    except Exception as exc:  # noqa: BLE001 (Pillow raises many kinds for an unreadable file)
         raise UserInputError(f"cannot read the photo ({type(exc).__name__}: {exc})", file=path,
                              expected="a raw file LibRaw reads, or a JPEG/PNG/TIFF image") from None
 
@@ -130,8 +129,10 @@ def _selected_photos(dataset: Path, wanted: tuple[str, ...]) -> list[Path]:
 
 def _check_sizes(dataset: Path, scene_source: str, scene_size: tuple[int, int]) -> tuple[int, int]:
     """The photos' common size, checked against each other and against the scene camera's aspect."""
-    photos = dataset_files(dataset)["photos"]
+    files = dataset_files(dataset)
+    photos = files["photos"]
     sizes = {p: photo_size(p) for p in photos}
+    _check_raws(files["brackets"] + files["boards"])
     first = photos[0]
     for path, size in sizes.items():
         if size != sizes[first]:
@@ -145,6 +146,14 @@ def _check_sizes(dataset: Path, scene_source: str, scene_size: tuple[int, int]) 
                              field="camera.resolution", expected=f"the photos' aspect within {ASPECT_TOLERANCE:.0%}, "
                              f"e.g. [{width}, {height}]", got=f"{first}: {width} x {height}")
     return width, height
+
+
+def _check_raws(paths: list[Path]) -> None:
+    """Refuse a damaged raw among the bracket frames and board views before any stage runs (the calibration stage
+    would decode it only after the plan and the tables, which can take hours)."""
+    for path in paths:
+        if is_raw(path):
+            check_raw_file(path)
 
 
 def run_scene_text(spec: SceneSpec, table_preset: str) -> str:

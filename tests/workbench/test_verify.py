@@ -451,6 +451,63 @@ def test_a_second_run_into_the_same_folder_is_refused_while_the_first_runs(
     assert sorted(p.name for p in root.iterdir()) == ["notes.txt"]
 
 
+def _raw_dataset(root: Path, board: bool = False) -> tuple[Path, Path]:
+    """A dataset whose photo is a whole 64 x 48 DNG (cornell_cd's aspect) from datasets_synthetic.dng, with a board
+    view in calibration/ that is one too; returns (dataset, photo)."""
+    from datasets_synthetic.dng import DngMetadata, write_dng
+
+    raw = np.random.default_rng(3).normal(6000, 300, (48, 64)).clip(0, 16383).astype(np.uint16)
+    for folder in ("photos", "calibration") if board else ("photos",):
+        (root / folder).mkdir(parents=True)
+        write_dng(root / folder / "view0.dng", raw, DngMetadata(black_level=512))
+    return root, root / "photos" / "view0.dng"
+
+
+def _damage(path: Path, how: str) -> None:
+    """Cut ``path`` at its first image byte (a header claiming the full size, like issue 26's 13 kB DNG), or zero
+    all its samples but the first row (image data missing below the black level)."""
+    import tifffile
+
+    with tifffile.TiffFile(path) as tif:
+        start = min(tif.pages.first.dataoffsets)
+    data = bytearray(path.read_bytes())
+    if how == "truncated":
+        del data[start:]
+    else:
+        data[start + 2 * 64:] = bytes(len(data) - start - 2 * 64)
+    path.write_bytes(bytes(data))
+
+
+@pytest.mark.parametrize(("how", "words"), [("truncated", "truncated: its 64 x 48 raw image's data"),
+                                            ("zeroed", "damaged image data")])
+def test_a_damaged_raw_photo_is_refused_before_any_stage(how: str, words: str, tmp_path: Path,
+                                                         capsys: pytest.CaptureFixture[str]) -> None:
+    """A DNG the project writes, damaged: verify's up-front size check refuses it with the decode's own one-line
+    message (calibration.raw_checks), before any stage runs, so RUN is never created."""
+    data, photo = _raw_dataset(tmp_path / "data")
+    _damage(photo, how)
+    err = _error(["verify", str(data), "--scene", "cornell_cd", "--out", str(tmp_path / "run")], capsys)
+    assert str(photo) in err and words in err and len(err.strip().splitlines()) == 1, err
+    assert not (tmp_path / "run").exists()
+    assert main(["decode", str(photo), "--out", str(tmp_path / "o.exr")]) == 2
+    assert capsys.readouterr().err == err  # word for word the refusal decode (and so calibration) gives
+
+
+def test_a_damaged_raw_board_view_is_refused_before_any_stage(tmp_path: Path,
+                                                              capsys: pytest.CaptureFixture[str]) -> None:
+    """A board view is decoded only in the calibration stage, after the plan and the tables: it is checked up
+    front too. The whole files pass the same check (the control)."""
+    from workbench.verify import _check_sizes
+
+    data, photo = _raw_dataset(tmp_path / "data", board=True)
+    assert _check_sizes(data, "cornell_cd", (326, 245)) == (64, 48)
+    board = data / "calibration" / "view0.dng"
+    _damage(board, "truncated")
+    err = _error(["verify", str(data), "--scene", "cornell_cd", "--out", str(tmp_path / "run")], capsys)
+    assert str(board) in err and "truncated" in err and str(photo) not in err, err
+    assert not (tmp_path / "run").exists()
+
+
 def test_score_refuses_a_folder_that_is_not_a_run(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     err = _error(["score", str(tmp_path), "--truth", str(tmp_path / "truth.json")], capsys)
     assert str(tmp_path / "run.json") in err and "not a verify run" in err
