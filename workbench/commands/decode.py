@@ -9,7 +9,8 @@ from pathlib import Path
 from calibration.decode import DEMOSAIC_ALGORITHMS, decode_to_exr
 
 SUMMARY_KEYS = ("width", "height", "black_level", "white_level", "cfa", "exposure_time_s", "iso", "make", "model",
-                "saturated_fraction", "linear", "source", "demosaic", "channels", "response")  # printed by --json
+                "saturated_fraction", "linear", "source", "demosaic", "channels", "response", "layout",
+                "demosaic_reason")  # printed by --json (layout and demosaic_reason: null for a non-raw image)
 
 
 def add_parser(commands: argparse._SubParsersAction) -> None:
