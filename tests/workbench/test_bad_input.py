@@ -55,6 +55,18 @@ def files(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
     import numpy as np
     from PIL import Image
 
+    from datasets_synthetic.dng import DngMetadata, write_dng
+
+    # A whole DNG as the project writes it, its image data zero below the black level but for the first row (how
+    # missing data reads: LibRaw decodes it without an error; calibration.raw_checks refuses it). 64 x 48: the aspect
+    # of cornell_cd's camera, so verify gets as far as the photo's samples.
+    zeroed = np.zeros((48, 64), np.uint16)
+    zeroed[0] = 6000
+    (root / "raw_dataset" / "photos").mkdir(parents=True)
+    out["zeroed.dng"] = write_dng(root / "zeroed.dng", zeroed, DngMetadata(black_level=512))
+    write_dng(root / "raw_dataset" / "photos" / "zeroed.dng", zeroed, DngMetadata(black_level=512))
+    out["raw_dataset"] = root / "raw_dataset"
+
     gradient = np.tile(np.linspace(0, 255, 64, dtype=np.uint8), (48, 1))
     for name, image in (("gray.png", gradient), ("gray2.png", gradient // 2)):
         Image.fromarray(image).save(root / name)
@@ -165,6 +177,7 @@ CASES: list[tuple[str, list[str], str]] = [
     ("decode-missing", ["decode", "{root}/nosuch.dng", "--out", "{root}/o.exr"], "nosuch.dng"),
     ("decode-not-an-image", ["decode", "{notes.txt}", "--out", "{root}/o.exr"], "notes.txt"),
     ("decode-truncated-raw", ["decode", "{truncated.dng}", "--out", "{root}/o.exr"], "truncated.dng"),
+    ("decode-zeroed-raw", ["decode", "{zeroed.dng}", "--out", "{root}/o.exr"], "zeroed.dng: damaged image data"),
     ("intrinsics-bad-board", ["calibrate", "intrinsics", "{gray.png}", "--board", "9by6", "--square-mm", "25",
                               "--out", "{root}/i.json"], "--board"),
     ("intrinsics-too-few-views", ["calibrate", "intrinsics", "{gray.png}", "--board", "9x6", "--square-mm", "25",
@@ -180,10 +193,14 @@ CASES: list[tuple[str, list[str], str]] = [
                             "--out", "{root}/r.json"], "--times"),
     ("pose-missing-photo", ["calibrate", "pose", "{root}/nosuch.dng", "--scene", "cornell_cd", "--out", "{root}/p"],
      "nosuch.dng"),
+    ("pose-zeroed-raw-photo", ["calibrate", "pose", "{zeroed.dng}", "--scene", "cornell_cd", "--out", "{root}/p"],
+     "zeroed.dng: damaged image data"),
     ("pose-scene-without-camera", ["calibrate", "pose", "{gray.png}", "--scene", "{nocamera.toml}", "--out", "{root}/p"],
      "camera"),
     ("dataset-without-photos", ["calibrate", "dataset", "{a_folder}", "--scene", "cornell_cd", "--out", "{root}/c"],
      "photos"),
+    ("dataset-zeroed-raw-photo", ["calibrate", "dataset", "{raw_dataset}", "--scene", "cornell_cd", "--out",
+                                  "{root}/c6"], "zeroed.dng: damaged image data"),
     ("calibrate-dataset-short-form", ["calibrate", "{a_folder}", "--scene", "cornell_cd", "--out", "{root}/c2"], "photos"),
     ("dataset-board-undescribed", ["calibrate", "{undescribed_boards}", "--scene", "cornell_cd", "--out", "{root}/c3"],
      "board.json"),
@@ -206,6 +223,9 @@ CASES: list[tuple[str, list[str], str]] = [
     ("report-truncated-raw-photo", ["report", "--photo", "{truncated.dng}", "--render", "{gray.png}", "--calibration",
                                     "{run_done}/calibration/calibration.json", "--scene", "cornell_cd", "--out",
                                     "{root}/rep"], "truncated.dng"),
+    ("report-zeroed-raw-photo", ["report", "--photo", "{zeroed.dng}", "--render", "{gray.png}", "--calibration",
+                                 "{run_done}/calibration/calibration.json", "--scene", "cornell_cd", "--out",
+                                 "{root}/rep"], "zeroed.dng: damaged image data"),
     ("report-jpeg-without-response", ["report", "--photo", "{gray.png}", "--render", "{gray.png}", "--calibration",
                                       "{run_done}/calibration/calibration.json", "--scene", "cornell_cd", "--out",
                                       "{root}/rep"], "response"),
@@ -225,6 +245,8 @@ CASES: list[tuple[str, list[str], str]] = [
      "no verify run wrote"),
     ("verify-unknown-photo", ["verify", "{dataset}", "--scene", "cornell_cd", "--out", "{root}/v1", "--photo", "nosuch.png"],
      "--photo"),
+    ("verify-zeroed-raw-photo", ["verify", "{raw_dataset}", "--scene", "cornell_cd", "--out", "{root}/v2"],
+     "zeroed.dng: damaged image data"),
     ("verify-spp-zero", ["verify", "{dataset}", "--scene", "cornell_cd", "--out", "{root}/v1", "--spp", "0"], "--spp"),
     ("verify-seed-negative", ["verify", "{dataset}", "--scene", "cornell_cd", "--out", "{root}/v1", "--seed", "-1"], "--seed"),
     ("verify-bad-board", ["verify", "{dataset}", "--scene", "cornell_cd", "--out", "{root}/v1", "--board", "9"], "--board"),
