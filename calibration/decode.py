@@ -136,7 +136,8 @@ def _decode_raw(path: Path, demosaic: str) -> DecodedImage:
                 raise UserInputError("the raw file's white level is not above its black level", file=path,
                                      got={"black_level": used, "white_level": white})
             raw_checks.check_samples(path, raw.raw_image_visible, min(used))
-            read = raw_layout.read_layout(raw, demosaic, bilinear_demosaic, lambda name: _libraw_develop(raw, name))
+            read = raw_layout.read_layout(raw, demosaic, bilinear_demosaic, lambda name: _libraw_develop(raw, name),
+                                          path)
             fallback = {"exposure_time_s": float(raw.other.shutter_speed), "iso": float(raw.other.iso_speed)}
     except rawpy.LibRawError as exc:
         raise UserInputError(raw_checks.libraw_failure(_libraw_message(exc), ifds), file=path,

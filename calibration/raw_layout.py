@@ -18,8 +18,18 @@ white balance, no colour matrix; what differs is how a pixel gets its channels:
   a change of one raw sample into pixels that move by more than one 16-bit code is 1 pixel
   for ours, 2 for VNG, 11 for one-pass and 14 for three-pass Markesteijn (2 codes there),
   so footprints of 3, 5, 23 and 29 pixels (NON_BAYER_FOOTPRINT, MARKESTEIJN_FOOTPRINT).
-* **Four-colour arrays** (CMYG, RGBE) have no three-channel bilinear answer: LibRaw
-  develops them (its VNG, the only one of its algorithms that handles four colours).
+* **Four-colour arrays** (CMYG, RGBE, RGBW) have no three-channel bilinear answer: LibRaw
+  develops them into their four camera channels, named by filter colour (no colour matrix,
+  as for every layout). LibRaw has two algorithms for four colours (dcraw_process: quality 0
+  is lin_interpolate, any other is vng_interpolate when colors > 3): ``linear`` is its
+  bilinear, every other choice its VNG. A channel's colour: LibRaw's ``color_desc``, except
+  for a DNG, where LibRaw leaves it at dcraw's default "GMCY" whatever the file says; there
+  LibRaw's channel c is the DNG's CFAPlaneColor[c] (parse_tiff_ifd, tag 50710), or, without
+  that tag, its guess from the CFAPattern's colours (C, M, Y for a CMY array; Y, C, M, G
+  for one of green, cyan, magenta and yellow; else R, G, B, C), read here from the file.
+  Measured on a smooth four-channel scene (tests/calibration/test_raw_four_colour.py): a
+  saturated sample moves pixels at most 1 away through LibRaw's linear and 2 through its
+  VNG, so footprints of 3 and 5 pixels.
 * **No filter array**: 3 samples per pixel (linear DNG with PhotometricInterpretation
   LinearRaw, scanner NEFs, LibRaw's "stacked" raws) and monochrome sensors (one colour)
   are read as they are, sample by sample: no demosaicing, and a pixel is saturated where
@@ -33,6 +43,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass
+from pathlib import Path
 
 import cv2
 import numpy as np
@@ -41,6 +52,7 @@ TENT = np.array([[1, 2, 1], [2, 4, 2], [1, 2, 1]], np.float32)
 NON_BAYER_FOOTPRINT = {"linear": 3, "vng": 5, "ppg": 23}   # LibRaw's on non-Bayer arrays (ppg: 1-pass Markesteijn)
 MARKESTEIJN_FOOTPRINT = 29  # ahd, dht, aahd on X-Trans: LibRaw's 3-pass Markesteijn
 BAYER_LIBRAW_FOOTPRINT = 5  # its Bayer algorithms read up to two pixels away
+DNG_PLANE_LETTERS = "RGBCMYW"   # TIFF/EP CFAPattern and DNG CFAPlaneColor codes 0-6
 
 
 @dataclass
@@ -59,8 +71,9 @@ Develop = Callable[[str], np.ndarray]   # LibRaw's demosaicing by algorithm name
 
 
 def read_layout(raw, demosaic: str, bilinear: Callable[[np.ndarray, np.ndarray], np.ndarray],
-                develop: Develop) -> RawRead:
-    """The open rawpy ``raw`` as linear camera values, by its layout (see the module docstring)."""
+                develop: Develop, path: Path | None = None) -> RawRead:
+    """The open rawpy ``raw`` (read from ``path``) as linear camera values, by its layout (see the module
+    docstring)."""
     import rawpy  # deferred: start-up time
 
     black_all = [float(b) for b in raw.black_level_per_channel]
@@ -102,10 +115,54 @@ def read_layout(raw, demosaic: str, bilinear: Callable[[np.ndarray, np.ndarray],
         footprint = NON_BAYER_FOOTPRINT.get(demosaic, MARKESTEIJN_FOOTPRINT)
         return RawRead(_libraw(develop, demosaic, layout, visible.shape), _dilate(raw_saturated, footprint),
                        ["R", "G", "B"], cfa, layout, demosaic, why, black_all)
-    layout = f"{colours}-colour {size} ({cfa})"
-    return RawRead(_libraw(develop, "vng", layout, visible.shape), _dilate(raw_saturated, NON_BAYER_FOOTPRINT["vng"]),
-                   ["R", "G", "B"], cfa, layout, "vng",
-                   f"{colours}-colour filter array: LibRaw's VNG, its only algorithm for four colours", black_all)
+    return _four_colour(raw_saturated, pattern, channel_colours(description, colours, path), demosaic, develop,
+                        black_all)
+
+
+def _four_colour(raw_saturated: np.ndarray, pattern: np.ndarray | None, names: str, demosaic: str, develop: Develop,
+                 black: list[float]) -> RawRead:
+    """A four-colour array through LibRaw's linear (asked) or VNG (anything else), its channels named by colour."""
+    cfa = "".join(names[i] for i in pattern.ravel()) if pattern is not None else None
+    size = f"{pattern.shape[0]} x {pattern.shape[1]}" if pattern is not None else "unknown"
+    layout = f"{len(names)}-colour {size} ({cfa})"
+    used = "linear" if demosaic == "linear" else "vng"
+    why = f"{len(names)}-colour filter array: LibRaw's "
+    if used == "linear":
+        why += "linear (bilinear), one of its two algorithms for four colours"
+    elif demosaic == "vng":
+        why += "VNG, as asked"
+    else:
+        why += f"VNG: {demosaic} was asked, and LibRaw runs VNG for four colours whatever is asked but linear"
+    pixels = _libraw(develop, used, layout, raw_saturated.shape)
+    return RawRead(pixels, _dilate(raw_saturated, NON_BAYER_FOOTPRINT[used]), list(names), cfa, layout, used, why,
+                   black)
+
+
+def channel_colours(description: str, colours: int, path: Path | None) -> str:
+    """The filter colour of each of LibRaw's ``colours`` channels: for a DNG from its tags (see the module
+    docstring), else LibRaw's ``description`` (its color_desc)."""
+    planes = dng_plane_colours(path) if path is not None and path.suffix.lower() == ".dng" else None
+    return planes if planes is not None and len(planes) == colours else description[:colours]
+
+
+def dng_plane_colours(path: Path) -> str | None:
+    """LibRaw's channel colours for the DNG's raw CFA image: its CFAPlaneColor, or LibRaw's guess from its
+    CFAPattern (parse_tiff_ifd's cfa_pc); None when the file has no CFA image tifffile reads."""
+    import tifffile  # deferred: start-up time
+
+    try:
+        with tifffile.TiffFile(path) as tif:
+            for page in (p for top in tif.pages for p in (top, *(getattr(top, "pages", None) or []))):
+                pattern, planes = page.tags.get(33422), page.tags.get(50710)
+                if pattern is None or int(page.photometric) != 32803:
+                    continue
+                if planes is not None:
+                    return "".join(DNG_PLANE_LETTERS[int(c)] for c in bytes(planes.value)[:4])
+                present = {DNG_PLANE_LETTERS[int(c)] for c in bytes(pattern.value) if int(c) < 7}
+                return {frozenset("CMY"): "CMY", frozenset("GCMY"): "YCMG"}.get(frozenset(present), "RGBC")
+    except Exception:  # noqa: BLE001 - LibRaw read the file; without its tags here, LibRaw's own names stand
+        return None
+    return None
 
 
 def _libraw(develop: Develop, demosaic: str, layout: str, shape: tuple[int, ...]) -> np.ndarray:

@@ -16,6 +16,14 @@ raw without a filter array, PhotometricInterpretation LinearRaw (34892) [DNG 1.4
 (H, W, 3) samples (a linear DNG) or (H, W) (a monochrome sensor). tifffile writes no
 one-sample LinearRaw, so that one is written as BlackIsZero and its
 PhotometricInterpretation value set to 34892 in place before the rename.
+
+A four-colour 2 x 2 array (four distinct letters of R, G, B, C, M, Y, W, e.g. "CMYG"; the
+CFAPattern codes of [TIFF/EP, CFAPattern]: 0 red, 1 green, 2 blue, 3 cyan, 4 magenta,
+5 yellow, 6 white) is written with CFAPlaneColor, the planes in the order their colours
+first appear in the pattern, and a ColorMatrix1 and AsShotNeutral of one row or entry per
+plane ([DNG 1.4, Ch. 6]). Given a 3 x 3 ``color_matrix`` (XYZ to the RGB the filters are
+made of), each plane's row is the sum of the rows of the colours its ideal filter passes
+(cyan = green + blue, magenta = red + blue, yellow = red + green, white = all three).
 """
 
 from __future__ import annotations
@@ -30,7 +38,9 @@ import tifffile
 
 from workbench.core.files import atomic_write
 
-CFA_CODES = {"R": 0, "G": 1, "B": 2}
+CFA_CODES = {"R": 0, "G": 1, "B": 2, "C": 3, "M": 4, "Y": 5, "W": 6}   # TIFF/EP CFAPattern codes
+PASSES = {"R": (1, 0, 0), "G": (0, 1, 0), "B": (0, 0, 1), "C": (0, 1, 1), "M": (1, 0, 1), "Y": (1, 1, 0),
+          "W": (1, 1, 1)}   # the red, green and blue an ideal filter of each colour passes
 MIN_SIDE = 32
 D65 = 21  # EXIF LightSource code for CalibrationIlluminant1
 LINEAR_RAW = 34892  # PhotometricInterpretation LinearRaw [DNG 1.4]
@@ -75,6 +85,8 @@ def write_dng(path: str | Path, raw: np.ndarray, meta: DngMetadata) -> Path:
         raise ValueError(f"raw images must be at least {MIN_SIDE} x {MIN_SIDE} pixels (LibRaw refuses smaller), got {raw.shape}")
     side = _pattern_side(meta.cfa_pattern)
     samples = 1 if raw.ndim == 2 else 3
+    planes = _planes(meta.cfa_pattern)
+    matrix, neutral = _plane_colour(meta, planes)
     tags = [
         (50706, 1, 4, (1, 4, 0, 0), True),                                   # DNGVersion
         (50707, 1, 4, (1, 1, 0, 0), True),                                   # DNGBackwardVersion
@@ -84,11 +96,13 @@ def write_dng(path: str | Path, raw: np.ndarray, meta: DngMetadata) -> Path:
         *([] if linear else [
             (33421, 3, 2, (side, side), True),                              # CFARepeatPatternDim
             (33422, 1, side * side, tuple(CFA_CODES[c] for c in meta.cfa_pattern), True)]),  # CFAPattern
+        *([(50710, 1, len(planes), tuple(CFA_CODES[c] for c in planes), True)]                # CFAPlaneColor
+          if len(planes) == 4 else []),
         (50714, 3, samples, (int(meta.black_level),) * samples, True),      # BlackLevel
         (50717, 3, samples, (int(meta.white_level),) * samples, True),      # WhiteLevel
-        (50721, 10, 9, _flat(meta.color_matrix, signed=True), True),        # ColorMatrix1 (SRATIONAL)
+        (50721, 10, len(matrix), _flat(matrix, signed=True), True),         # ColorMatrix1 (SRATIONAL)
         (50778, 3, 1, (D65,), True),                                        # CalibrationIlluminant1
-        (50728, 5, 3, _flat(meta.as_shot_neutral, signed=False), True),     # AsShotNeutral (RATIONAL)
+        (50728, 5, len(neutral), _flat(neutral, signed=False), True),       # AsShotNeutral (RATIONAL)
         (33434, 5, 1, _rational(meta.exposure_time_s, signed=False), True),  # ExposureTime
         (34855, 3, 1, (int(meta.iso),), True),                              # ISOSpeedRatings
     ]
@@ -108,12 +122,31 @@ def _pattern_side(pattern: str) -> int:
     if pattern == "":
         return 0
     side = int(round(len(pattern) ** 0.5))
-    if len(pattern) == 4 and sorted(pattern) == sorted("RGGB"):
+    if len(pattern) == 4 and (sorted(pattern) == sorted("RGGB") or (len(set(pattern)) == 4
+                                                                    and set(pattern) <= set(CFA_CODES))):
         return 2
     if len(pattern) > 4 and side * side == len(pattern) and set(pattern) == set("RGB"):
         return side
-    raise ValueError(f"cfa_pattern must be a 2x2 Bayer pattern such as 'RGGB', an n x n RGB pattern (36 letters for "
-                     f"X-Trans) or '' (no CFA), got {pattern!r}")
+    raise ValueError(f"cfa_pattern must be a 2x2 Bayer pattern such as 'RGGB', a 2x2 pattern of four colours of "
+                     f"{''.join(CFA_CODES)} such as 'CMYG', an n x n RGB pattern (36 letters for X-Trans) or '' (no CFA), "
+                     f"got {pattern!r}")
+
+
+def _planes(pattern: str) -> str:
+    """The colour planes of a CFA pattern, in the order they first appear; RGB for a three-colour one."""
+    distinct = "".join(dict.fromkeys(pattern))
+    return distinct if len(distinct) == 4 else "RGB"
+
+
+def _plane_colour(meta: DngMetadata, planes: str) -> tuple[tuple[float, ...], tuple[float, ...]]:
+    """ColorMatrix1 (one row of 3 per plane) and AsShotNeutral (one per plane) for ``planes`` (see the module
+    docstring): ``meta``'s own for RGB, or for four planes the sums of the rows of the colours each filter passes."""
+    if planes == "RGB" or len(meta.color_matrix) == 3 * len(planes):
+        return tuple(meta.color_matrix), tuple(meta.as_shot_neutral)
+    passes = np.array([PASSES[c] for c in planes], float)
+    matrix = passes @ np.asarray(meta.color_matrix, float).reshape(3, 3)
+    neutral = passes @ np.asarray(meta.as_shot_neutral, float)
+    return tuple(matrix.ravel()), tuple(neutral / neutral.max())
 
 
 def _set_photometric(path: Path, value: int) -> None:
