@@ -36,7 +36,9 @@ only over an opaque substrate; the side a camera cannot see; dispersion for glas
 camera cannot see.
 
 The estimated time of a table is measured (renderer.table_cost): a short sweep at the
-table's orders, timed, scaled to the table's directions and wavelengths on this machine's cores.
+table's orders, timed, scaled to the table's directions and wavelengths on this machine's cores,
+plus its truncation-error sample (rcwa.table.truncation), run once here and scaled to its
+wavelengths; the plan shows the sample on a line of its own.
 """
 
 from __future__ import annotations
@@ -57,7 +59,7 @@ from renderer.camera_coverage import visible_range
 from renderer.placement import frame_to
 from renderer.scene import CD_TOP_THICKNESS_M, CDSpec, GratingSpec, SceneSpec
 from renderer.spectra import camera_sensitivities, on_common_grid
-from renderer.table_cost import table_cost
+from renderer.table_cost import table_cost, truncation_text
 from renderer.tables import scene_settings_for
 from workbench.core.conventions import ORDER_SIGN
 
@@ -92,6 +94,7 @@ class ElementPlan:
     megabytes_whole: float
     fill_orders: tuple[int, ...] = ()
     fill_error: dict[str, float] = field(default_factory=dict)  # |R_fill - R| over the cost sample: max, median
+    truncation: dict[str, Any] = field(default_factory=dict)  # renderer.table_cost.TruncationCost, its seconds included
     notes: list[str] = field(default_factory=list)
     mask: np.ndarray | None = field(default=None, repr=False)
 
@@ -358,7 +361,8 @@ def plan_element(spec: SceneSpec, hit: ElementHit, origin: np.ndarray, camera_ra
         theta_range_deg=_seen_range(grid_theta, seen.any(axis=1)), phi_range_deg=_seen_range(grid_phi, seen.any(axis=0)),
         direct_light_share=found.direct / found.total if found.total else 0.0,
         seconds_whole=cost.seconds_whole, seconds_planned=cost.seconds_planned, megabytes_whole=cost.megabytes_whole,
-        fill_orders=cost.fill_orders, fill_error=cost.fill_error, notes=_notes(samples, hit), mask=union,
+        fill_orders=cost.fill_orders, fill_error=cost.fill_error, truncation=asdict(cost.truncation),
+        notes=_notes(samples, hit), mask=union,
     )
 
 
@@ -551,6 +555,7 @@ def format_plan(plan: Plan) -> str:
             f"~{e.seconds_planned:.0f} s (measured per direction here)",
             f"  other nodes   {'x'.join(map(str, e.fill_orders))} orders retained (paths that reach the element after a "
             f"diffuse bounce){_fill_error_text(e.fill_error)}",
+            truncation_text(e.truncation, e.seconds_whole),
         ]
         lines += [f"  note          {n}" for n in e.notes]
     for g in plan.glass:
