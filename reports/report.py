@@ -24,6 +24,9 @@ DIR/report.html the page (reports.page). Steps:
    The prediction's uncertainty band: cameras drawn within the calibration's standard
    deviations (prediction_band), plotted on the fringe plot.
 5. Error maps (reports.metrics) and per-region statistics.
+6. The efficiency tables the render and the prediction read, each with the truncation
+   error it records (reports.table_error; report.json's ``tables``, "not recorded" for a
+   table built before tables recorded it).
 
 With a scene fit (``Inputs.scene_fit``: its scene_fit.json), report.json's ``verdict``
 (reports.verdict_block.report_verdict) and the page's first block say whether the photo
@@ -61,6 +64,7 @@ from reports.report_summary import ERROR_TIPS, FRINGE_TIPS, calibration_table, r
 from reports.rim import Rim, fit_rim
 from reports.run_index import thumbnail_png
 from reports.study_figures import study_sections as study_sections_of
+from reports.table_error import report_tables, tables_html, unrecorded_messages
 from reports.verdict_block import report_verdict, verdict_html
 from workbench.core.errors import UserInputError
 from workbench.core.files import atomic_write_text
@@ -459,6 +463,8 @@ def build_report(inputs: Inputs) -> dict[str, Any]:
     scale, wall_pixels = images.photometric_scale(photo.rgb, render, masks, photo.clipped)
     aligned = render * scale
     cd = analyse_cd(spec, fitted, photo, aligned, messages, problems, as_taken)
+    tables = report_tables(inputs.render, (cd.get("prediction_weighting") or {}).get("efficiency_table"))
+    messages += unrecorded_messages(tables)
 
     matrix = images.display_matrix(spec)
     photo_display, render_display = images.to_display(photo.rgb, matrix), images.to_display(aligned, matrix)
@@ -479,7 +485,7 @@ def build_report(inputs: Inputs) -> dict[str, Any]:
                     "exposure_for_mid_grey_walls": exposure},
         "regions": {name: int(mask.sum()) for name, mask in masks.items()},
         "metrics": {"per_region": statistics, "flip": flip_note, "limits_shown": limits},
-        "region_test": regions_tested, "cd": cd, "problems": problems, "messages": messages,
+        "region_test": regions_tested, "cd": cd, "tables": tables, "problems": problems, "messages": messages,
     }
     report |= _headline_offsets(cd)
     if inputs.scene_fit is not None:
@@ -554,6 +560,7 @@ def _page(report, inputs: Inputs, tiles, exposure, maps, limits, masks, cd, pair
                                                 "scene": report["scene"], "scene file": report["scene_source"],
                                                 "photometric scale": report["photometric_scale"]["render_to_photo"],
                                                 "report built in (s)": report["seconds"]})))
+    sections.append(("efficiency tables (their own truncation error)", tables_html(report["tables"])))
     sections += study_sections
     title = f"report: {report['scene']} - {Path(report['photo']).name} vs {Path(report['render']).name}"
     errors, notes = report["problems"], report["messages"]
