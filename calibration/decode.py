@@ -98,6 +98,21 @@ class DecodedImage:
     saturated: np.ndarray    # (H, W) bool
     info: DecodeInfo
 
+    def rgb(self, path: str | Path, field: str = "photo") -> np.ndarray:
+        """(H, W, 3) float32: a grey image repeated, RGB as it is. A photo of other channels (a
+        four-colour raw: C, M, Y, G or R, G, B, W) is refused: the scene's camera and the
+        calibration are RGB, and taking three of four planes as R, G, B would be wrong colours."""
+        pixels = np.asarray(self.pixels, np.float32)
+        if pixels.shape[2] == 1:
+            return np.ascontiguousarray(np.repeat(pixels, 3, axis=2))
+        if pixels.shape[2] == 3 and (self.info.source != "raw" or self.info.channels == ["R", "G", "B"]):
+            return np.ascontiguousarray(pixels)  # an image file's three channels are its RGB, whatever their names
+        layout = f" ({self.info.layout})" if self.info.layout else ""
+        raise UserInputError(f"its channels are {', '.join(self.info.channels)}{layout}: only grey and RGB photos can "
+                             "be compared with the RGB scene camera", field=field, got=str(path),
+                             expected="a grey or RGB photo (`workbench decode` writes the four camera channels of "
+                                      "this raw for other uses)")
+
 
 def is_raw(path: str | Path) -> bool:
     return Path(path).suffix.lower() in RAW_EXTENSIONS

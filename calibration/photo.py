@@ -49,10 +49,9 @@ def read_photo(path: str | Path, inverse_response: Callable[[np.ndarray], np.nda
     """The photo at ``path`` as linear RGB (calibration.decode); ``inverse_response``, from
     normalised value to normalised irradiance, applies to non-raw images only."""
     decoded = decode(path, response=None if is_raw(path) else inverse_response)
-    pixels = np.asarray(decoded.pixels, np.float32)
-    rgb = np.repeat(pixels, 3, axis=2) if pixels.shape[2] == 1 else pixels[..., :3]
+    rgb = decoded.rgb(path)
     info = decoded.info
-    return Photo(str(path), np.ascontiguousarray(rgb), decoded.saturated, bool(info.linear), info.exposure_time_s, info.cfa)
+    return Photo(str(path), rgb, decoded.saturated, bool(info.linear), info.exposure_time_s, info.cfa)
 
 
 def mosaic_like(rgb: np.ndarray, cfa: str | None) -> np.ndarray:

@@ -96,8 +96,7 @@ def read_photo(path: str | Path, response: dict | None = None, what: str = "--ph
                              field=what, got=str(path),
                              expected="a raw file (DNG, ...), a linear float image (EXR, float TIFF), or a "
                                       "calibration.json with a response (calibrate with a bracket)")
-    pixels = np.asarray(decoded.pixels, np.float32)
-    rgb = np.ascontiguousarray(np.repeat(pixels, 3, axis=2) if pixels.shape[2] == 1 else pixels[..., :3])
+    rgb = decoded.rgb(path, what)
     channel = cfa_channels(decoded.info.cfa, rgb.shape[:2]) if raw else None
     clip_level = 1.0 if raw and decoded.saturated.any() else None  # decode: 1 is the white level
     return Photo(rgb, np.asarray(decoded.saturated, bool), str(path), "raw" if raw else "linear", channel, clip_level,

@@ -121,3 +121,23 @@ def test_the_saturation_mask_follows_libraws_demosaicing(demosaic: str, reach: i
     distance = np.min([np.maximum(np.abs(ys - y), np.abs(xs - x)) for y, x in spots], axis=0)
     assert distance.max() == reach                         # the measured reach the footprint is made from
     assert not np.any(moved & ~saturated.saturated)        # every pixel a saturated sample moves is masked
+
+
+@pytest.mark.parametrize("reader", ["calibration", "reports"])
+def test_the_photo_readers_refuse_a_four_colour_raw_naming_its_channels(reader: str, tmp_path: Path) -> None:
+    """calibrate pose and report compare the photo with the RGB scene camera: a four-colour raw
+    is refused with the file and its channels named (before, its first three planes, C, M, Y,
+    were taken as R, G, B without a word); a Bayer raw of the same writer still reads as RGB."""
+    from calibration.photo import read_photo as calibration_photo
+    from reports.images import read_photo as report_photo
+    from workbench.core.errors import UserInputError
+
+    read = calibration_photo if reader == "calibration" else report_photo
+    four = write_dng(tmp_path / "cmyg.dng", _raw("CMYG", _scene()), _meta("CMYG"))
+    with pytest.raises(UserInputError) as info:
+        read(four)
+    assert info.value.got == str(four) and "C, M, Y, G" in str(info.value), str(info.value)
+    rgb = _scene()[..., :3]
+    bayer = write_dng(tmp_path / "rggb.dng", _raw("RGGB", rgb), DngMetadata(cfa_pattern="RGGB", black_level=BLACK,
+                                                                            white_level=WHITE, model="Bayer"))
+    assert read(bayer).rgb.shape == (*SHAPE, 3)
