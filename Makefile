@@ -88,6 +88,9 @@ bench: install
 	$(BIN)/python -m benchmarks.bench_large_photo
 	$(BIN)/python -m benchmarks.bench_plan
 	$(BIN)/python -m benchmarks.bench_scene_fit --rerender
+	$(BIN)/python -m benchmarks.bench_truncation_cost
+	$(BIN)/python -m benchmarks.bench_realisations --work out/bench/realisations
+	$(BIN)/python -m benchmarks.bench_realisations --work out/bench/realisations --study-seeds 0,1,2,3,4,5,6,7,8,9
 
 clean:
 	rm -rf build $(VENV)

@@ -39,6 +39,12 @@ class RenderStudyConfig:
     deltas: tuple[float, ...] = (0.02, 0.05, 0.1, 0.2)
     delta_spp: int = 1024
     furnace_samples: int = 200_000
+    seed: int = 0  # every render's and the furnace's draws: another seed is another realisation of the study
+
+
+def _seed(cfg: RenderStudyConfig, base: int) -> int:
+    """The render seed of one of the study's renders (``base`` at cfg.seed 0; apart for other seeds)."""
+    return base + 10_000 * cfg.seed
 
 
 def _chromaticity(values: np.ndarray) -> np.ndarray:
@@ -70,12 +76,12 @@ def run_render_study(scene: str | Path, out: str | Path, cfg: RenderStudyConfig 
     steps = 2 + 2 * (1 + len(cfg.spp_steps)) + len(cfg.deltas) + 1
     bar = tqdm(total=steps, desc=f"study {spec.name}", unit="render", disable=not progress)
     ref_scene = accuracy.load_cropped(mi, spec, "improved", crop)
-    ref_a, _ = accuracy.timed_render(mi, ref_scene, seed=1001, spp=cfg.reference_spp)
-    ref_b, _ = accuracy.timed_render(mi, ref_scene, seed=1002, spp=cfg.reference_spp)
+    ref_a, _ = accuracy.timed_render(mi, ref_scene, seed=_seed(cfg, 1001), spp=cfg.reference_spp)
+    ref_b, _ = accuracy.timed_render(mi, ref_scene, seed=_seed(cfg, 1002), spp=cfg.reference_spp)
     bar.update(2)
     curve = _error_curve(mi, spec, crop, (ref_a, ref_b), mask, cfg, bar)
     bias = _delta_bias(mi, spec, crop, ((ref_a + ref_b) / 2)[mask], mask, cfg, bar)
-    energy = _furnace_energies(mi, out, cfg.furnace_samples)
+    energy = _furnace_energies(mi, out, cfg.furnace_samples, cfg.seed)
     bar.update(1)
     bar.close()
     data = {"variant": variant, "scene": spec.name, "config": asdict(cfg), "crop": crop, "element_pixels": int(mask.sum()),
@@ -97,7 +103,7 @@ def _error_curve(mi, spec, crop, references: tuple[np.ndarray, np.ndarray], mask
         accuracy.timed_render(mi, sc, seed=0, spp=cfg.spp_steps[0])  # compile
         bar.update(1)
         for spp in cfg.spp_steps:
-            image, seconds = accuracy.timed_render(mi, sc, seed=7, spp=spp)
+            image, seconds = accuracy.timed_render(mi, sc, seed=_seed(cfg, 7), spp=spp)
             e = accuracy.errors(image, *references, mask)
             curve.append({"mode": mode, "spp": spp, "seconds": seconds, "relative_rms_error": e["relative_rms_error"],
                           "relative_mse": e["relative_mse"]})
@@ -110,14 +116,14 @@ def _delta_bias(mi, spec, crop, ref: np.ndarray, mask: np.ndarray, cfg: RenderSt
     bias = []
     for delta in cfg.deltas:
         sc = accuracy.load_cropped(mi, spec, "paper", crop, delta=delta)
-        image, _ = accuracy.timed_render(mi, sc, seed=5, spp=cfg.delta_spp)
+        image, _ = accuracy.timed_render(mi, sc, seed=_seed(cfg, 5), spp=cfg.delta_spp)
         bias.append({"delta": delta, "mean_relative_error": float(image[mask].mean() / ref.mean() - 1),
                      "chromaticity_shift": float(np.linalg.norm(_chromaticity(image[mask]) - _chromaticity(ref)))})
         bar.update(1)
     return bias
 
 
-def _furnace_energies(mi, out: Path, samples: int) -> list[dict]:
+def _furnace_energies(mi, out: Path, samples: int, seed: int = 0) -> list[dict]:
     import drjit as dr  # deferred: start-up time
 
     import rcwa  # deferred: as run_render_study's imports
@@ -129,7 +135,7 @@ def _furnace_energies(mi, out: Path, samples: int) -> list[dict]:
     path = out / "furnace_table.zarr"
     build_table(s, st, path, progress=False, force=True)
     rows = []
-    rng = np.random.default_rng(0)
+    rng = np.random.default_rng(seed)
     cos_t = rng.uniform(-1, 1, samples)
     phi = rng.uniform(0, 2 * np.pi, samples)
     sin_t = np.sqrt(1 - cos_t**2)

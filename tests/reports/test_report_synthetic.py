@@ -47,18 +47,18 @@ def _spec(camera):
     return dataclasses.replace(spec, camera=dataclasses.replace(spec.camera, model=camera))
 
 
-def _render_image(camera, spp=RENDER_SPP):
+def _render_image(camera, spp=RENDER_SPP, seed=RENDER_SEED):
     from renderer.fit import FitRenderer
 
     fit = FitRenderer(_spec(camera), resolution=(camera.width, camera.height), spp=spp)
     fit.set(camera=camera)
-    return np.ascontiguousarray(fit.render(seed=RENDER_SEED), np.float32)
+    return np.ascontiguousarray(fit.render(seed=seed), np.float32)
 
 
-def _render(dataset, path):
+def _render(dataset, path, seed=RENDER_SEED):
     import OpenImageIO as oiio
 
-    image = _render_image(read_camera(dataset / "truth.json", PHOTO).model)
+    image = _render_image(read_camera(dataset / "truth.json", PHOTO).model, seed=seed)
     out = oiio.ImageOutput.create(str(path))
     assert out is not None
     out.open(str(path), oiio.ImageSpec(image.shape[1], image.shape[0], 3, oiio.FLOAT))
@@ -67,14 +67,22 @@ def _render(dataset, path):
     return path
 
 
-@pytest.mark.slow
-def test_report_on_a_synthetic_pair_meets_the_bars(tmp_path_factory, tmp_path, capsys):
-    dataset = synthetic_dataset(tmp_path_factory, SEED, SCENE)
-    render = _render(dataset, tmp_path / "render.exr")
-    out = tmp_path / "report"
+def report_on_pair(dataset: Path, folder: Path, render_seed: int = RENDER_SEED) -> tuple[int, Path]:
+    """`workbench report` of the dataset's PHOTO and BRACKET against a truth-camera render
+    (seed ``render_seed``) into folder/report: (exit code, that folder). benchmarks/
+    bench_realisations.py runs it over render realisations to measure the bars' margins."""
+    render = _render(dataset, folder / "render.exr", render_seed)
+    out = folder / "report"
     code = main(["report", "--photo", str(dataset / "brackets" / PHOTO), "--render", str(render),
                  "--calibration", str(dataset / "truth.json"), "--scene", SCENE, "--out", str(out),
                  "--bracket", *(str(dataset / "brackets" / name) for name in BRACKET)])
+    return code, out
+
+
+@pytest.mark.slow
+def test_report_on_a_synthetic_pair_meets_the_bars(tmp_path_factory, tmp_path, capsys):
+    dataset = synthetic_dataset(tmp_path_factory, SEED, SCENE)
+    code, out = report_on_pair(dataset, tmp_path)
     text = capsys.readouterr()
     assert code == 0, text.err
     report = json.loads((out / "report.json").read_text())
@@ -123,16 +131,26 @@ def test_known_camera_error_is_reported_as_the_predicted_offset(tmp_path_factory
     is made with it and compared with the photo (taken with the truth camera). Edge by edge,
     the measured photo-render offset must be what the grating equation predicts: the offset
     between the prediction for the wrong camera and that for the right one."""
+    dataset = synthetic_dataset(tmp_path_factory, SEED, SCENE)
+    differences, offsets = known_error_offsets(dataset, error)
+    assert len(differences) >= MIN_KNOWN_EDGES
+    assert np.median(np.abs(differences)) < KNOWN_ERROR_BAR_PX
+    if error.startswith("rotated"):
+        assert np.median(np.abs(offsets)) > 1.0  # the turn moves the fringes by pixels
+
+
+def known_error_offsets(dataset: Path, error: str, render_seed: int = RENDER_SEED) -> tuple[list[float], list[float]]:
+    """The wrong camera's photo-render offsets, each less the grating equation's prediction
+    (render (wrong) - photo (right)), and the offsets themselves."""
     from reports import fringes, images, polar
     from reports.prediction import predict
     from reports.report import _sampled_prediction, measure_fringes
 
-    dataset = synthetic_dataset(tmp_path_factory, SEED, SCENE)
     truth = read_camera(dataset / "truth.json", PHOTO).model
     wrong = KNOWN_ERRORS[error](truth)
     spec = _spec(wrong)
     photo = images.read_photo(dataset / "brackets" / KNOWN_ERROR_PHOTO)
-    render = _render_image(wrong, KNOWN_ERROR_SPP)
+    render = _render_image(wrong, KNOWN_ERROR_SPP, render_seed)
     scale, _ = images.photometric_scale(photo.rgb, render, images.region_masks(spec), photo.clipped)
     right, bad = predict(spec, truth), predict(spec, wrong)
     grids = polar.standard_grids(wrong, bad.cd)
@@ -143,7 +161,4 @@ def test_known_camera_error_is_reported_as_the_predicted_offset(tmp_path_factory
         true = fringes.find_edges(grid, _sampled_prediction(right, grid), right.orders)
         predicted.update({p.key: p.offset_px for p in fringes.pair_edges(grid, true, own, wrong.fx)})  # wrong - right
     differences = [p.offset_px - predicted[p.key] for p in measured if p.key in predicted]  # render (wrong) - photo (right)
-    assert len(differences) >= MIN_KNOWN_EDGES
-    assert np.median(np.abs(differences)) < KNOWN_ERROR_BAR_PX
-    if error.startswith("rotated"):
-        assert np.median(np.abs([p.offset_px for p in measured])) > 1.0  # the turn moves the fringes by pixels
+    return differences, [p.offset_px for p in measured]
