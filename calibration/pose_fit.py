@@ -39,7 +39,8 @@ class PoseSettings:
     min_contrast: float = 3.0     # an edge's steepest slope over the image's slope noise (edges.derivative_noise)
     occluder_margin_px: float = 6.0
     render_check: bool = True
-    render_spp: int = 16
+    render_spp: int = 16              # the render check's samples per pixel at most (calibration.pose_render_check)
+    render_pass_spp: int = 4          # ... rendered in passes of this many until its measured noise is small enough
     render_seed: int = 0
     cd_fringes: bool = True          # the CD-fringe stage (calibration.photometric), after the render check
     cd_fringes_apply: bool = False   # take its rotation step (guarded) instead of only reporting it

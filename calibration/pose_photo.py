@@ -11,88 +11,26 @@ import dataclasses
 import time
 from dataclasses import dataclass
 
-import cv2
 import numpy as np
 
-from calibration.edges import edge_offsets, smoothed
-from calibration.photo import Photo, mosaic_like
+from calibration.edges import smoothed
+from calibration.photo import Photo
 from calibration.photometric import FringeResult, refine_rotation
 from calibration.pose_fit import (
-    EdgeMatch,
     PoseSettings,
     Unknowns,
-    bias_corrected_fit,
     coarse_fit,
     fine_fit,
-    image_shift_px,
-    match_edges,
-    project,
-    subset_match,
 )
+from calibration.pose_render_check import render_check_stage
 from calibration.pose_uncertainty import covariance, derived_std, fov_x_deg, fov_y_deg, per_feature_residuals
-from calibration.scene_model import SceneModel, occluder_mask, sample_features
+from calibration.scene_model import SceneModel
 from renderer.camera import CameraModel
 from workbench.core.errors import UserInputError
 
 BLACK_LEVEL_FRACTION = 1e-3   # a photo whose 99th percentile is below this (of the white level) is black
 SATURATED_SHARE = 0.98        # a photo with more saturated pixels than this share is white
 RESTART_SHIFT = 0.01          # with intrinsics free, restarts move the principal point by 1 % of the image
-RESCALE_AFTER_PX = 0.5       # the render check's last refit moved the camera more: the scale is measured again there
-
-
-# ------------------------------------------------------------------------------------ render check
-
-
-def photometric_mask(photo: Photo, render_grey: np.ndarray, model: SceneModel, camera: CameraModel) -> np.ndarray:
-    """Pixels where photo and render are compared: the walls, at least 6 px from the scene's
-    edges, 8 px from the glass, the CDs and the light, away from saturated pixels, and not
-    dark in the render."""
-    edges = np.zeros(render_grey.shape, np.uint8)
-    samples = sample_features(model, camera, 1.0, end_clearance_px=0.0)
-    for x, y in np.rint(project(camera, samples.points)).astype(int):
-        cv2.circle(edges, (int(x), int(y)), 6, 255, -1)
-    blocked = occluder_mask(model, camera, margin_px=8.0)
-    saturated = cv2.dilate(photo.saturated.astype(np.uint8), np.ones((9, 9), np.uint8)) > 0
-    level = np.percentile(render_grey, 99)
-    return (edges == 0) & ~blocked & ~saturated & (render_grey > 0.03 * level)
-
-
-@dataclass
-class RenderCheck:
-    scale: float            # photo / render over the walls (exposure x light power, relative to the scene file)
-    scale_std: float        # the spread of the ratio over 16 blocks of the image (not divided by 4: the path
-                            # tracer's heavy-tailed noise makes the mean's error larger than independence suggests)
-    bias: np.ndarray        # (N,) the edge finder's offset on the render at the match's points
-    pixels_compared: int
-    seconds: float
-
-
-def render_check(renderer, photo: Photo, model: SceneModel, camera: CameraModel, match: EdgeMatch, window: float,
-                 settings: PoseSettings) -> RenderCheck:
-    """Render at ``camera``, find the photometric scale, and measure the edge finder's bias on the render."""
-    tick = time.perf_counter()
-    renderer.set(camera=camera)
-    render = np.asarray(renderer.render(seed=settings.render_seed), np.float32)
-    grey = render.mean(axis=2)
-    mask = photometric_mask(photo, grey, model, camera)
-    if mask.sum() < 1000:
-        raise UserInputError("the photo and the scene's render share too few unsaturated wall pixels to compare",
-                             file=photo.path, expected="a photo of the scene that is not mostly saturated")
-    photo_grey = photo.grey
-    scale = float(photo_grey[mask].sum() / grey[mask].sum())
-    blocks = [float(photo_grey[mask & part].sum() / max(grey[mask & part].sum(), 1e-30))
-              for part in _blocks(mask.shape, 4) if (mask & part).sum() > 50]
-    scale_std = float(np.std(blocks, ddof=1)) if len(blocks) > 1 else float("nan")
-    like_photo = np.clip(mosaic_like(np.clip(render * scale, 0.0, None), photo.cfa), 0.0, 1.0)  # clipped at white
-    found = edge_offsets(smoothed(like_photo.mean(axis=2)), match.pixels, match.normals, window, sign=match.sign)
-    bias = np.where(found.valid, found.offset, np.nan)
-    return RenderCheck(scale, scale_std, bias, int(mask.sum()), time.perf_counter() - tick)
-
-
-def _blocks(shape: tuple[int, int], n: int) -> list[np.ndarray]:
-    h, w = shape
-    rows, cols = np.mgrid[0:h, 0:w]
-    return [((rows * n // h) == i) & ((cols * n // w) == j) for i in range(n) for j in range(n)]
 
 
 # ------------------------------------------------------------------------------------- one photo
@@ -155,8 +93,8 @@ def fit_photo(photo: Photo, model: SceneModel, start: CameraModel, unknowns: Unk
     check_log: dict = {}
     if renderer is not None:
         tick = time.perf_counter()
-        camera, match, scale, scale_std, check_log = _render_check_stage(renderer, photo, image, model, camera,
-                                                                         unknowns, settings)
+        camera, match, scale, scale_std, check_log = render_check_stage(renderer, photo, image, model, camera,
+                                                                        unknowns, settings, intrinsics_std)
         timings["render_check_s"] = time.perf_counter() - tick
     _advance(bar)
     repeats = restarts(image, model, camera, unknowns, settings) if unknowns.intrinsics else None
@@ -176,27 +114,6 @@ def fit_photo(photo: Photo, model: SceneModel, start: CameraModel, unknowns: Unk
     log = {"coarse": coarse_log, "fine": fine_log, "render_check": check_log,
            "cd_fringes": _fringe_log(fringes, renderer is not None, settings)}
     return PoseResult(photo.path, camera, unknowns, std, residuals, scale, scale_std, photo.exposure_time_s, log, timings)
-
-
-def _render_check_stage(renderer, photo: Photo, image: np.ndarray, model: SceneModel, camera: CameraModel,
-                        unknowns: Unknowns, settings: PoseSettings) -> tuple[CameraModel, EdgeMatch, float, float, dict]:
-    """Stage 3: the render check at ``camera``, the bias-corrected fine solves, and the scale
-    measured again if they moved the camera by more than RESCALE_AFTER_PX: (camera, match,
-    scale, its spread, the stage's log)."""
-    window = settings.fine_windows_px[-1]
-    match = match_edges(image, model, camera, window, settings)
-    check = render_check(renderer, photo, model, camera, match, window, settings)
-    usable = np.isfinite(check.bias) & (np.abs(check.bias) < window)
-    before, checked = camera, subset_match(match, usable)
-    camera, match, refit_log = bias_corrected_fit(image, model, camera, unknowns, settings, checked, check.bias[usable])
-    moved = image_shift_px(before, camera, checked.samples.points)
-    if moved > RESCALE_AFTER_PX:  # the walls' mask was drawn at a camera this far off: measure the scale again
-        check = dataclasses.replace(render_check(renderer, photo, model, camera, match, window, settings), bias=check.bias)
-    names = np.asarray(checked.samples.names)[checked.samples.feature]
-    check_log = {"seconds": check.seconds, "pixels_compared": check.pixels_compared, "points": int(usable.sum()),
-                 "moved_px": moved, "scale_measured_again": moved > RESCALE_AFTER_PX, "refit": refit_log,
-                 "bias_median_px": {str(n): float(np.median(check.bias[usable][names == n])) for n in sorted(set(names))}}
-    return camera, match, check.scale, check.scale_std, check_log
 
 
 def _fringe_log(fringes: FringeResult | None, rendered: bool, settings: PoseSettings) -> dict:
