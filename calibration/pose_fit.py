@@ -143,11 +143,7 @@ def coarse_fit(photo_grey: np.ndarray, model: SceneModel, start: CameraModel, un
             break
         x0, steps = coarse.vector(camera), coarse.steps(camera)
         template = camera
-
-        def cost(z, _grad, samples=samples, chamfer=chamfer, x0=x0, steps=steps, template=template) -> float:
-            pixels = project(coarse.camera(x0 + z * steps, template), samples.points)
-            return float(np.mean(chamfer.cost(pixels)))
-
+        cost = ChamferCost(chamfer, samples.points, template, x0, steps, coarse.intrinsics)
         bound = 6.0 / scale ** 0.5
         starts = [np.zeros(len(x0))] + [rng.uniform(-1.0, 1.0, len(x0)) * settings.coarse_start_spread * bound
                                         for _ in range(settings.coarse_starts)]
@@ -163,6 +159,42 @@ def coarse_fit(photo_grey: np.ndarray, model: SceneModel, start: CameraModel, un
                     "evaluations": evaluations, "rms_before_px": math.sqrt(cost(np.zeros(len(x0)), None)),
                     "rms_after_px": math.sqrt(best_value)})
     return camera, log
+
+
+class ChamferCost:
+    """The coarse stage's cost of BOBYQA's scaled variables z (unknowns x0 + z * steps: the
+    pose, and with ``intrinsics`` f, cx, cy): the mean capped chamfer cost of the projected
+    points. The projection is OpenCV's radial-tangential model (cv2.projectPoints, as
+    ``project`` uses it: x' = X/Z, r^2 = x'^2 + y'^2, x'' = x' (1 + k1 r^2 + k2 r^4 + k3 r^6)
+    + 2 p1 x'y' + p2 (r^2 + 2 x'^2), u = fx x'' + cx, likewise v) written out in numpy: the
+    same pixels to round-off (1e-12 px), without the 15-column Jacobian cv2.projectPoints
+    computes on every call from Python, nor a CameraModel per evaluation."""
+
+    def __init__(self, chamfer: ChamferMap, points: np.ndarray, template: CameraModel, x0: np.ndarray,
+                 steps: np.ndarray, intrinsics: bool) -> None:
+        self.chamfer, self.points, self.intrinsics = chamfer, np.asarray(points, float), intrinsics
+        self.x0, self.steps = x0, steps
+        self.template, self.aspect = template, template.fy / template.fx
+        self.k1, self.k2, self.p1, self.p2, self.k3 = (float(d) for d in (list(template.dist) + [0.0] * 5)[:5])
+
+    def pixels(self, z: np.ndarray) -> np.ndarray:
+        x = self.x0 + np.asarray(z, float) * self.steps
+        R = cv2.Rodrigues(np.asarray(x[:3], float))[0]
+        c = self.template
+        fx, fy, cx, cy = (x[6], x[6] * self.aspect, x[7], x[8]) if self.intrinsics else (c.fx, c.fy, c.cx, c.cy)
+        pc = self.points @ R.T + x[3:6]
+        z_ = pc[:, 2]
+        inv = np.divide(1.0, z_, out=np.ones_like(z_), where=z_ != 0)
+        u, v = pc[:, 0] * inv, pc[:, 1] * inv
+        r2 = u * u + v * v
+        radial = 1 + r2 * (self.k1 + r2 * (self.k2 + r2 * self.k3))
+        uv = 2 * u * v
+        du = u * radial + self.p1 * uv + self.p2 * (r2 + 2 * u * u)
+        dv = v * radial + self.p1 * (r2 + 2 * v * v) + self.p2 * uv
+        return np.stack([fx * du + cx, fy * dv + cy], 1)
+
+    def __call__(self, z: np.ndarray, _grad=None) -> float:
+        return float(np.mean(self.chamfer.cost(self.pixels(z))))
 
 
 def _bobyqa(cost, z0: np.ndarray, bound: float, step: float, max_evals: int) -> tuple[np.ndarray, float, int]:
