@@ -30,13 +30,14 @@ import tempfile
 import time
 from pathlib import Path
 
-from benchmarks.reference_speed import SpeedBar, reference_seconds
+from benchmarks.reference_speed import REFERENCE_S_AT_BARS, SpeedBar, reference_seconds
 
 BARS = {"rotation_deg": 0.1, "centre_mm": 1.0, "fov_deg": 0.05, "principal_point_pct": 0.5,
         "exposure_light_pct": 1.0, "response_rms_pct": 1.0, "seconds": 120.0}
 SPEED_BARS = (SpeedBar("calibrate DATASET (draft)", BARS["seconds"]),
               SpeedBar("its CD-fringe check, per dataset", 60.0))
 FRINGE_COLUMNS = ("edge_rot_deg", "fringe_rot_deg", "fringe_accepted", "fringe_s")
+POSE_COLUMNS = ("pose_s", "render_check_s", "render_spp")  # the slowest photo's pose stage (issue 28 item 3)
 
 
 def errors(result: dict, truth: dict, seconds: float) -> dict:
@@ -44,7 +45,19 @@ def errors(result: dict, truth: dict, seconds: float) -> dict:
     from workbench.score import calibration_errors
 
     return ({k: v for k, v in calibration_errors(result, truth).items() if k != "per_photo"} | {"seconds": seconds}
-            | fringe_errors(result, truth))
+            | fringe_errors(result, truth) | pose_times(result))
+
+
+def pose_times(result: dict) -> dict:
+    """The slowest photo's seconds in the pose stage (calibration.pose_photo.fit_photo, all its
+    stages), its render check's seconds and the samples per pixel the check's measured noise
+    asked for (calibration.pose_render_check)."""
+    nan = float("nan")
+    total = [v for k, v in (result.get("timings") or {}).items() if k.startswith("pose_")]
+    photos = (result.get("photos") or {}).values()
+    check = [p.get("timings", {}).get("render_check_s", nan) for p in photos]
+    spp = [p.get("stages", {}).get("render_check", {}).get("spp", nan) for p in photos]
+    return {"pose_s": max(total, default=nan), "render_check_s": max(check, default=nan), "render_spp": max(spp, default=nan)}
 
 
 def fringe_errors(result: dict, truth: dict) -> dict:
@@ -108,6 +121,15 @@ def print_row(label: str, e: dict) -> None:
     reference = reference_seconds()
     for bar, seconds in zip(SPEED_BARS, (e["seconds"], e["fringe_s"]), strict=True):
         print(f"          {bar.judge(seconds, reference)}", flush=True)
+    print(f"          {pose_line(e, reference)}", flush=True)
+
+
+def pose_line(e: dict, reference_s: float) -> str:
+    """The pose stage's time as reference units (benchmarks/reference_speed.py): no bar of its
+    own (issue 28 measured 35 s a photo on the bars' machine, before its item 3)."""
+    return (f"pose stage, slowest photo: {e['pose_s']:.1f} s = {e['pose_s'] / reference_s:.0f} reference units "
+            f"({e['pose_s'] * REFERENCE_S_AT_BARS / reference_s:.1f} s on the bars' machine), of which the render check "
+            f"{e['render_check_s']:.1f} s at {e['render_spp']:g} spp")
 
 
 def print_spread(rows: list[dict]) -> None:

@@ -23,7 +23,9 @@ stages:
    demosaicked like the photo, is measured by the same edge finder at the same points:
    what it finds there is the finder's own bias (shading across a crease, blur, clipping
    at the light), which is subtracted from the photo's offsets before a last fine fit
-   (analysis by synthesis).
+   (analysis by synthesis). It is rendered in passes of a few samples per pixel until the
+   noise measured between them no longer matters (calibration.pose_render_check: the
+   scale to 0.1 %, the pose to a third of its stated std; at most ``render_spp``).
 4. **CD fringes** (calibration.photometric, ``PoseSettings.cd_fringes``): with the walls'
    scale known, the photo's CD against re-renders cropped to the disc, over the camera's
    rotation (nlopt BOBYQA, fixed seed). A check by default: its suggested rotation and
@@ -59,8 +61,8 @@ from calibration.scene_model import scene_model
 from renderer.scene import load_scene
 
 # The module's layout: the edge fit in pose_fit, its uncertainties in pose_uncertainty, one
-# photo's stages in pose_photo, what is read in pose_inputs and what is written in
-# pose_outputs; this module is the command, and the names the command line and tests use.
+# photo's stages in pose_photo, the render check in pose_render_check, what is read in
+# pose_inputs and what is written in pose_outputs; this module is the command, and the names the command line and tests use.
 __all__ = ["PoseSettings", "Unknowns", "calibrate_pose", "coarse_fit", "fit_photo", "fit_renderer", "load_intrinsics",
            "start_camera"]
 
