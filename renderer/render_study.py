@@ -42,6 +42,9 @@ class RenderStudyConfig:
     seed: int = 0  # every render's and the furnace's draws: another seed is another realisation of the study
 
 
+MEDIAN_OF_MEANS_BLOCKS = 20  # blocks of the furnace's weights (median_of_means)
+
+
 def _seed(cfg: RenderStudyConfig, base: int) -> int:
     """The render seed of one of the study's renders (``base`` at cfg.seed 0; apart for other seeds)."""
     return base + 10_000 * cfg.seed
@@ -145,8 +148,21 @@ def _furnace_energies(mi, out: Path, samples: int, seed: int = 0) -> list[dict]:
         si.wi = mi.Vector3f(sin_t * np.cos(phi), sin_t * np.sin(phi), cos_t)
         si.wavelengths = mi.Spectrum(*[mi.Float(w) for w in rng.uniform(460, 640, (4, samples))])
         _, w = bsdf.sample(mi.BSDFContext(), si, mi.Float(rng.random(samples)), mi.Point2f(0.5, 0.5))
-        rows.append({"mode": mode, "energy": float(np.array(w).mean()), "energy_error": float(np.array(w).mean() - 1)})
+        weights = np.array(w).mean(axis=0)  # the sample weight, averaged over the hero wavelengths' channels
+        rows.append({"mode": mode, "energy": float(weights.mean()), "energy_error": float(weights.mean() - 1),
+                     "energy_median_of_means": median_of_means(weights)})
     return rows
+
+
+def median_of_means(values: np.ndarray, blocks: int = MEDIAN_OF_MEANS_BLOCKS) -> float:
+    """The median of the means of ``blocks`` equal consecutive blocks [Nemirovsky & Yudin 1983;
+    Lugosi & Mendelson 2019, Sec. 2]: an estimate of the mean that a rare huge value cannot
+    move. Paper mode's furnace weights need it: its cos(theta_i)/cos(theta_o) factor at grazing
+    exits gives P(W > w) ~ 8e-3 w^-1.2 (measured over 2e6 samples: finite mean, infinite
+    variance), so the plain mean of 50,000 samples ranged 0.99-1.25 over 40 seeds. Biased low by
+    the tail beyond a block's largest typical weight (about 0.02 here), which the mean keeps."""
+    usable = len(values) // blocks * blocks
+    return float(np.median(np.asarray(values[:usable], float).reshape(blocks, -1).mean(axis=1)))
 
 
 def _plot(curve, bias, out: Path) -> None:

@@ -9,12 +9,24 @@ Asserted:
   mode has the lower error at the largest spp (measured 0.64 against paper's 1.68 at 128
   spp; fixed seeds, so the same numbers every run);
 * the furnace energy of improved mode is within TOLERANCE_ENERGY of 1 (a lossless
-  grating, tests/renderer/test_bwdf_energy.py; measured 0.9996), and paper mode's stays
-  within PAPER_ENERGY_BAND (its pbrt-v3 weight carries cos(theta_i)/cos(theta_o), which
-  does not conserve energy: measured 1.028 over these uniformly drawn directions, the
-  +2.7 % test_bwdf_energy's docstring notes for grazing views);
+  grating, tests/renderer/test_bwdf_energy.py), and paper mode's stays within
+  PAPER_ENERGY_BAND (its pbrt-v3 weight carries cos(theta_i)/cos(theta_o), which does not
+  conserve energy: the +2.7 % test_bwdf_energy's docstring notes for grazing views);
 * paper mode's colour shift grows from the smallest to the largest Delta (a wider Delta
   admits wavelengths at the wrong implied order).
+
+Noise allowed (issue 23): the study's seeds are fixed, but each bound is set against the
+spread over other seeds (RenderStudyConfig.seed; `python -m benchmarks.bench_realisations
+--work DIR --study-seeds 0,...,11`), so that the pass does not rest on the draw. Measured
+over 12 seeds: improved's error at 128 spp over 8 spp 0.25 +- 0.09 (< 1 at 8 SD), improved
+over paper at 128 spp 0.44 +- 0.08 (7 SD). Before, at Delta 0.02 and 0.4 and 128 spp the
+shift ratio was 0.79 +- 0.10 (range 0.63-0.99: 3 % of seeds fail), the noise of the small
+Delta's shift hiding the effect; at 0.02 and 0.5 and 512 spp it is 0.45-0.49 (4 seeds). Paper
+mode's furnace weight has a heavy tail (P(W > w) ~ 8e-3 w^-1.2, measured over 2e6 samples:
+infinite variance), so its plain mean ranged 0.99-1.25 over 40 seeds of 50,000 samples and
+its band is judged on the median of 20 block means (renderer.render_study.median_of_means):
+1.0257 +- 0.0033 over 20 seeds of 2,000,000 samples (band at 22 SD); improved's plain mean
+there 0.99723 +- 0.00032 (TOLERANCE_ENERGY at 22 SD; 0.99701 +- 0.00086 at 500,000).
 """
 
 import csv
@@ -25,8 +37,8 @@ import pytest
 
 from renderer.render_study import RenderStudyConfig, run_render_study
 
-TOLERANCE_ENERGY = 0.01  # 50 000 furnace samples: the mean's standard error is a few 1e-3
-PAPER_ENERGY_BAND = (0.95, 1.1)  # measured 1.028; a broken weight (a lost N_tot, 4 or 2 factor) lands far outside
+TOLERANCE_ENERGY = 0.01  # 2,000,000 furnace samples: 0.99723 +- 0.00032 over 20 seeds (22 SD)
+PAPER_ENERGY_BAND = (0.95, 1.1)  # its median of means 1.0257 +- 0.0033; a broken weight (lost N_tot, 4 or 2) lands far out
 CSV_REL = 1e-12  # CSV writes Python's repr of each float, which reads back exactly; allow round-off only
 
 
@@ -42,8 +54,8 @@ def _same(text: str, value) -> bool:
 
 
 def test_render_study_outputs(mitsuba_variant, tmp_path):
-    cfg = RenderStudyConfig(resolution=(160, 120), spp_steps=(8, 128), reference_spp=512, deltas=(0.02, 0.4),
-                            delta_spp=128, furnace_samples=50_000)
+    cfg = RenderStudyConfig(resolution=(160, 120), spp_steps=(8, 128), reference_spp=512, deltas=(0.02, 0.5),
+                            delta_spp=512, furnace_samples=2_000_000)
     out = tmp_path / "out"
     data = run_render_study("cornell_cd", out, cfg, progress=False)
     assert data["element_pixels"] > 100
@@ -66,9 +78,9 @@ def test_render_study_outputs(mitsuba_variant, tmp_path):
     assert errors["improved", cfg.spp_steps[-1]] < errors["paper", cfg.spp_steps[-1]]
     assert all(r["seconds"] > 0 for r in data["error_vs_time"])
 
-    energy = {e["mode"]: e["energy"] for e in data["energy"]}
-    assert abs(energy["improved"] - 1) < TOLERANCE_ENERGY
-    assert PAPER_ENERGY_BAND[0] < energy["paper"] < PAPER_ENERGY_BAND[1], energy
+    energy = {e["mode"]: e for e in data["energy"]}
+    assert abs(energy["improved"]["energy"] - 1) < TOLERANCE_ENERGY, energy
+    assert PAPER_ENERGY_BAND[0] < energy["paper"]["energy_median_of_means"] < PAPER_ENERGY_BAND[1], energy
     shifts = [b["chromaticity_shift"] for b in data["delta_bias"]]
     assert [b["delta"] for b in data["delta_bias"]] == list(cfg.deltas)
     assert shifts[-1] > shifts[0]
