@@ -23,7 +23,9 @@ from the passes themselves (the variance between them, as a progressive renderer
 Passes are doubled until the scale's noise is below SCALE_NOISE and the pose's below
 RENDER_NOISE_SHARE of the pose's stated standard deviation (before the check:
 calibration.pose_uncertainty, intrinsics' uncertainty included), or until
-``PoseSettings.render_spp`` samples are reached. With ``render_pass_spp >= render_spp``
+``PoseSettings.render_spp`` samples are reached (where the pose's noise is not measured:
+it could not change what is rendered). Each half's fit is one solve (the noise's
+first-order effect), the merged render's the full bias-corrected fit. With ``render_pass_spp >= render_spp``
 the check is one render at ``render_spp`` (the fixed behaviour).
 
 Measured on the seed-0 draft dataset's view0 (board intrinsics; 3 seeds each): the
@@ -152,7 +154,7 @@ def render_check(renderer, photo: Photo, model: SceneModel, camera: CameraModel,
         scales = [_scale(photo, p.mean(axis=2), mask) for p in passes]
         measured = {"scale_relative": float(np.std(scales, ddof=1) / math.sqrt(len(passes)) / check.scale)}
         enough = measured["scale_relative"] <= SCALE_NOISE
-        if pose_noise is not None:
+        if pose_noise is not None and count < most:  # at render_spp the answer cannot change what is rendered
             pose, small = pose_noise(passes, check)
             measured |= pose
             enough = enough and small
@@ -174,14 +176,15 @@ def render_check_stage(renderer, photo: Photo, image: np.ndarray, model: SceneMo
     bounds = (RENDER_NOISE_SHARE * stated["rotation_total_deg"],
               RENDER_NOISE_SHARE * float(np.linalg.norm(stated["camera_center_m"])))
 
-    def refit(bias: np.ndarray):
+    def refit(bias: np.ndarray, rounds: int = settings.fine_rounds):
         usable = np.isfinite(bias) & (np.abs(bias) < window)
         checked = subset_match(match, usable)
-        return (*bias_corrected_fit(image, model, camera, unknowns, settings, checked, bias[usable]), checked, usable)
+        once = dataclasses.replace(settings, fine_rounds=rounds)
+        return (*bias_corrected_fit(image, model, camera, unknowns, once, checked, bias[usable]), checked, usable)
 
     def pose_noise(passes: list[np.ndarray], check: RenderCheck) -> tuple[dict, bool]:
-        half = len(passes) // 2
-        a, b = (refit(_bias(np.mean(part, axis=0), check.scale, photo, match, window))[0]
+        half = len(passes) // 2  # one solve from each half's bias (the noise's first-order effect on the pose)
+        a, b = (refit(_bias(np.mean(part, axis=0), check.scale, photo, match, window), 1)[0]
                 for part in (passes[:half], passes[half:]))
         d = readout(a, b)
         rotation = float(np.linalg.norm(d[0:3])) / 2

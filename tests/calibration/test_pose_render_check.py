@@ -84,8 +84,8 @@ def test_the_pose_noise_decides_too_and_render_spp_caps_the_passes(box, monkeypa
         return {"rotation_deg": 1.0}, False
 
     result, rendered = _run(box, monkeypatch, 0.0, 32, never_enough)
-    assert calls == [2, 4, 8] and len(rendered) == 8 and result.spp == 32
-    assert result.noise["32"]["rotation_deg"] == 1.0
+    assert calls == [2, 4] and len(rendered) == 8 and result.spp == 32  # not measured at the cap: nothing to decide
+    assert result.noise["16"]["rotation_deg"] == 1.0 and "rotation_deg" not in result.noise["32"]
 
 
 def test_one_fixed_render_when_the_passes_would_exceed_render_spp(box, monkeypatch) -> None:
