@@ -141,7 +141,7 @@ def _fit_photo(photo: Photo, model: SceneModel, start: CameraModel, unknowns: Un
 def _fringe_log(fringes: FringeResult | None, rendered: bool, settings: PoseSettings) -> dict:
     """Stage 4's entry in the log: its result, or why it did not run."""
     if fringes is not None:
-        return fringes.to_json() | {"spp": settings.render_spp}
+        return fringes.to_json() | {"spp": settings.fringes.spp}  # its crops render at their own spp
     return {"accepted": False, "reason": "off" if not settings.cd_fringes or not rendered else "too few CD pixels"}
 
 
