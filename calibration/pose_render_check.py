@@ -138,6 +138,9 @@ def render_check(renderer, photo: Photo, model: SceneModel, camera: CameraModel,
     tick = time.perf_counter()
     renderer.set(camera=camera)
     per_pass = settings.render_pass_spp
+    if per_pass < 1 or settings.render_spp < 1:
+        raise ValueError(f"PoseSettings.render_spp and render_pass_spp must be at least 1, not {settings.render_spp} "
+                         f"and {per_pass}")
     if 2 * per_pass > settings.render_spp:  # one render at render_spp: nothing to measure the noise with
         check, _ = _measure(render_pass(renderer, settings.render_spp, settings.render_seed), photo, model, camera, match,
                             window)
