@@ -7,7 +7,6 @@ the method and its sources.
 
 from __future__ import annotations
 
-import contextlib
 import dataclasses
 import time
 from dataclasses import dataclass
@@ -86,12 +85,9 @@ def one_blas_thread():
     threads each of the SVD's synchronisations waits for both to hold a core: on the 2-core
     machine shared with other work one took 37-62 ms instead of 0.3 ms on one thread, 7 s
     of a 20 s photo with intrinsics free (restarts included); the answers are the same
-    (measured: identical fitted cameras). Mitsuba renders on its own thread pool, not BLAS.
-    threadpoolctl is optional (installed with the test extra): without it nothing changes."""
-    try:
-        from threadpoolctl import threadpool_limits
-    except ImportError:
-        return contextlib.nullcontext()
+    (measured: identical fitted cameras). Mitsuba renders on its own thread pool, not BLAS."""
+    from threadpoolctl import threadpool_limits  # deferred: start-up time
+
     return threadpool_limits(limits=1, user_api="blas")
 
 
