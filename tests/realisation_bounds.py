@@ -1,0 +1,61 @@
+"""What the suite asserts of the report and the scene fit on the shared seed-0 dataset, and
+why not issue 15's bars and issue 25's verdict themselves (issue 23).
+
+The suite's report and fit tests read one realisation of the seed-0 draft dataset's renders
+(Monte Carlo noise). Over 12 realisations (synth's ``render_seed`` 0-11: the same hidden
+camera, poses, exposures and sensor noise streams; measured with ``python -m
+benchmarks.bench_realisations --work DIR --render-seeds 0,...,11``, which recomputes each
+quantity with the tests' own code) they were, mean +- SD (range):
+
+tests/reports/test_report_synthetic.py (truth camera, a render of another seed):
+    photo-render median         0.205 +- 0.040 px (0.14-0.27)   issue 15's bar 0.5 px at 7.4 SD
+    photo-render p95            1.15 +- 0.23 px (0.85-1.62)     bar 1.5 px: missed by 1 of 12
+    band edges paired           108 +- 10 (89-125)              at least 8
+    prediction-render median    0.260 +- 0.044 px               bar 0.5 px at 5.5 SD
+    prediction-photo median     0.290 +- 0.054 px (0.22-0.42)   bar 0.5 px at 3.9 SD
+    its edges                   62 +- 9.2 (46-77)               at least 5 (the report's own threshold)
+    known turn 0.3 deg          0.372 +- 0.029 px (0.31-0.42)   bar 0.5 px at 4.4 SD
+    known FOV +0.2 deg          0.268 +- 0.047 px               bar 0.5 px at 5.0 SD
+tests/workbench/test_verify.py (verify at 4 spp, its own calibration; realisations 8-11 with the
+render check's adaptive passes, 0-7 before them: the calibration's errors did not change, over 8
+realisations rotation 0.063 +- 0.015 deg and centre 0.35 +- 0.14 mm with them):
+    verdict                     consistent 10, camera 1, model 1 (the period, 3.9 of its std)
+    Wald statistic (5 dof)      10.4 on average (5 expected: the fit's covariance is about half
+                                the spread of its own estimates over realisations)
+    fitted - file, period       0.0019 +- 0.013 um (0.8 %; the issue's bar for a perturbed period 0.3 %)
+    tilt e1, e2                 -0.023 +- 0.049 deg, -0.030 +- 0.058 deg
+    light x, z                  -0.39 +- 0.93 mm, 0.19 +- 1.1 mm
+tests/calibration/test_pose.py (errors in their reported standard deviations, worst photo):
+    rotation 1.10 +- 0.50, camera centre 0.74 +- 0.42, cx 0.71 +- 0.57, cy 1.51 +- 0.89 (to 3.46)
+
+so the bars and the verdict, asserted on one realisation, pass by the luck of the draw (the
+p95 bar fails 1 realisation in 12; the verdict 2 in 12). They stay the product's and are
+judged over realisations in the benchmark; the tests assert each quantity within its mean
+plus K SD, K = 9.41, Student's t predictive bound for one more realisation with 11 degrees
+of freedom at 1e-6 (the SD itself estimated from 12 draws): about 1e-6 per bound, 12 bounds
+here. Counts keep their thresholds (6.2-17 SD, normal tails < 1e-9: a count is a sum of
+many edges). They still fail a report or a fit gone wrong (a median of pixels, a period
+off by 8 %, a tilt of half a degree).
+"""
+
+K = 9.41  # t.isf(1e-6, 11) * sqrt(1 + 1/12)
+
+# tests/reports/test_report_synthetic.py
+PAIR_MEDIAN_PX = 0.58  # 0.205 + K x 0.040
+PAIR_P95_PX = 3.3  # 1.15 + K x 0.233
+PREDICTION_RENDER_MEDIAN_PX = 0.67  # 0.260 + K x 0.0438
+PREDICTION_PHOTO_MEDIAN_PX = 0.80  # 0.290 + K x 0.054
+KNOWN_ERROR_MEDIAN_PX = {"rotated 0.3 deg": 0.64, "FOV +0.2 deg": 0.71}  # 0.372 + K x 0.0288; 0.268 + K x 0.0466
+
+# tests/workbench/test_verify.py: |fitted - file value| per component (|mean| + K SD)
+FIT_MOVE = {
+    "cd[0].structure.period:value": 0.124,  # um: 0.0019 + K x 0.0130
+    "cd[0].normal:tilt_e1": 0.49,  # deg: 0.023 + K x 0.0495
+    "cd[0].normal:tilt_e2": 0.58,  # deg: 0.030 + K x 0.0581
+    "light.center:x": 0.0092,  # m: 0.00039 + K x 0.00093
+    "light.center:z": 0.0106,  # m: 0.00019 + K x 0.0011
+}
+
+# tests/calibration/test_pose.py: errors in reported standard deviations; cy's, the largest
+# spread, sits 9.6 SD inside (rotation 17.8, centre 22, cx 16)
+STD_FACTOR = 10.0
