@@ -139,7 +139,7 @@ def test_a_planned_table_samples_only_nodes_solved_with_its_orders(tmp_path):
     assert r["nodes"] == [[st.theta_deg[1], st.phi_deg[2]]]
 
 
-def _strip_records(path) -> None:
+def strip_records(path) -> None:
     """Make ``path`` look like a table written before tables recorded their truncation error."""
     group = zarr.open_group(str(path), mode="a")
     attrs = dict(group.attrs)
@@ -158,7 +158,7 @@ def test_a_resumed_build_keeps_and_completes_the_records(tmp_path):
     out = tmp_path / "r.zarr"
     build_table(s, st, out, progress=False)
     before = read_table_metadata(out)["truncation_error"]
-    _strip_records(out)  # chunks from an older build ...
+    strip_records(out)  # chunks from an older build ...
     group = zarr.open_group(str(out), mode="a")
     group.attrs["complete"] = False
     progress = json.loads((out / "progress.json").read_text())
@@ -190,7 +190,7 @@ def test_rcwa_info_prints_the_truncation_error_or_says_it_is_not_recorded(tmp_pa
     assert main(["rcwa", "info", str(out), "--json"]) == 0
     info = json.loads(capsys.readouterr().out)
     assert info["truncation_error"]["truncation"]["max_difference"] == worst["max_difference"]
-    _strip_records(out)
+    strip_records(out)
     assert main(["rcwa", "info", str(out)]) == 0
     text = capsys.readouterr().out
     assert "truncation    error not recorded" in text and "integrity     intact" in text, text

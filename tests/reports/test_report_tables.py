@@ -12,23 +12,13 @@ are the table's own records, compared exactly (the page prints them to 3 figures
 import json
 import shutil
 
-import zarr
-
 from rcwa.table import read_table_metadata
 from renderer.render import SIDECAR_FORMAT
 from reports.table_error import report_tables, table_entry, tables_html
+from tests.rcwa.test_table_truncation import strip_records
 from tests.reports.test_report import _calibration, _camera, _flat, _run, _write_exr
 from workbench.cli import main
 from workbench.core.files import file_sha256
-
-
-def _strip_records(path) -> None:
-    """Make ``path`` look like a table written before tables recorded their truncation error."""
-    group = zarr.open_group(str(path), mode="a")
-    attrs = dict(group.attrs)
-    del attrs["truncation_error"]
-    group.attrs.clear()
-    group.attrs.update(attrs)
 
 
 def _away(camera):
@@ -47,7 +37,7 @@ def test_the_report_states_each_tables_truncation_error(tmp_path, capsys):
     assert main(["rcwa", "table", "cd", "--out", str(new), "--preset", "draft", "--wavelengths", "500,600",
                  "--theta-step", "30", "--phi-step", "30", "--orders", "21", "--keep-orders", "7", "--quiet"]) == 0
     shutil.copytree(new, old)
-    _strip_records(old)
+    strip_records(old)
     records = read_table_metadata(new)["truncation_error"]
     worst = max((r["truncation"] for r in records.values()), key=lambda t: t["max_difference"])
     photo = _write_exr(tmp_path / "photo.exr", _flat())
