@@ -13,7 +13,8 @@ varied one at a time around ``base`` (calibration.pose.PoseSettings, the default
   convention, distortion unchanged: it acts on normalised coordinates); the render check
   renders at that resolution; the fitted camera is scaled back before it is compared;
 * ``render_spp``: the samples per pixel of the render check (exposure x light power and
-  the edge finder's bias, PoseSettings.render_spp).
+  the edge finder's bias, PoseSettings.render_spp), each one fixed render (render_pass_spp
+  the same: without it render_spp is only the cap of the passes that stop at their noise).
 
 Each setting fits every photo of the dataset (photos/), with the intrinsics from the board
 views held fixed as ``calibrate DATASET`` does, or, with ``free_intrinsics``, fitted from
@@ -96,7 +97,8 @@ class CalibrateStudyConfig:
         for rounds, windows in self.fine:
             rows.append(("fine", dataclasses.replace(self.base, fine_rounds=rounds, fine_windows_px=tuple(windows)), 1.0))
         rows += [("scale", self.base, s) for s in self.scales]
-        rows += [("render_spp", dataclasses.replace(self.base, render_spp=n), 1.0) for n in self.render_spp]
+        rows += [("render_spp", dataclasses.replace(self.base, render_spp=n, render_pass_spp=n), 1.0)  # one fixed render
+                 for n in self.render_spp]
         return rows
 
     def to_json(self) -> dict:
