@@ -171,5 +171,10 @@ def truncation_text(cost: dict, seconds_whole: float) -> str:
     words = " and ".join(a for a in against if a) or "with nothing to compare (the table retains only its kept orders)"
     share = f" ({cost['seconds_whole'] / seconds_whole:.0%})" if seconds_whole > 0 else ""
     return (f"  truncation    error sampled at {cost['nodes_whole']} nodes ({cost['nodes_planned']} planned), solved "
-            f"again {words} on one thread: ~{cost['seconds_whole']:.0f} s{share} of the whole table, "
-            f"~{cost['seconds_planned']:.0f} s of the planned (included above)")
+            f"again {words} on one thread: ~{_seconds(cost['seconds_whole'])} s{share} of the whole table, "
+            f"~{_seconds(cost['seconds_planned'])} s of the planned (included above)")
+
+
+def _seconds(value: float) -> str:
+    """Whole seconds from 10 s up, two significant digits below (a draft's sample takes a fraction of one)."""
+    return f"{value:.0f}" if value >= 10 else f"{value:.2g}"
