@@ -96,11 +96,16 @@ class ObservedEdges:
         """Per residual: 0 for a band edge, 1 for a rim point (each group has its own noise)."""
         return np.concatenate([np.zeros(len(self.keys), int), np.ones(len(self) - len(self.keys), int)])
 
-    def blocks(self) -> list[list[int]]:
-        """Residuals that share their pixels' noise (a profile's edges; ``RIM_BLOCK`` neighbouring rim points)."""
+    def blocks(self, by: str = "profile") -> list[list[int]]:
+        """Residuals that share an error: by ``profile``, a profile's edges (its pixels' noise);
+        by ``band``, one band's edges of an order along every profile, all channels (the forward
+        model's own error at an edge, which changes slowly along the band); and ``RIM_BLOCK``
+        neighbouring rim points either way."""
         groups: dict[tuple, list[int]] = {}
         for i, key in enumerate(self.keys):
-            groups.setdefault((key.view, key.key[0], key.key[1]), []).append(i)
+            kind, profile, order, _, band, side = key.key
+            groups.setdefault((key.view, kind, profile) if by == "profile" else (key.view, kind, order, band, side),
+                              []).append(i)
         at = len(self.keys)
         for v, points in self.rims:
             for start in range(0, len(points), RIM_BLOCK):
