@@ -143,10 +143,8 @@ def _decode_raw(path: Path, demosaic: str) -> DecodedImage:
     ifds = raw_checks.check_container(path)
     try:
         with rawpy.imread(str(path)) as raw:
-            black = [float(b) for b in raw.black_level_per_channel]
             white = float(raw.white_level)
-            used = black[:max(1, int(raw.num_colors))] if raw.raw_type != rawpy.RawType.Flat or raw.num_colors == 1 \
-                else black
+            used = raw_checks.used_black_levels(raw)
             if white <= max(used):
                 raise UserInputError("the raw file's white level is not above its black level", file=path,
                                      got={"black_level": used, "white_level": white})
@@ -155,7 +153,7 @@ def _decode_raw(path: Path, demosaic: str) -> DecodedImage:
                                           path)
             fallback = {"exposure_time_s": float(raw.other.shutter_speed), "iso": float(raw.other.iso_speed)}
     except rawpy.LibRawError as exc:
-        raise UserInputError(raw_checks.libraw_failure(_libraw_message(exc), ifds), file=path,
+        raise UserInputError(raw_checks.libraw_failure(raw_checks.libraw_message(exc), ifds), file=path,
                              expected="a complete raw file LibRaw reads (DNG, NEF, CR2, ARW, ...)") from None
     except UserInputError as exc:
         raise exc.located(file=path) if exc.file is None else exc from None
@@ -218,11 +216,6 @@ def cfa_channels(cfa: str | None, shape: tuple[int, int]) -> np.ndarray | None:
         dy, dx = divmod(k, side)
         channel[dy::side, dx::side] = "RGB".index(colour)
     return channel
-
-
-def _libraw_message(exc: Exception) -> str:
-    text = exc.args[0] if exc.args else exc
-    return text.decode(errors="replace") if isinstance(text, bytes) else str(text)
 
 
 def _decode_image(path: Path, response: ResponseLike) -> DecodedImage:

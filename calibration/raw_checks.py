@@ -164,14 +164,19 @@ def libraw_failure(message: str, ifds: list[RawIfd]) -> str:
     return f"cannot be decoded as a raw photograph ({message})"
 
 
-def samples_black_level(raw) -> float:
-    """The lowest black level of the channels the open rawpy ``raw``'s samples use (its ``num_colors`` first for a
-    stacked or monochrome raw, all four CFA entries otherwise), as calibration.decode passes to check_samples."""
+def used_black_levels(raw) -> list[float]:
+    """The black levels of the channels the open rawpy ``raw``'s samples use (its ``num_colors`` first for a
+    stacked or monochrome raw, all four CFA entries otherwise): the lowest is check_samples' black level."""
     import rawpy  # deferred: start-up time
 
     black = [float(b) for b in raw.black_level_per_channel]
-    colours = max(1, int(raw.num_colors))
-    return min(black[:colours] if raw.raw_type != rawpy.RawType.Flat or colours == 1 else black)
+    return black[:max(1, int(raw.num_colors))] if raw.raw_type != rawpy.RawType.Flat or raw.num_colors == 1 else black
+
+
+def libraw_message(exc: Exception) -> str:
+    """A LibRawError's text (rawpy gives bytes or str)."""
+    text = exc.args[0] if exc.args else exc
+    return text.decode(errors="replace") if isinstance(text, bytes) else str(text)
 
 
 def check_raw_file(path: Path) -> tuple[int, int]:
@@ -182,10 +187,8 @@ def check_raw_file(path: Path) -> tuple[int, int]:
     ifds = check_container(path)
     try:
         with rawpy.imread(str(path)) as raw:
-            check_samples(path, raw.raw_image_visible, samples_black_level(raw))
+            check_samples(path, raw.raw_image_visible, min(used_black_levels(raw)))
             return int(raw.sizes.width), int(raw.sizes.height)
     except rawpy.LibRawError as exc:
-        text = exc.args[0] if exc.args else exc
-        message = text.decode(errors="replace") if isinstance(text, bytes) else str(text)
-        raise UserInputError(libraw_failure(message, ifds), file=path,
+        raise UserInputError(libraw_failure(libraw_message(exc), ifds), file=path,
                              expected="a complete raw file LibRaw reads (DNG, NEF, CR2, ARW, ...)") from None
