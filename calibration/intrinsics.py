@@ -16,7 +16,12 @@ views calibrate; under FEW_VIEWS (6) the result carries a warning (intrinsics.js
 Outlier views are left out by calibration.intrinsics_fit (in-sample rule among many views,
 leave-one-out among few, never below MIN_VIEWS).
 
-Distortion terms: OpenCV's flags choose them; the command's ``--no-tangential`` holds p1, p2
+Lens models (renderer.lens: pinhole, rational, fisheye, omnidir; calibration.lens_models fits
+each): ``model`` names one, or ``auto`` chooses by held-out views (calibration.lens_choice) and
+records the scores and why in intrinsics.json ``model_choice``. Outlier views are then left out
+under the chosen model.
+
+Distortion terms of the pinhole: OpenCV's flags choose them; the command's ``--no-tangential`` holds p1, p2
 at 0 (CALIB_ZERO_TANGENT_DIST) and ``--fit-k3`` frees k3, so a calibration can use the
 same model as another tool's (BoofCV's "radial 2, tangential false" is k1, k2 alone).
 """
@@ -39,6 +44,9 @@ from calibration.corners import find_board_corners, validate_pattern
 from calibration.decode import decode, versions
 from calibration.images import grey_unit
 from calibration.intrinsics_fit import CRITERIA, FEW_VIEWS, MIN_VIEWS, fit_without_outliers, held_out_rms
+from calibration.lens_choice import ModelChoice, choose_model
+from calibration.lens_models import MODEL_CHOICES
+from renderer.lens import LENS_MODELS
 from workbench.core.errors import UserInputError
 from workbench.core.files import atomic_write_text
 
@@ -66,7 +74,7 @@ class ViewReport:
 @dataclass
 class Calibration:
     K: np.ndarray                        # 3 x 3 camera matrix (pixels)
-    dist: np.ndarray                     # [k1, k2, p1, p2, k3]
+    dist: np.ndarray                     # the model's coefficients (pinhole: [k1, k2, p1, p2, k3])
     std: dict[str, Any]                  # standard deviations: fx, fy, cx, cy, dist
     rms_px: float                        # RMS reprojection error over the used views' corners
     width: int
@@ -77,6 +85,9 @@ class Calibration:
     object_points: list[np.ndarray]      # and their board points (N, 3), metres
     timings: dict[str, float] = field(default_factory=dict)
     warnings: list[str] = field(default_factory=list)   # what the user should know (few views, a kept outlier)
+    model: str = "pinhole"               # renderer.lens.LENS_MODELS
+    xi: float = 0.0                      # Mei's xi (omnidir)
+    choice: ModelChoice | None = None    # how --model auto chose
 
     @property
     def found(self) -> list[str]:
@@ -91,7 +102,10 @@ class Calibration:
         return {"width": self.width, "height": self.height, "fx": float(K[0, 0]), "fy": float(K[1, 1]),
                 "cx": float(K[0, 2]), "cy": float(K[1, 2]), "dist": [float(d) for d in self.dist], "std": self.std,
                 "rms_px": self.rms_px, "views": [asdict(v) for v in self.views], "flags": flag_names(self.flags),
-                "warnings": list(self.warnings)}
+                "warnings": list(self.warnings), "model": self.model,
+                "coefficients": list(LENS_MODELS[self.model].coefficients),
+                **({"xi": float(self.xi)} if self.model == "omnidir" else {}),
+                **({"model_choice": self.choice.to_json()} if self.choice is not None else {})}
 
 
 def board_points(inner_corners: tuple[int, int], square_size_m: float) -> np.ndarray:
@@ -107,10 +121,13 @@ def flag_names(flags: int) -> list[str]:
     return [name for name in FLAG_NAMES if flags & getattr(cv2, name)]
 
 
-def _check_flags(flags: int) -> None:
+def _check_flags(flags: int, model: str) -> None:
+    if model not in MODEL_CHOICES:
+        raise UserInputError("unknown lens model", field="--model", expected=f"one of {', '.join(MODEL_CHOICES)}",
+                             got=model)
     for name in UNSUPPORTED_FLAGS:
         if flags & getattr(cv2, name):
-            raise UserInputError("the camera model has five distortion coefficients (k1, k2, p1, p2, k3)",
+            raise UserInputError("lens models are chosen by name (the rational model: model='rational'), not by flags",
                                  field="flags", got=name)
 
 
@@ -189,10 +206,10 @@ def _check_enough_views(views: list[_View], what: str) -> None:
                              got={"not found": missed} if missed else None)
 
 
-def _calibrate_without_outliers(views: list[_View], size: tuple[int, int], flags: int):
+def _calibrate_without_outliers(views: list[_View], size: tuple[int, int], flags: int, model: str):
     """calibration.intrinsics_fit.fit_without_outliers on the views' corners; the views' reports
     get their RMS, whether used and why not. Returns the fit, the views used and warnings."""
-    robust = fit_without_outliers([v.points for v in views], [v.corners for v in views], size, flags)
+    robust = fit_without_outliers([v.points for v in views], [v.corners for v in views], size, flags, model)
     for index, note in robust.notes.items():
         report = views[index].report
         report.note = "; ".join(n for n in (report.note, note) if n)
@@ -220,20 +237,22 @@ def _few_view_warnings(used: int, K: np.ndarray, std: np.ndarray) -> list[str]:
 
 def calibrate_board_views(paths: Sequence[str | Path], board_size: tuple[int, int], square_size_m: float,
                           image_size: tuple[int, int] | None = None, flags: int = cv2.CALIB_FIX_K3, *,
-                          charuco: CharucoSpec | None = None, progress: bool = False) -> Calibration:
+                          charuco: CharucoSpec | None = None, progress: bool = False,
+                          model: str = "pinhole") -> Calibration:
     """Find the board in each view and calibrate.
 
     ``board_size``: inner corners (cols, rows) of a checkerboard, or with ``charuco`` the
     board's squares (cols, rows) as OpenCV's CharucoBoard counts them. ``square_size_m``:
     the side of a square. ``image_size``: (width, height) every view must have (default: the
     first view's). Needs the board in at least MIN_VIEWS views; warns under FEW_VIEWS.
+    ``model``: a lens model of renderer.lens, or ``auto`` (calibration.lens_choice).
     """
     start = time.perf_counter()
     if not charuco:
         board_size = validate_pattern(board_size)
     if not square_size_m > 0:
         raise UserInputError("the square size must be positive", field="--square-mm", got=square_size_m)
-    _check_flags(flags)
+    _check_flags(flags, model)
     files = [Path(p) for p in paths]
     if not files:
         raise UserInputError("no views given", field="IMAGE")
@@ -242,18 +261,23 @@ def calibrate_board_views(paths: Sequence[str | Path], board_size: tuple[int, in
     what = (f"{board_size[0]} x {board_size[1]} squares (ChArUco)" if charuco
             else f"{board_size[0]} x {board_size[1]} inner corners")
     _check_enough_views(views, what)
-    fit, used, warnings = _calibrate_without_outliers([v for v in views if v.usable], size, flags)
+    usable = [v for v in views if v.usable]
+    choice = None
+    if model == "auto":
+        choice = choose_model([v.points for v in usable], [v.corners for v in usable], size, flags)
+        model = choice.model
+    fit, used, warnings = _calibrate_without_outliers(usable, size, flags, model)
     K, dist, std = fit.K, fit.dist, fit.std
     for view in views:
         if view.usable and not view.report.used:
-            view.report.rms_px = held_out_rms(view.points, view.corners, K, dist)
+            view.report.rms_px = held_out_rms(view.points, view.corners, K, dist, fit.model, fit.xi)
     warnings = _few_view_warnings(len(used), K, std) + warnings
     std_json = {"fx": float(std[0]), "fy": float(std[1]), "cx": float(std[2]), "cy": float(std[3]),
-                "dist": [float(s) for s in std[4:9]]}
+                "dist": [float(s) for s in std[4:]], **({"xi": fit.xi_std} if model == "omnidir" else {})}
     timings = {"detection_s": detected_s, "calibration_s": time.perf_counter() - start - detected_s,
                "total_s": time.perf_counter() - start}
     return Calibration(K, dist, std_json, fit.rms_px, size[0], size[1], [v.report for v in views], flags,
-                       [v.corners for v in used], [v.points for v in used], timings, warnings)
+                       [v.corners for v in used], [v.points for v in used], timings, warnings, model, fit.xi, choice)
 
 
 def write_intrinsics(calibration: Calibration, out: str | Path, settings: dict[str, Any]) -> dict[str, Any]:

@@ -42,6 +42,7 @@ from dataclasses import dataclass, field
 import cv2
 import numpy as np
 
+from calibration.lens_models import Fit, fit_model, solve_pose
 from workbench.core.errors import UserInputError
 
 MIN_VIEWS = 3               # views that determine a pinhole camera's five intrinsics [Zhang 2000, Sec. 3.1]
@@ -50,17 +51,6 @@ OUTLIER_FACTOR = 3.0        # a view whose RMS is this many times the median vie
 OUTLIER_FLOOR_PX = 0.5      # ... unless it is within half a pixel anyway (clean sets have no outliers to find)
 REST_GAIN = 1.5             # few views: the others must fit this many times better without the view (see docstring)
 CRITERIA = (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 100, 1e-12)
-
-
-@dataclass
-class Fit:
-    """One calibrateCameraExtended result."""
-
-    rms_px: float               # RMS reprojection error over every corner
-    K: np.ndarray               # 3 x 3 camera matrix (pixels)
-    dist: np.ndarray            # [k1, k2, p1, p2, k3]
-    std: np.ndarray             # standard deviations of fx, fy, cx, cy, k1, k2, p1, p2, k3 (zero where held)
-    per_view_px: np.ndarray     # each view's RMS reprojection error
 
 
 @dataclass
@@ -74,27 +64,20 @@ class RobustFit:
     suspects: dict[int, float] = field(default_factory=dict)
 
 
-def fit_views(points: Sequence[np.ndarray], corners: Sequence[np.ndarray], size: tuple[int, int], flags: int) -> Fit:
-    """[Zhang 2000] through cv2.calibrateCameraExtended: board points (N, 3) and their corners
-    (N, 1, 2) per view, image ``size`` (width, height), OpenCV's calibration ``flags``."""
-    try:
-        rms, K, dist, _, _, std, _, per_view = cv2.calibrateCameraExtended(
-            list(points), list(corners), size, np.eye(3), np.zeros(5), flags=flags, criteria=CRITERIA)
-    except cv2.error as error:
-        raise UserInputError(f"the {len(points)} board views do not determine the intrinsics (OpenCV: "
-                             f"{str(error).strip().splitlines()[-1]})", field="IMAGE",
-                             expected="views of the board at several different tilts") from None
-    return Fit(float(rms), K, dist.ravel()[:5], std.ravel()[:9], per_view.ravel())
+def fit_views(points: Sequence[np.ndarray], corners: Sequence[np.ndarray], size: tuple[int, int], flags: int,
+              model: str = "pinhole") -> Fit:
+    """[Zhang 2000] through cv2.calibrateCameraExtended for the pinhole (the other lens models:
+    calibration.lens_models.fit_model): board points (N, 3) and their corners (N, 1, 2) per
+    view, image ``size`` (width, height), OpenCV's calibration ``flags``."""
+    return fit_model(points, corners, size, flags, model)
 
 
-def held_out_rms(points: np.ndarray, corners: np.ndarray, K: np.ndarray, dist: np.ndarray) -> float:
+def held_out_rms(points: np.ndarray, corners: np.ndarray, K: np.ndarray, dist: np.ndarray, model: str = "pinhole",
+                 xi: float = 0.0) -> float:
     """A view's RMS reprojection error under intrinsics fitted without it, at its own best pose
-    (cv2.solvePnP, iterative Levenberg-Marquardt on the reprojection error)."""
-    ok, rvec, tvec = cv2.solvePnP(points, corners, K, dist)
-    if not ok:
-        return float("inf")
-    projected, _ = cv2.projectPoints(points, rvec, tvec, K, dist)
-    return float(np.sqrt(np.mean(np.sum((projected.reshape(-1, 2) - corners.reshape(-1, 2)) ** 2, axis=1))))
+    (calibration.lens_models.solve_pose: for the pinhole cv2.solvePnP, iterative
+    Levenberg-Marquardt on the reprojection error)."""
+    return solve_pose(model, points, corners, K, dist, xi)[0]
 
 
 def _threshold(per_view_px: np.ndarray) -> float:
@@ -127,7 +110,7 @@ def _leave_one_out(points: list[np.ndarray], corners: list[np.ndarray], size: tu
     best: tuple[int, Fit] | None = None
     for k in range(len(points)):
         try:
-            rest = fit_views(points[:k] + points[k + 1:], corners[:k] + corners[k + 1:], size, flags)
+            rest = fit_views(points[:k] + points[k + 1:], corners[:k] + corners[k + 1:], size, flags, whole.model)
         except UserInputError:
             continue
         if best is None or rest.rms_px < best[1].rms_px:
@@ -137,8 +120,8 @@ def _leave_one_out(points: list[np.ndarray], corners: list[np.ndarray], size: tu
     k, rest = best
     counts = [len(c) for i, c in enumerate(corners) if i != k]
     gain = _pooled_rms(np.delete(whole.per_view_px, k), counts) / max(_pooled_rms(rest.per_view_px, counts), 1e-12)
-    return _Candidate(k, rest, held_out_rms(points[k], corners[k], rest.K, rest.dist), _threshold(rest.per_view_px),
-                      gain)
+    held_out = held_out_rms(points[k], corners[k], rest.K, rest.dist, rest.model, rest.xi)
+    return _Candidate(k, rest, held_out, _threshold(rest.per_view_px), gain)
 
 
 def _is_outlier(candidate: _Candidate | None) -> bool:
@@ -146,13 +129,14 @@ def _is_outlier(candidate: _Candidate | None) -> bool:
 
 
 def fit_without_outliers(points: Sequence[np.ndarray], corners: Sequence[np.ndarray], size: tuple[int, int],
-                         flags: int) -> RobustFit:
-    """Fit, dropping outlier views by the module docstring's rules, never below MIN_VIEWS views."""
+                         flags: int, model: str = "pinhole") -> RobustFit:
+    """Fit ``model`` (renderer.lens), dropping outlier views by the module docstring's rules, never
+    below MIN_VIEWS views."""
     if len(points) < MIN_VIEWS:
         raise UserInputError(f"calibration needs at least {MIN_VIEWS} board views, got {len(points)}", field="IMAGE")
     kept = list(range(len(points)))
     notes: dict[int, str] = {}
-    current = fit_views(points, corners, size, flags)
+    current = fit_views(points, corners, size, flags, model)
     while len(kept) > MIN_VIEWS:
         if len(kept) >= FEW_VIEWS:
             worst = int(np.argmax(current.per_view_px))
@@ -160,7 +144,7 @@ def fit_without_outliers(points: Sequence[np.ndarray], corners: Sequence[np.ndar
             if current.per_view_px[worst] <= threshold:
                 break
             notes[kept.pop(worst)] = _why(float(current.per_view_px[worst]), threshold, held_out=False)
-            current = fit_views([points[i] for i in kept], [corners[i] for i in kept], size, flags)
+            current = fit_views([points[i] for i in kept], [corners[i] for i in kept], size, flags, model)
             continue
         found = _leave_one_out([points[i] for i in kept], [corners[i] for i in kept], size, flags, current)
         if found is None or not _is_outlier(found):

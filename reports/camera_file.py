@@ -2,7 +2,9 @@
 
 The form (that of the synthetic dataset's truth.json, which the calibration's output
 shares): ``camera`` = {width, height, fx, fy, cx, cy, dist [k1, k2, p1, p2, k3],
-world_to_camera: {file name: 4 x 4}} (OpenCV's model and axes, metres), optionally a
+world_to_camera: {file name: 4 x 4}} (OpenCV's model and axes, metres), optionally ``model``
+(a lens model of renderer.lens, default ``pinhole``: ``dist`` then holds that model's
+coefficients, and ``xi`` is the omnidir model's), optionally a
 ``scene`` (the scene's name or file it was made for) and ``camera_std`` (standard
 deviations of fx, fy, cx, cy, dist, and ``rotation_deg``/``translation_m``) when the
 calibration estimated them; calibration.json's own ``std`` (calibration.dataset) is read
@@ -23,6 +25,7 @@ import numpy as np
 
 from calibration.decode import load_response
 from renderer.camera import CameraModel
+from renderer.lens import LENS_MODELS
 from workbench.core.errors import UserInputError
 
 INTRINSIC_KEYS = ("width", "height", "fx", "fy", "cx", "cy")
@@ -44,7 +47,8 @@ class FittedCamera:
         origin = -m.world_to_camera[:3, :3].T @ m.world_to_camera[:3, 3]
         return {"source": self.source, "pose_of": self.pose_key, "scene": self.scene, "width": m.width,
                 "height": m.height, "fx": m.fx, "fy": m.fy, "cx": m.cx, "cy": m.cy, "dist": list(m.dist),
-                "fov_x_deg": fov_x, "position_m": origin.tolist(), "std": self.std}
+                "model": m.model, **({"xi": m.xi} if m.model == "omnidir" else {}), "fov_x_deg": fov_x,
+                "position_m": origin.tolist(), "std": self.std}
 
 
 def _number(value: Any, where: str, source: str) -> float:
@@ -83,9 +87,7 @@ def read_camera(path: str | Path, photo_name: str) -> FittedCamera:
         if key not in block:
             raise UserInputError("is missing", file=source, field=f"camera.{key}")
         values[key] = _number(block[key], f"camera.{key}", source)
-    dist = block.get("dist", [0.0] * 5)
-    if not isinstance(dist, list) or len(dist) != 5:
-        raise UserInputError("must be 5 numbers [k1, k2, p1, p2, k3]", file=source, field="camera.dist", got=dist)
+    lens, dist, xi = _lens(block, source)
     poses = block.get("world_to_camera")
     if isinstance(poses, list):
         poses = {photo_name: poses}
@@ -100,10 +102,26 @@ def read_camera(path: str | Path, photo_name: str) -> FittedCamera:
         raise UserInputError(f"has no pose for the photo {photo_name!r}", file=source, field="camera.world_to_camera",
                              expected=f"one of {sorted(poses)[:8]}")
     model = CameraModel(int(values["width"]), int(values["height"]), values["fx"], values["fy"], values["cx"],
-                        values["cy"], tuple(_number(d, "camera.dist", source) for d in dist),  # type: ignore[arg-type]
-                        _pose(poses[key], f"camera.world_to_camera.{key}", source))
+                        values["cy"], dist, _pose(poses[key], f"camera.world_to_camera.{key}", source), lens, xi)
     scene = data.get("scene")
     return FittedCamera(model, source, key, str(scene) if scene is not None else None, _camera_std(data, block, key))
+
+
+def _lens(block: dict, source: str) -> tuple[str, tuple[float, ...], float]:
+    """The camera block's lens model, its coefficients and xi (module docstring)."""
+    name = block.get("model", "pinhole")
+    if name not in LENS_MODELS:
+        raise UserInputError("unknown lens model", file=source, field="camera.model",
+                             expected=f"one of {', '.join(LENS_MODELS)}", got=name)
+    names = LENS_MODELS[name].coefficients
+    dist = block.get("dist", [0.0] * len(names))
+    if not isinstance(dist, list) or len(dist) != len(names):
+        raise UserInputError(f"must be {len(names)} numbers [{', '.join(names)}] for the {name} model", file=source,
+                             field="camera.dist", got=dist)
+    xi = _number(block.get("xi", 0.0), "camera.xi", source)
+    if name != "omnidir" and xi != 0.0:
+        raise UserInputError(f"is a parameter of the omnidir model, not of {name}", file=source, field="camera.xi")
+    return name, tuple(_number(d, "camera.dist", source) for d in dist), xi
 
 
 def _camera_std(data: dict, block: dict, key: str) -> dict[str, Any]:

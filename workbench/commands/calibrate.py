@@ -1,7 +1,8 @@
 """``workbench calibrate intrinsics|response|pose|DATASET``: camera calibration from photographs (calibration)::
 
     workbench calibrate intrinsics IMAGE... --board COLSxROWS --square-mm S [--charuco DICT,MARKER_MM]
-                                   --out intrinsics.json [--fit-k3] [--no-tangential] [--quiet]
+                                   --out intrinsics.json [--model auto|pinhole|rational|fisheye|omnidir]
+                                   [--fit-k3] [--no-tangential] [--quiet]
     workbench calibrate response IMAGE... [--times T,...] --out response.json
     workbench calibrate pose PHOTO --scene SCENE [--intrinsics intrinsics.json] [--response response.json] --out DIR
     workbench calibrate DATASET --scene SCENE --out DIR [--board COLSxROWS] [--square-mm S]
@@ -25,6 +26,7 @@ import cv2
 
 from calibration.charuco import parse_charuco
 from calibration.intrinsics import calibrate_board_views, write_intrinsics
+from calibration.lens_models import MODEL_CHOICES
 from workbench.commands.arguments import board_argument, exposure_times_argument, positive_number
 
 if TYPE_CHECKING:  # calibration.pose pulls in the renderer and scipy: imported where a pose is fitted
@@ -59,7 +61,11 @@ def add_intrinsics(steps: argparse._SubParsersAction) -> None:
                    "e.g. DICT_5X5_100,15 (default: a plain checkerboard)")
     p.add_argument("--out", required=True, metavar="intrinsics.json",
                    help="fx, fy, cx, cy, distortion with standard deviations, per-view errors, settings")
-    p.add_argument("--fit-k3", action="store_true", help="fit k3 too (default: held at 0)")
+    p.add_argument("--model", choices=MODEL_CHOICES, default="auto",
+                   help="the lens model: pinhole (OpenCV's k1, k2, p1, p2, k3), rational (k1..k6, p1, p2), fisheye "
+                        "(Kannala-Brandt k1..k4), omnidir (Mei: xi, k1, k2, p1, p2), or auto: the simplest model whose "
+                        "held-out-view RMS no richer model beats (default: auto)")
+    p.add_argument("--fit-k3", action="store_true", help="pinhole: fit k3 too (default: held at 0)")
     p.add_argument("--no-tangential", action="store_true",
                    help="hold the tangential terms p1, p2 at 0 (OpenCV's CALIB_ZERO_TANGENT_DIST): radial distortion "
                         "only, as calibrations that report no tangential terms use (default: fitted)")
@@ -70,11 +76,11 @@ def run_intrinsics(args: argparse.Namespace) -> int:
     charuco = parse_charuco(args.charuco) if args.charuco else None
     flags = (0 if args.fit_k3 else cv2.CALIB_FIX_K3) | (cv2.CALIB_ZERO_TANGENT_DIST if args.no_tangential else 0)
     result = calibrate_board_views(args.images, args.board, args.square_mm / 1000.0, flags=flags, charuco=charuco,
-                                   progress=not args.quiet)
+                                   progress=not args.quiet, model=args.model)
     settings = {"board": list(args.board), "board_counts": "squares" if charuco else "inner corners",
                 "square_mm": args.square_mm, "charuco": None if charuco is None else
                 {"dictionary": charuco.dictionary, "marker_mm": charuco.marker_size_m * 1e3},
-                "images": [str(p) for p in args.images]}
+                "model": args.model, "images": [str(p) for p in args.images]}
     record = write_intrinsics(result, args.out, settings)
     used = [v for v in result.views if v.used]
     std = record["std"]
@@ -83,7 +89,9 @@ def run_intrinsics(args: argparse.Namespace) -> int:
           f"RMS {record['rms_px']:.3f} px{warned}")
     print(f"fx {record['fx']:.2f} +- {std['fx']:.2f}, fy {record['fy']:.2f} +- {std['fy']:.2f}, "
           f"cx {record['cx']:.2f} +- {std['cx']:.2f}, cy {record['cy']:.2f} +- {std['cy']:.2f} px; "
-          f"dist {', '.join(f'{d:.4g}' for d in record['dist'])}")
+          f"dist {', '.join(f'{d:.4g}' for d in record['dist'])}" + (f", xi {record['xi']:.4g}" if "xi" in record else ""))
+    choice = record.get("model_choice")
+    print(f"model {record['model']}: " + (choice["why"] if choice else "as asked (--model)"))
     for view in result.views:
         if not view.found:
             print(f"  {Path(view.file).name}: board not found, skipped")
