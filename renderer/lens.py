@@ -76,9 +76,9 @@ def check_coefficients(model: str, dist, xi: float) -> tuple[float, ...]:
 def project(model: str, points: np.ndarray, rvec: np.ndarray, tvec: np.ndarray, K: np.ndarray, dist: np.ndarray,
             xi: float = 0.0) -> np.ndarray:
     """Pixels (N, 2) of points (N, 3) given in the frame that (rvec, tvec) takes to camera axes."""
-    pts = np.asarray(points, np.float64).reshape(-1, 1, 3)
-    rvec = np.asarray(rvec, np.float64).reshape(3, 1)
-    tvec = np.asarray(tvec, np.float64).reshape(3, 1)
+    pts = np.ascontiguousarray(np.asarray(points, np.float64).reshape(-1, 1, 3))
+    rvec = np.ascontiguousarray(rvec, np.float64).reshape(3, 1)   # contiguous: omnidir misreads a strided view
+    tvec = np.ascontiguousarray(tvec, np.float64).reshape(3, 1)
     dist = np.asarray(dist, np.float64)
     if len(pts) == 0:
         return np.zeros((0, 2))
@@ -98,9 +98,9 @@ def project_with_jacobian(model: str, points: np.ndarray, rvec: np.ndarray, tvec
     """Pixels (N, 2) and their Jacobian (2N, 10 + coefficients) in cv2.projectPoints' column
     order for every model: rvec (3), tvec (3), fx, fy, cx, cy, then ``dist`` in its order
     (the fisheye's and omnidir's own Jacobians, their columns reordered; skew and xi left out)."""
-    pts = np.asarray(points, np.float64).reshape(-1, 1, 3)
-    rvec = np.asarray(rvec, np.float64).reshape(3, 1)
-    tvec = np.asarray(tvec, np.float64).reshape(3, 1)
+    pts = np.ascontiguousarray(np.asarray(points, np.float64).reshape(-1, 1, 3))
+    rvec = np.ascontiguousarray(rvec, np.float64).reshape(3, 1)   # contiguous: omnidir misreads a strided view
+    tvec = np.ascontiguousarray(tvec, np.float64).reshape(3, 1)
     dist = np.asarray(dist, np.float64)
     if model in ("pinhole", "rational"):
         pixels, jac = cv2.projectPoints(pts, rvec, tvec, K, dist)
