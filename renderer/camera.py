@@ -18,9 +18,10 @@ warp's maps reproduce every model's projection to 1e-6 px).
 
 Wide lenses: an ideal pinhole holds rays up to MAX_HALF_FIELD_DEG off the axis (150 degrees
 across); a camera whose image reaches further is refused (UserInputError). The pinhole image
-is sampled at least as densely as the output everywhere: its focal length is the largest of
-fx, fy and the output's local sampling density of normalized coordinates (barrel-distorting
-lenses need no more than fx; a pincushion's edges do), up to MAX_PLAN_SIDE pixels a side.
+is sampled at least as densely as the output everywhere: its focal length is the output's
+largest local sampling density of normalized coordinates (a barrel-distorting lens's is at
+its centre, about fx, or fx / (1 + xi) for omnidir; a pincushion's at its edges), up to
+MAX_PLAN_SIDE pixels a side.
 The pinhole model keeps max(fx, fy), as its renders always had.
 """
 
@@ -143,7 +144,7 @@ class CameraModel:
         f = max(self.fx, self.fy)
         if self.model != "pinhole":
             self._check_field(normalized)
-            f = max(f, self._needed_focal())
+            f = self._needed_focal()
         half_w = math.ceil(np.max(np.abs(normalized[:, 0])) * f) + WARP_MARGIN_PX
         half_h = math.ceil(np.max(np.abs(normalized[:, 1])) * f) + WARP_MARGIN_PX
         width, height = 2 * half_w, 2 * half_h
