@@ -151,3 +151,12 @@ def sensor_dict(mi, camera, spp: int):
     sensor["film"] = {"type": "specfilm", "width": plan.width, "height": plan.height, "rfilter": {"type": "box"},
                       "component_format": "float32", **film}
     return sensor, plan
+
+
+def cropped_sensor(sensor: dict, offset: tuple[int, int], size: tuple[int, int]) -> dict:
+    """``sensor`` (sensor_dict's) rendering only a window of its film: Mitsuba's film crop
+    (``crop_offset_x``, ``crop_offset_y``, ``crop_width``, ``crop_height``; the pixels keep
+    their place in the full frame, so a crop's pixel is the full render's same pixel)."""
+    film = dict(sensor["film"], crop_offset_x=int(offset[0]), crop_offset_y=int(offset[1]),
+                crop_width=int(size[0]), crop_height=int(size[1]))
+    return dict(sensor, film=film)

@@ -30,7 +30,10 @@ import cv2
 import numpy as np
 from tqdm import tqdm
 
-from renderer.mitsuba_scene import scene_dict
+from renderer import render_target
+from renderer.mitsuba_scene import cropped_sensor, scene_dict
+from renderer.regions import region_masks
+from renderer.render_target import CROP_SEED_OFFSET, PASS_SPP, TARGETS, State, Target, Window, target_settings
 from renderer.scene import SceneSpec, load_scene
 from renderer.tables import table_keys
 from renderer.variant import set_variant
@@ -58,12 +61,16 @@ def with_resolution(spec: SceneSpec, resolution: tuple[int, int] | None) -> Scen
     return replace(spec, camera=replace(spec.camera, model=model))
 
 
-def render_pass(spec: SceneSpec, pass_spp: int, integrator: str, mode: str, pass_seed: int, plan: bool = True) -> np.ndarray:
-    """One pass on a dask worker: build the scene there (tables come from the cache) and render."""
+def render_pass(spec: SceneSpec, pass_spp: int, integrator: str, mode: str, pass_seed: int, plan: bool = True,
+                crop: Window | None = None) -> np.ndarray:
+    """One pass on a dask worker: build the scene there (tables come from the cache) and render
+    (only the film's ``crop`` window, where given: renderer.render_target)."""
     set_variant()
     import mitsuba as mi  # deferred: after set_variant, and start-up time
 
     scene_d, _ = scene_dict(mi, spec, spp=pass_spp, integrator=integrator, mode=mode, plan=plan)
+    if crop is not None:
+        scene_d["sensor"] = cropped_sensor(scene_d["sensor"], (crop.x, crop.y), (crop.width, crop.height))
     # Mitsuba's stub types seed as UInt32; a Python int is what it takes at run time
     return np.array(mi.render(mi.load_dict(scene_d), seed=pass_seed))  # type: ignore[arg-type]
 
@@ -83,7 +90,8 @@ class _Passes:
 
 def render(scene: str | Path, out: str | Path, *, preset: str = "draft", spp: int | None = None,
            resolution: tuple[int, int] | None = None, integrator: str = "path", mode: str = "improved",
-           seed: int = 0, progress: bool = True, executor=None, force: bool = False, plan: bool = True) -> dict:
+           seed: int = 0, progress: bool = True, executor=None, force: bool = False, plan: bool = True,
+           target: str | None = None) -> dict:
     """Render ``scene``; with ``executor`` (workbench.core.executor.DaskExecutor) the passes run on a
     dask.distributed cluster, each with its own seed, averaged here: the result is the
     same as a local render with the same seed.
@@ -96,10 +104,14 @@ def render(scene: str | Path, out: str | Path, *, preset: str = "draft", spp: in
 
     ``plan`` (the default): the tables are planned for this camera (renderer.planner,
     renderer.mitsuba_scene.scene_dict); False builds whole tables, for comparison.
+    ``target`` ("report"): each region sampled to what the report measures there
+    (renderer.render_target), the preset's spp the frame's cap; None: ``spp`` samples everywhere.
     """
-    spp, pass_spp, spec, out = _checked_request(scene, out, preset, spp, resolution, integrator, mode, seed)
+    spp, pass_spp, spec, out = _checked_request(scene, out, preset, spp, resolution, integrator, mode, seed, target)
+    goal = target_settings(preset, spp) if target is not None else None
+    pass_spp = PASS_SPP if goal is not None else pass_spp
     passes = _Passes(spec, pass_spp, integrator, mode, seed, plan, math.ceil(spp / pass_spp))
-    key = _request_key(spec, spp, pass_spp, integrator, mode, seed, plan)
+    key = _request_key(spec, spp, pass_spp, integrator, mode, seed, plan, goal)
     partial = out.with_name(out.name + ".partial.npz")
     finished = _finished_render(out, key)
     if finished is not None:
@@ -110,8 +122,25 @@ def render(scene: str | Path, out: str | Path, *, preset: str = "draft", spp: in
 
     started = time.perf_counter()
     scene_d, built = scene_dict(mi, spec, spp=pass_spp, integrator=integrator, mode=mode, plan=plan, progress=progress)
+    if goal is None:
+        mean, variance, done, pass_seconds, extra = _fixed_passes(mi, scene_d, passes, partial, key, executor, progress)
+    else:
+        mean, variance, done, pass_seconds, extra = _targeted_passes(mi, scene_d, built, passes, goal, partial, key,
+                                                                     executor, progress)
+        passes = replace(passes, count=extra["target"]["frame_spp"] // pass_spp)
+    _write_images(mi, out, spec, built["plan"], mean, variance)
+    info = _sidecar(out, key, preset, passes, variant, built["tables"], time.perf_counter() - started, pass_seconds,
+                    done) | extra
+    atomic_write_text(out.with_suffix(".json"), json.dumps(info, indent=2))
+    partial.unlink(missing_ok=True)
+    return info | {"served": False}
+
+
+def _fixed_passes(mi, scene_d: dict, passes: _Passes, partial: Path, key: str, executor, progress: bool):
+    """``passes.count`` passes everywhere (resumed from ``partial``): (mean, variance of the mean or
+    None, passes resumed, seconds per pass, nothing more for the sidecar), in the plan's pixels."""
     total, total_sq, done = _resume(partial, key)
-    bar = tqdm(total=passes.count, initial=done, unit="pass", disable=not progress, desc=f"render {spec.name}")
+    bar = tqdm(total=passes.count, initial=done, unit="pass", disable=not progress, desc=f"render {passes.spec.name}")
     pass_seconds = []
     for p, (image, seconds) in _pass_images(mi, scene_d, passes, done, executor):
         image = np.asarray(image, np.float64)
@@ -121,20 +150,67 @@ def render(scene: str | Path, out: str | Path, *, preset: str = "draft", spp: in
         pass_seconds.append(seconds)
         bar.update(1)
     bar.close()
-    rgb = spec.camera.model.warp(total / passes.count, built["plan"]) * spec.camera.exposure
+    return total / passes.count, _mean_variance(total, total_sq, passes.count), done, pass_seconds, {}
+
+
+def _targeted_passes(mi, scene_d: dict, built: dict, passes: _Passes, goal: dict, partial: Path, key: str, executor,
+                     progress: bool):
+    """The targeted render's passes (renderer.render_target), resumed from ``partial``: as _fixed_passes,
+    with the sidecar's ``target`` record and the passes of frame and crop together."""
+    spec = passes.spec
+    target = Target.build(spec.camera.model, built["plan"], region_masks(spec), goal)
+    state = State.load(partial, key)
+    resumed = state.passes
+    bar = tqdm(initial=resumed, unit="pass", disable=not progress, desc=f"render {spec.name} (target report)")
+    pass_seconds: list[float] = []
+    render_passes = _target_pass_images(mi, scene_d, passes, target, executor, pass_seconds)
+    render_target.sample(state, target, render_passes, lambda: state.save(partial), lambda: bar.update(1))
+    bar.close()
+    mean, variance, _count = state.merged(target.window, target.weight)
+    extra = {"target": render_target.record(state, target, goal), "passes": state.passes}
+    return mean[..., :3], variance[..., :3], resumed, pass_seconds, extra
+
+
+def _target_pass_images(mi, scene_d: dict, passes: _Passes, target: Target, executor, seconds: list[float]):
+    """renderer.render_target's RenderPasses: the frame's or the crop's passes by index, each with its
+    own seed (module docstring of renderer.render_target), here or on ``executor``'s workers."""
+    window = target.window
+    loaded = mi.load_dict(scene_d) if executor is None else None
+    crop = None
+    if executor is None and window is not None:
+        cropped = cropped_sensor(scene_d["sensor"], (window.x, window.y), (window.width, window.height))
+        crop = mi.load_dict(dict(cropped, sampler=dict(cropped["sampler"], sample_count=target.crop_pass_spp)))
+
+    def run(kind: str, indices: range) -> Iterator[np.ndarray]:
+        seeds = [pass_seed(passes.seed, i if kind == "frame" else CROP_SEED_OFFSET + i) for i in indices]
+        if executor is None:
+            sensor = crop if kind == "crop" else 0
+            for s in seeds:
+                image, took = timed(lambda s=s: np.array(mi.render(loaded, sensor=sensor, seed=s)))
+                seconds.append(took)
+                yield image
+            return
+        spp, where = (target.crop_pass_spp, window) if kind == "crop" else (passes.pass_spp, None)
+        futures = [executor.submit(timed, render_pass, passes.spec, spp, passes.integrator, passes.mode, s, passes.plan,
+                                   where) for s in seeds]
+        for future in futures:
+            image, took = future.result()
+            seconds.append(took)
+            yield image
+    return run
+
+
+def _write_images(mi, out: Path, spec: SceneSpec, plan, mean: np.ndarray, variance: np.ndarray | None) -> None:
+    """The EXR, its preview and (with a variance) the variance EXR, from the plan's mean and the variance of that mean."""
+    rgb = spec.camera.model.warp(mean, plan) * spec.camera.exposure
     if not np.all(np.isfinite(rgb)):
         raise RuntimeError("the render produced non-finite values")
     out.parent.mkdir(parents=True, exist_ok=True)
     _atomic(out, lambda tmp: mi.Bitmap(rgb.astype(np.float32), mi.Bitmap.PixelFormat.RGB).write(str(tmp)))
     _atomic(out.with_suffix(".png"), lambda tmp: _write_preview(rgb, tmp))
-    variance = _mean_variance(total, total_sq, passes.count)
     if variance is not None:
-        variance = np.maximum(spec.camera.model.warp(variance, built["plan"]), 0.0) * spec.camera.exposure**2
+        variance = np.maximum(spec.camera.model.warp(variance, plan), 0.0) * spec.camera.exposure**2
         _atomic(variance_path(out), lambda tmp: mi.Bitmap(variance.astype(np.float32), mi.Bitmap.PixelFormat.RGB).write(str(tmp)))
-    info = _sidecar(out, key, preset, passes, variant, built["tables"], time.perf_counter() - started, pass_seconds, done)
-    atomic_write_text(out.with_suffix(".json"), json.dumps(info, indent=2))
-    partial.unlink(missing_ok=True)
-    return info | {"served": False}
 
 
 def variance_path(out: str | Path) -> Path:
@@ -196,7 +272,7 @@ def pass_seed(seed: int, index: int) -> int:
 
 def summary(info: dict) -> str:
     """One line for the command line: what was written, or that a finished render was served."""
-    size = f"{info['resolution'][0]}x{info['resolution'][1]}, {info['spp']} spp"
+    size = f"{info['resolution'][0]}x{info['resolution'][1]}, {info['spp']} spp" + (" (the frame)" if info.get("target") else "")
     if info.get("served"):
         return (f"{info['output']}: up to date (request {info['request_key'][:12]}): the finished identical render "
                 f"({size}, {info['seconds_total']:.1f} s when it was made) is served; nothing rendered")
@@ -204,13 +280,34 @@ def summary(info: dict) -> str:
                if info.get("resumed_passes") else "")
     noise = f", the passes' variance {info['variance']}" if info.get("variance") else ""
     return (f"wrote {info['output']} (linear camera RGB), {info['preview']}{noise} and the sidecar "
-            f"{info['output'][:-4]}.json: {size}, {info['seconds_total']:.1f} s ({info['variant']}){resumed}")
+            f"{info['output'][:-4]}.json: {size}, {info['seconds_total']:.1f} s ({info['variant']}){resumed}"
+            + (f"; {target_summary(info['target'])}" if info.get("target") else ""))
+
+
+def target_summary(record: dict) -> str:
+    """What a targeted render reached (renderer.render_target.record), in one clause."""
+    cd = record["regions"].get("cd")
+    walls = record["walls"]
+    parts = [f"target report: the frame {record['frame_spp']} spp"]
+    if cd is not None:
+        edges = (f"edges {cd['edge_sigma_px']:.3f} px (goal {cd['goal_edge_sigma_px']} px"
+                 f"{'' if cd['met'] else ', not reached at the cap'})" if cd["edge_pixels"] else "no band edge seen")
+        parts.append(f"the CD {cd['spp'][1]} spp, {edges}")
+    if math.isfinite(walls["scale_relative_std"]):
+        parts.append(f"the walls' scale {100 * walls['scale_relative_std']:.3f} % (goal {100 * walls['goal']:.1f} %"
+                     f"{'' if walls['met'] else ', not reached at the cap'})")
+    return ", ".join(parts)
 
 
 def _checked_request(scene: str | Path, out: str | Path, preset: str, spp: int | None,
                      resolution: tuple[int, int] | None, integrator: str, mode: str,
-                     seed: int) -> tuple[int, int, SceneSpec, Path]:
+                     seed: int, target: str | None = None) -> tuple[int, int, SceneSpec, Path]:
     """Every argument checked before anything is built or written: (spp, spp per pass, scene, out)."""
+    if target is not None and target not in TARGETS:
+        raise UserInputError("unknown target", field="--target", expected=f"one of {list(TARGETS)}", got=target)
+    if target is not None and spp is not None:
+        raise UserInputError("--spp renders that many samples everywhere; --target chooses them per region",
+                             field="--spp", expected="--spp N or --target report, not both", got=spp)
     if preset not in PRESETS:
         raise UserInputError("unknown preset", field="--preset", expected=f"one of {sorted(PRESETS)}", got=preset)
     if integrator not in ("path", "direct"):
@@ -234,14 +331,17 @@ def _checked_request(scene: str | Path, out: str | Path, preset: str, spp: int |
     return spp, min(settings["pass_spp"], max(1, math.ceil(spp / MIN_PASSES))), spec, out
 
 
-def _request_key(spec: SceneSpec, spp: int, pass_spp: int, integrator: str, mode: str, seed: int, plan: bool) -> str:
-    """What a render is of: scene text, image size, sampling, seed, the tables' own request
-    keys (their content, wherever the cache is; planned for the camera or whole) and the
-    workbench version.
+def _request_key(spec: SceneSpec, spp: int, pass_spp: int, integrator: str, mode: str, seed: int, plan: bool,
+                 target: dict | None = None) -> str:
+    """What a render is of: scene text, image size, sampling (a targeted render's goals and caps),
+    seed, the tables' own request keys (their content, wherever the cache is; planned for the
+    camera or whole) and the workbench version.
     """
     request = {"scene": spec.text, "w": spec.camera.model.width, "h": spec.camera.model.height, "spp": spp,
                "pass": pass_spp, "integrator": integrator, "mode": mode, "seed": seed, "tables": table_keys(spec),
                "planned_tables": plan, "version": workbench_version}
+    if target is not None:  # absent for fixed renders: their keys (and served renders) stay as they were
+        request["target"] = target
     return hashlib.sha256(json.dumps(request, sort_keys=True).encode()).hexdigest()
 
 

@@ -8,12 +8,9 @@
   through the inverse of the calibration's fitted response (calibration.json's
   ``response``); without one it is refused.
 * Renders: EXR, linear camera RGB (renderer.render), read with OpenImageIO.
-* Regions: a render of shape ids with the same camera: each pixel's centre ray (through
-  the lens model) cast into the Mitsuba scene (``ray_intersect``) and the shape it meets
-  first named from the scene's keys: cd, wall_left, wall_right, wall_back, ceiling,
-  floor, light, glass. (Mitsuba's ``aov`` integrator's ``shape_index`` is not the index
-  of ``scene.shapes()`` once Mitsuba merges meshes, and its pinhole image would need a
-  nearest-neighbour warp; casting the camera's own rays avoids both.)
+* Regions: renderer.regions.region_masks (each pixel's centre ray cast into the Mitsuba
+  scene, named by the shape it meets first), re-exported here for the report's modules; the
+  targeted render (renderer.render_target) samples the same regions.
 * Photometric alignment: one scale, the median over wall pixels (eroded by one pixel) of
   photo / render (channel sums), which is robust to the photo's noise and to a few wrong
   pixels; the CD is left out (it is what is being checked).
@@ -26,20 +23,18 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 from pathlib import Path
 
 import cv2
 import numpy as np
 
 from calibration.decode import bilinear_demosaic, cfa_channels, decode, is_raw
-from renderer.mitsuba_scene import scene_dict
+from renderer.regions import WALL_REGIONS
+from renderer.regions import region_masks as region_masks  # re-exported: the report's modules take it from here
 from renderer.spectra import camera_sensitivities, light_spectrum
-from renderer.variant import set_variant
-from reports.prediction import pixel_rays
 from workbench.core.errors import UserInputError
 
-WALL_REGIONS = ("wall_left", "wall_right", "wall_back")
 MIN_WALL_PIXELS = 50
 BRADFORD = np.array([[0.8951, 0.2664, -0.1614], [-0.7502, 1.7135, 0.0367], [0.0389, -0.0685, 1.0296]])
 XYZ_TO_SRGB = np.array([[3.2404542, -1.5371385, -0.4985314], [-0.9692660, 1.8760108, 0.0415560],
@@ -119,50 +114,6 @@ def through_photo_sensor(render: np.ndarray, photo: Photo) -> np.ndarray:
 
 
 # ---------------------------------------------------------------- regions
-
-
-def _region_name(shape_id: str) -> str | None:
-    """A scene shape's region (renderer.mitsuba_scene's keys), or None for shapes that are none of them."""
-    if shape_id.startswith("cd"):
-        return "cd"
-    if shape_id.startswith("glass"):
-        return "glass"
-    if shape_id == "light":
-        return "light"
-    for word in ("left", "right", "back"):
-        if shape_id.startswith(f"{word}_wall"):
-            return f"wall_{word}"
-    for word in ("floor", "ceiling"):
-        if shape_id.startswith(word):
-            return word
-    return None
-
-
-def region_masks(spec, camera=None) -> dict[str, np.ndarray]:
-    """Boolean masks (H, W) by region: which shape each pixel's centre ray meets first, with
-    ``camera`` (the scene's by default), through the lens model (reports.prediction.pixel_rays)."""
-    set_variant()
-    import drjit as dr  # deferred: start-up time; drjit loads after set_variant has set DRJIT_LIBLLVM_PATH
-    import mitsuba as mi
-
-    if camera is not None:
-        spec = replace(spec, camera=replace(spec.camera, model=camera))
-    camera = spec.camera.model
-    d, _built = scene_dict(mi, spec, spp=1)
-    scene = mi.load_dict(d, optimize=False)  # no merging: one shape per scene key
-    v, u = np.mgrid[0:camera.height, 0:camera.width]
-    origin, rays = pixel_rays(camera, np.stack([u.ravel(), v.ravel()], axis=1).astype(float))
-    ray = mi.Ray3f(mi.Point3f(*[np.full(len(rays), c, np.float32) for c in origin]),
-                   mi.Vector3f(*[np.ascontiguousarray(rays[:, i], np.float32) for i in range(3)]))
-    hit = scene.ray_intersect(ray)
-    masks: dict[str, np.ndarray] = {}
-    for shape in scene.shapes():
-        name = _region_name(shape.id())
-        if name is None:
-            continue
-        mine = np.array(dr.select(hit.is_valid(), hit.shape == mi.ShapePtr(shape), False)).reshape(camera.height, camera.width)
-        masks[name] = masks.get(name, np.zeros(mine.shape, bool)) | mine
-    return masks
 
 
 def photometric_scale(photo: np.ndarray, render: np.ndarray, masks: dict[str, np.ndarray],

@@ -31,9 +31,11 @@ RUN/scene.toml is the scene as the run uses it: the user's scene with every CD's
 grating's table at the preset's table preset (draft or paper) and paths made absolute.
 Every photo is rendered and reported (each view shows the CD's fringes from another
 angle and gets its own report); ``photos`` picks some. The render always has the photo's
-size (the report compares pixel by pixel): the paper preset takes the paper's samples
-per pixel (2045) and paper tables; the paper's 978 x 734 frame is a dataset's
-(``workbench synth --preset full``).
+size (the report compares pixel by pixel) and samples each region to what the report measures
+there (renderer.render_target: the CD's band edges, as its own crop, the walls' scale, a floor
+elsewhere; the preset's spp caps the frame); ``--spp N`` renders N samples everywhere instead
+(the fixed render, the paper preset's 2045). The paper preset takes paper tables; the
+paper's 978 x 734 frame is a dataset's (``workbench synth --preset full``).
 
 A stage's key is the SHA-256 of its input files' bytes, its settings and the workbench
 version; a finished stage is one whose folder holds its current key, and is skipped
@@ -67,6 +69,7 @@ from rcwa.structure import BUILTIN_STRUCTURES
 from rcwa.table import build_table
 from renderer.planner import format_plan, plan_scene
 from renderer.render import render
+from renderer.render_target import FLOOR_SPP
 from renderer.scene import CDSpec, GratingSpec, SceneSpec, load_scene
 from renderer.tables import table_plan
 from reports.report import Inputs, build_report
@@ -92,6 +95,7 @@ SECONDS_CALIBRATION_BASE = 3.0  # intrinsics from 20 board views and the respons
 SECONDS_PER_POSE = 7.0  # one photo's pose fit
 SECONDS_PER_SAMPLE = 1.05e-6  # render: 81 s for 640 x 480 at 256 spp
 SECONDS_RENDER_LOAD = 2.5  # building the Mitsuba scene, per photo
+SECONDS_TARGET_CD = 30.0  # the targeted render's CD crop (renderer.render_target) and its region masks, per photo
 SECONDS_PER_REPORT = 6.0  # one photo's report (masks, fringes, error maps, page)
 SECONDS_FIT = 50.0  # the scene fit of a two-photo draft dataset (benchmarks/bench_scene_fit.py)
 FITTED_SUFFIX = "_fitted"  # render/NAME_fitted.exr: the fitted scene's re-render
@@ -293,16 +297,18 @@ def _render_scenes(run: Run) -> dict[str, Path]:
 def _stage_render(run: Run) -> dict:
     scenes = _render_scenes(run)
     s = run.settings
-    settings = {"preset": s.preset, "spp": s.render_spp, "seed": s.seed, "integrator": s.integrator, "mode": s.mode,
-                "resolution": list(run.size)}
-    estimate = len(scenes) * (SECONDS_RENDER_LOAD + SECONDS_PER_SAMPLE * run.size[0] * run.size[1] * s.render_spp)
+    settings = {"preset": s.preset, "spp": s.render_spp, "target": s.render_target, "seed": s.seed,
+                "integrator": s.integrator, "mode": s.mode, "resolution": list(run.size)}
+    frame_spp = FLOOR_SPP if s.render_target else s.render_spp
+    estimate = len(scenes) * (SECONDS_RENDER_LOAD + SECONDS_PER_SAMPLE * run.size[0] * run.size[1] * frame_spp
+                              + (SECONDS_TARGET_CD if s.render_target else 0.0))
 
     def work(folder: Path) -> dict[str, Any]:
         renders = {}
         for name, scene in scenes.items():
-            info = render(scene, folder / f"{name}.exr", preset=s.preset, spp=s.render_spp,
+            info = render(scene, folder / f"{name}.exr", preset=s.preset, spp=None if s.render_target else s.render_spp,
                           resolution=run.size, integrator=s.integrator, mode=s.mode, seed=s.seed, progress=s.progress,
-                          executor=run.executor, force=True)  # the staging folder is the run's own
+                          executor=run.executor, force=True, target=s.render_target)  # the staging folder is the run's
             _point_sidecar_at(folder / f"{name}.json", run.root / "render")
             renders[name] = {"exr": f"{name}.exr", "seconds": info["seconds_total"],
                              "served": info.get("served", False), "resumed_passes": info.get("resumed_passes", 0)}

@@ -32,7 +32,10 @@ from workbench.core.version import versions
 
 RUN_FORMAT = "workbench-verify"
 STAGES = ("plan", "tables", "calibration", "fit", "render", "report")
-PRESETS: dict[str, dict[str, Any]] = {"draft": {"tables": "draft", "spp": 256}, "paper": {"tables": "paper", "spp": 2045}}
+# spp: the fixed render's samples (``--spp`` sets them), and the targeted render's frame cap; target: the render's
+# default mode (renderer.render_target: each region sampled to what the report measures there)
+PRESETS: dict[str, dict[str, Any]] = {"draft": {"tables": "draft", "spp": 256, "target": "report"},
+                                      "paper": {"tables": "paper", "spp": 2045, "target": "report"}}
 KEY_FILE = ".stage-key"  # in a finished stage's folder: the key it was made for
 DONE_FILE = ".stage-done"  # in a staging folder whose work finished (moved into place next)
 VERSIONED = ("numpy", "scipy", "mitsuba", "drjit", "opencv", "rawpy", "nlopt", "zarr")
@@ -44,7 +47,7 @@ class VerifySettings:
     """What a run is asked to do; ``scheduler`` and ``progress`` change how, not what."""
 
     preset: str = "draft"
-    spp: int | None = None  # render samples per pixel (default: the preset's)
+    spp: int | None = None  # render samples per pixel everywhere (default: the preset's target)
     seed: int = 0  # the render's seed
     integrator: str = "path"
     mode: str = "improved"
@@ -63,11 +66,17 @@ class VerifySettings:
     def render_spp(self) -> int:
         return int(self.spp if self.spp is not None else PRESETS[self.preset]["spp"])
 
+    @property
+    def render_target(self) -> str | None:
+        """The render's target (renderer.render_target) unless ``spp`` asks for a fixed render."""
+        return PRESETS[self.preset].get("target") if self.spp is None else None
+
     def to_json(self) -> dict[str, Any]:
         data = asdict(self)
         data["photos"], data["board"] = list(self.photos), list(self.board) if self.board else None
         data["studies"] = list(self.studies)
-        return data | {"render_spp": self.render_spp, "table_preset": PRESETS[self.preset]["tables"]}
+        return data | {"render_spp": self.render_spp, "render_target": self.render_target,
+                       "table_preset": PRESETS[self.preset]["tables"]}
 
 
 @dataclass

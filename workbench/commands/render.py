@@ -8,6 +8,8 @@ from workbench.commands.arguments import SCENE_HELP, SEED_MAX, count_argument, r
 from workbench.commands.cache import add_cache_option
 from workbench.core.executor import DaskExecutor
 
+TARGETS = ("report",)  # renderer.render_target.TARGETS (not imported here: the renderer pulls in mitsuba's start-up)
+
 
 def add_parser(commands: argparse._SubParsersAction) -> None:
     """Add ``workbench render``."""
@@ -17,7 +19,13 @@ def add_parser(commands: argparse._SubParsersAction) -> None:
                         help="the linear camera-RGB EXR; the PNG preview and JSON sidecar go beside it")
     render.add_argument("--preset", choices=["draft", "paper"], default="draft",
                         help="draft: the scene camera's resolution, 256 spp; paper: the paper's frame, 978 x 734 at 2045 spp")
-    render.add_argument("--spp", type=count_argument(1), metavar="N", help="samples per pixel (default: the preset's)")
+    render.add_argument("--spp", type=count_argument(1), metavar="N",
+                        help="samples per pixel everywhere (default: the preset's); not with --target")
+    render.add_argument("--target", choices=list(TARGETS), metavar="report",
+                        help="report: sample each region until what the report measures there is good enough (the CD's "
+                             "band edges to 0.1 px, rendered as its own crop; the walls' photometric scale to 0.2 %%; "
+                             "64 spp elsewhere; the preset's spp caps the frame); the sidecar records each region's spp "
+                             "and noise")
     render.add_argument("--resolution", type=resolution_argument, metavar="WxH", help="image size (default: the preset's)")
     render.add_argument("--integrator", choices=["path", "direct"], default="path",
                         help="path: global illumination; direct: light sources only, as the paper's second mode")
@@ -39,7 +47,8 @@ def run(args: argparse.Namespace) -> int:
     from renderer.render import render, summary  # deferred: the renderer pulls in scipy and cv2 (start-up time)
 
     options = dict(preset=args.preset, spp=args.spp, resolution=args.resolution, integrator=args.integrator,
-                   mode=args.mode, seed=args.seed, progress=not args.quiet, force=args.force, plan=not args.no_plan)
+                   mode=args.mode, seed=args.seed, progress=not args.quiet, force=args.force, plan=not args.no_plan,
+                   target=args.target)
     if args.scheduler or args.workers:
         with DaskExecutor(args.scheduler, args.workers) as executor:
             info = render(args.scene, args.out, executor=executor, **options)

@@ -29,8 +29,11 @@ def add_parser(commands: argparse._SubParsersAction) -> None:
                         help="the scene the photos show: a built-in scene name or a TOML file")
     verify.add_argument("--out", required=True, metavar="RUN", help="the run's folder (resumed when it holds this run)")
     verify.add_argument("--preset", choices=["draft", "paper"], default="draft",
-                        help="draft: draft tables, 256 spp; paper: the paper's tables (2 deg, 31 wavelengths) and 2045 spp")
-    verify.add_argument("--spp", type=count_argument(1), metavar="N", help="render samples per pixel (default: the preset's)")
+                        help="draft: draft tables; paper: the paper's tables (2 deg, 31 wavelengths); both render each region "
+                             "to what the report measures there (`render --target report`; the frame at most 256 and "
+                             "2045 spp)")
+    verify.add_argument("--spp", type=count_argument(1), metavar="N",
+                        help="render this many samples per pixel everywhere instead (the fixed render: draft 256, paper 2045)")
     verify.add_argument("--photo", action="append", default=[], metavar="NAME",
                         help="render and report only this photo of photos/ (repeatable; default: every photo)")
     verify.add_argument("--seed", type=count_argument(0, SEED_MAX), default=0, help="the render's random seed")
