@@ -13,13 +13,13 @@ each region at its goal:
   passes' spread misses rare paths and the region test says so), in ``MIN_PASSES`` passes;
 * the walls: the relative standard deviation of the photometric scale, the median over
   wall pixels of photo / render, that the render's noise causes, at most ``WALL_SCALE_REL``
-  (0.2 %). The sample median of N independent values has variance 1 / (4 N f(m)^2)
-  [Stuart 1994, Eq. 10.29], pi sigma^2 / (2 N) for Gaussian noise: with pixel i's relative
+  (0.2 %). The sample median of N independent values has asymptotic variance 1 / (4 N f(m)^2)
+  [David 2003], pi sigma^2 / (2 N) for Gaussian noise: with pixel i's relative
   noise s_i, var(scale) / scale^2 = (pi / 2) sum(s_i^2) / N^2;
 * the CD: the band edges' position uncertainty at most ``EDGE_SIGMA_PX`` (0.1 px, a third
   of the report's edge rule, reports.fringes.EDGE_SIGMA_MAX_PX). A level crossing at an
   edge of gradient dI/dx in noise sigma_I is located to sigma_x = sigma_I / |dI/dx|
-  [Kakarala 1992, Eq. 9; the report's ramp fit, reports.fringes, uses the same ratio]. The
+  [Kakarala 1992]; the report's ramp fit, reports.fringes, uses the same ratio. The
   edge finder reads the image smoothed along its profiles and fits its ramp over about a
   pixel either side; here the image and its variance are smoothed by a Gaussian of
   ``EDGE_SMOOTH_PX`` (the variance by the squared kernel, which is the variance of the
@@ -37,7 +37,7 @@ crop is not all per-pass overhead). Its pixels merge the frame's passes and the 
 weighted by their samples: with passes j of n_j samples and means m_j (N samples, J passes),
 the mean is sum(n_j m_j) / N and the variance of that mean sum(n_j (m_j - m)^2) / ((J - 1) N),
 the one-way analysis of variance's between-pass estimate of the per-sample variance
-(E[sum n_j (m_j - m)^2] = (J - 1) sigma^2 [Scheffe 1959, Sec. 3.1]) over N; with equal passes
+(E[sum n_j (m_j - m)^2] = (J - 1) sigma^2 [Scheffe 1959]) over N; with equal passes
 it is renderer.render's s^2 / n.
 After each check the next check comes where the noise, falling as 1 / sqrt(passes), is
 predicted to meet the goal (growing at most ``MAX_GROWTH`` times), so few checks are made.
