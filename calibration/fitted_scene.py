@@ -31,6 +31,8 @@ def camera_table(camera: CameraModel, exposure: float, sensitivities: str, respo
         "focal_px": [float(camera.fx), float(camera.fy)],
         "principal_offset_px": [float(camera.cx - (camera.width - 1) / 2), float(camera.cy - (camera.height - 1) / 2)],
         "dist": [float(d) for d in camera.dist],
+        **({"model": camera.model} if camera.model != "pinhole" else {}),
+        **({"xi": float(camera.xi)} if camera.model == "omnidir" else {}),
         "exposure": float(exposure),
         "sensitivities": sensitivities,
     }

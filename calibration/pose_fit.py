@@ -19,6 +19,7 @@ from calibration.edges import ChamferMap, edge_offsets
 from calibration.photometric import FringeSettings
 from calibration.scene_model import FeatureSamples, SceneModel, sample_features
 from renderer.camera import CameraModel
+from renderer.lens import project as lens_project
 from workbench.core.errors import UserInputError
 
 MIN_EDGE_POINTS = 40          # fewer measured edge points than this: the photo does not show the scene
@@ -105,10 +106,9 @@ class Unknowns:
 
 
 def project(camera: CameraModel, points: np.ndarray, with_jacobian: bool = False):
-    rvec, _ = cv2.Rodrigues(camera.world_to_camera[:3, :3])
-    pixels, jac = cv2.projectPoints(np.asarray(points, float).reshape(-1, 1, 3), rvec, camera.world_to_camera[:3, 3],
-                                    camera.K, camera.dist_array)
-    return (pixels.reshape(-1, 2), jac) if with_jacobian else pixels.reshape(-1, 2)
+    """Pixels (N, 2) of world points through the camera's lens model, with cv2.projectPoints' Jacobian
+    columns (rvec, tvec, fx, fy, cx, cy, dist) for every model (CameraModel.project_with_jacobian)."""
+    return camera.project_with_jacobian(points) if with_jacobian else camera.project(points)
 
 
 def image_normals(camera: CameraModel, samples: FeatureSamples, pixels: np.ndarray) -> np.ndarray:
@@ -176,12 +176,16 @@ class ChamferCost:
         self.x0, self.steps = x0, steps
         self.template, self.aspect = template, template.fy / template.fx
         self.k1, self.k2, self.p1, self.p2, self.k3 = (float(d) for d in (list(template.dist) + [0.0] * 5)[:5])
+        self.written_out = template.model == "pinhole"   # other lens models: renderer.lens's projection
 
     def pixels(self, z: np.ndarray) -> np.ndarray:
         x = self.x0 + np.asarray(z, float) * self.steps
         R = cv2.Rodrigues(np.asarray(x[:3], float))[0]
         c = self.template
         fx, fy, cx, cy = (x[6], x[6] * self.aspect, x[7], x[8]) if self.intrinsics else (c.fx, c.fy, c.cx, c.cy)
+        if not self.written_out:
+            K = np.array([[fx, 0.0, cx], [0.0, fy, cy], [0.0, 0.0, 1.0]])
+            return lens_project(c.model, self.points, x[:3], x[3:6], K, c.dist_array, c.xi)
         pc = self.points @ R.T + x[3:6]
         z_ = pc[:, 2]
         inv = np.divide(1.0, z_, out=np.ones_like(z_), where=z_ != 0)

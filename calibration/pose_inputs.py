@@ -15,13 +15,15 @@ import numpy as np
 from calibration.photo import Photo
 from renderer.camera import CameraModel
 from renderer.fit import FitRenderer
+from renderer.lens import LENS_MODELS
 from renderer.render import with_resolution
 from workbench.core.errors import UserInputError
 
 
 def load_intrinsics(path: str | Path) -> dict:
     """intrinsics.json (``workbench calibrate intrinsics``): width, height, fx, fy, cx, cy,
-    dist [k1, k2, p1, p2, k3] and, when present, ``std``."""
+    dist [k1, k2, p1, p2, k3] (or the coefficients of its ``model``, renderer.lens; ``xi`` for
+    omnidir) and, when present, ``std``."""
     path = Path(path)
     try:
         data = json.loads(path.read_text())
@@ -34,14 +36,24 @@ def load_intrinsics(path: str | Path) -> dict:
     for key in ("width", "height", "fx", "fy", "cx", "cy", "dist"):
         if key not in data:
             raise UserInputError("is missing", file=path, field=key, expected="what `workbench calibrate intrinsics` writes")
-    dist = data["dist"]
-    if not isinstance(dist, list) or len(dist) not in (4, 5) or not all(isinstance(d, (int, float)) for d in dist):
-        raise UserInputError("must be 4 or 5 numbers", file=path, field="dist", expected="[k1, k2, p1, p2, k3]", got=dist)
+    model = data.get("model", "pinhole")
+    if model not in LENS_MODELS:
+        raise UserInputError("unknown lens model", file=path, field="model", expected=f"one of {', '.join(LENS_MODELS)}",
+                             got=model)
+    dist, names = data["dist"], LENS_MODELS[model].coefficients
+    counts = (4, 5) if model == "pinhole" else (len(names),)
+    if not isinstance(dist, list) or len(dist) not in counts or not all(isinstance(d, (int, float)) for d in dist):
+        raise UserInputError(f"must be {' or '.join(map(str, counts))} numbers", file=path, field="dist",
+                             expected=f"[{', '.join(names)}]", got=dist)
+    xi = data.get("xi", 0.0) if model == "omnidir" else 0.0
+    if not isinstance(xi, (int, float)):
+        raise UserInputError("must be a number", file=path, field="xi", got=xi)
     for key in ("fx", "fy", "width", "height"):
         if not isinstance(data[key], (int, float)) or not data[key] > 0:
             raise UserInputError("must be a positive number", file=path, field=key, got=data[key])
     return {"width": int(data["width"]), "height": int(data["height"]), "fx": float(data["fx"]), "fy": float(data["fy"]),
-            "cx": float(data["cx"]), "cy": float(data["cy"]), "dist": tuple(float(d) for d in (list(dist) + [0.0])[:5]),
+            "cx": float(data["cx"]), "cy": float(data["cy"]), "dist": tuple(float(d) for d in (list(dist) + [0.0])[:len(names)]),
+            "model": model, "xi": float(xi),
             "std": data.get("std") if isinstance(data.get("std"), dict) else None, "source": str(path)}
 
 
@@ -70,7 +82,8 @@ def start_camera(spec, photo: Photo, intrinsics: dict | None) -> CameraModel:
     camera = with_resolution(spec, (photo.width, photo.height)).camera.model
     if intrinsics is not None:
         return dataclasses.replace(camera, fx=intrinsics["fx"], fy=intrinsics["fy"], cx=intrinsics["cx"],
-                                   cy=intrinsics["cy"], dist=intrinsics["dist"])
+                                   cy=intrinsics["cy"], dist=intrinsics["dist"],
+                                   model=intrinsics.get("model", "pinhole"), xi=intrinsics.get("xi", 0.0))
     # To be fitted: square pixels (fy = fx; the fit keeps the ratio), which a resolution's
     # rounding in the scene file (326 x 245 for 25 x 18.8 mm) would otherwise bend by 0.4 %.
     focal = math.sqrt(camera.fx * camera.fy)

@@ -108,10 +108,11 @@ def derived_std(camera: CameraModel, unknowns: Unknowns, cov: np.ndarray, fixed_
         std[6:10] = [fixed_std.get(k, float("nan")) for k in ("fx", "fy", "cx", "cy")]
         std[10] = std[6] * abs(_dfov(camera.width, camera.fx))
         std[11] = std[7] * abs(_dfov(camera.height, camera.fy))
-        std[12:17] = (list(fixed_std.get("dist", [])) + [float("nan")] * 5)[:5]
+        count = len(camera.dist)   # the lens model's coefficients (renderer.lens)
+        std[12:12 + count] = (list(fixed_std.get("dist", [])) + [float("nan")] * count)[:count]
     return {"rotation_deg": std[0:3].tolist(), "rotation_total_deg": float(np.linalg.norm(std[0:3])),
             "camera_center_m": std[3:6].tolist(), "fx": float(std[6]), "fy": float(std[7]), "cx": float(std[8]),
-            "cy": float(std[9]), "fov_x_deg": float(std[10]), "fov_y_deg": float(std[11]), "dist": std[12:17].tolist()}
+            "cy": float(std[9]), "fov_x_deg": float(std[10]), "fov_y_deg": float(std[11]), "dist": std[12:].tolist()}
 
 
 def _dfov(size: int, focal: float) -> float:

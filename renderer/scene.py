@@ -59,6 +59,7 @@ from rcwa.materials import material_from_spec
 from rcwa.structure import BUILTIN_STRUCTURES
 from renderer.camera import CameraModel, look_at
 from renderer.fit_parameters import FitTable, parse_fit_table
+from renderer.lens import LENS_MODELS
 from renderer.response import ResponseCurve
 from workbench.core import validation as v
 from workbench.core.errors import UserInputError
@@ -374,7 +375,7 @@ def _parse_camera(d: Any) -> CameraSpec:
     if not isinstance(d, dict):
         raise UserInputError("must be a table", field="camera", got=d)
     v.reject_unknown(d, {"resolution", "look_at", "world_to_camera", "fov_deg", "focal_mm", "focal_px", "sensor_mm",
-                         "principal_offset_px", "dist", "exposure", "sensitivities", "response"}, "camera.")
+                         "principal_offset_px", "dist", "model", "xi", "exposure", "sensitivities", "response"}, "camera.")
     w, h = (int(x) for x in v.vector(v.required(d, "resolution", "camera."), "camera.resolution", 2, positive=True))
     focal_px = v.vector(d["focal_px"], "camera.focal_px", 2, positive=True) if "focal_px" in d else None
     if focal_px is not None and ("fov_deg" in d or "focal_mm" in d):
@@ -397,7 +398,14 @@ def _parse_camera(d: Any) -> CameraSpec:
         raise UserInputError("is missing", field="camera.fov_deg", expected="fov_deg, or focal_mm with sensor_mm")
     if not fov < 180:
         raise UserInputError("the field of view must be under 180 degrees", field="camera.fov_deg", got=fov)
-    dist = v.vector(d.get("dist", [0.0] * 5), "camera.dist", 5)
+    lens_name, xi = str(d.get("model", "pinhole")), v.number(d.get("xi", 0.0), "camera.xi")
+    if lens_name not in LENS_MODELS:
+        raise UserInputError("unknown lens model", field="camera.model", expected=f"one of {', '.join(LENS_MODELS)}",
+                             got=lens_name)
+    count = LENS_MODELS[lens_name].count
+    dist = v.vector(d.get("dist", [0.0] * count), "camera.dist", count)
+    if lens_name != "omnidir" and xi != 0.0:
+        raise UserInputError(f"is a parameter of the omnidir model, not of {lens_name}", field="camera.xi")
     offset = v.vector(d.get("principal_offset_px", [0.0, 0.0]), "camera.principal_offset_px", 2)
     sens = str(d.get("sensitivities", "Nikon 5100 (NPL)"))
     import colour  # deferred: start-up time
@@ -405,7 +413,7 @@ def _parse_camera(d: Any) -> CameraSpec:
     if sens not in colour.MSDS_CAMERA_SENSITIVITIES:
         raise UserInputError("unknown camera sensitivities", field="camera.sensitivities",
                              expected=f"one of {sorted(colour.MSDS_CAMERA_SENSITIVITIES)}", got=sens)
-    model = CameraModel.from_fov(w, h, fov, pose, dist, offset)
+    model = CameraModel.from_fov(w, h, fov, pose, dist, offset, lens_name, xi)
     if focal_px is not None:
         model = replace(model, fx=focal_px[0], fy=focal_px[1])
     return CameraSpec(model, v.number(d.get("exposure", 1.0), "camera.exposure", positive=True), sens,
