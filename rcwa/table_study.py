@@ -18,6 +18,14 @@ Efficiencies are unpolarized; errors are absolute (efficiencies are fractions of
 Measured on the CD (``make bench`` prints it): at equal numbers of points the (theta, phi)
 grid interpolates better than direction cosines (RMS 0.0027 against 0.0050 at 2.5 deg), so
 tables use the paper's (theta, phi) grid.
+
+For a 2D cell (``run_convergence_study``) a 1D-style reference at hundreds of harmonics is
+out of reach (N x N harmonics cost ~N^6), so the study is the accuracy-versus-time curve of
+rcwa.convergence.accuracy_versus_time: each truncation's error against the limit
+extrapolated from the truncations themselves (rcwa.extrapolation), for Li's and the
+normal-vector rule, versus seconds per solve and per table; written as
+accuracy_time.csv, limits.csv, study_rcwa.json and study_rcwa.png/.svg. Its raw solves are
+cached (rcwa.solve_cache), so a rerun with a higher ``max_orders`` solves only the new ones.
 """
 
 from __future__ import annotations
@@ -34,6 +42,8 @@ import numpy as np
 from scipy.interpolate import RegularGridInterpolator
 
 import rcwa
+from rcwa.convergence import CurveConfig, accuracy_versus_time
+from rcwa.solve_cache import SolveCache
 from rcwa.structure import Structure
 from rcwa.sweep import sweep_directions
 from workbench.core.files import atomic_write_csv, atomic_write_text
@@ -206,4 +216,45 @@ def _plot(truncation: list[dict], interpolation: list[dict], out: Path, name: st
         axes[1].loglog([r["table_seconds"] for r in rows], [r["rms_error"] for r in rows], "s--", color=line.get_color(),
                        alpha=0.6, label=f"{grid} (RMS)")
     axes[1].set(xlabel="full-table seconds (estimated)", ylabel="interpolation error (max, RMS)", title="bilinear interpolation")
+    save_figure(fig, axes, out, "study_rcwa")
+
+
+def run_convergence_study(structure: Structure, out: str | Path, cfg: CurveConfig, cache: SolveCache, *,
+                          progress: bool = True) -> dict:
+    """The 2D accuracy-versus-time study (module docstring); ``cache`` holds the raw solves."""
+    from tqdm import tqdm  # deferred: start-up time
+
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    start = time.perf_counter()
+    steps = len(cfg.directions) * len(cfg.rules) * len(cfg.orders())
+    with tqdm(total=steps, desc=f"study {structure.name}", unit="solve", disable=not progress) as bar:
+        curve = accuracy_versus_time(structure, cache, cfg, bar)
+    data = {"structure": structure.name, "config": asdict(cfg), **curve, "solve_cache": str(cache.path),
+            "run": {"versions": versions("numpy", "scipy"), "machine": platform.machine(),
+                    "seconds": time.perf_counter() - start, "structure_sha256": structure.content_hash}}
+    atomic_write_text(out / "study_rcwa.json", json.dumps(data, indent=2))
+    atomic_write_csv(out / "accuracy_time.csv", curve["rows"])
+    atomic_write_csv(out / "limits.csv", curve["limits"])
+    _plot_convergence(curve, cfg, out, structure.name)
+    return data
+
+
+def _plot_convergence(curve: dict, cfg: CurveConfig, out: Path, name: str) -> None:
+    fig, axes = new_figure()
+    styles = {"T_total": "o-", "T00": "s--"}
+    for ax, column, label in ((axes[0], "seconds_per_solve", "seconds per solve (mean over the directions)"),
+                              (axes[1], "seconds_per_table", f"seconds per {cfg.preset}-preset table, one core")):
+        for rule, colour in zip(cfg.rules, ("C0", "C1", "C2", "C3"), strict=False):
+            rows = [r for r in curve["rows"] if r["rule"] == rule]
+            for q, style in styles.items():
+                ys = [max(r[f"error_{q}"], 1e-6) for r in rows]
+                ax.loglog([r[column] for r in rows], ys, style, color=colour, label=f"{rule}: {q}")
+            for r in rows:
+                ax.annotate(str(r["orders"]), (r[column], max(r["error_T_total"], 1e-6)), fontsize=7)
+        for q, ls in (("T_total", "-"), ("T00", "--")):
+            ax.axhline(curve["reference_errors"][q], color="grey", ls=ls, lw=0.8, label=f"{q} limit's error bar")
+        ax.set(xlabel=label, ylabel="max |efficiency - extrapolated limit|")
+    axes[0].set_title(f"{name}: truncation N x N (labels: N)")
+    axes[1].set_title("per table (beyond the timed N: estimated)")
     save_figure(fig, axes, out, "study_rcwa")

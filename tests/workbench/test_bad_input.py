@@ -158,7 +158,7 @@ CASES: list[tuple[str, list[str], str]] = [
     ("synth-bad-preset", ["synth", "cornell_cd", "--out", "{root}/d", "--preset", "huge"], "--preset"),
     ("synth-binary-scene", ["synth", "{binary.toml}", "--out", "{root}/d"], "not a text file"),
     ("study-rcwa-missing", ["study", "rcwa", "{root}/nosuch.toml", "--out", "{root}/s"], "not found"),
-    ("study-rcwa-2d", ["study", "rcwa", "gold2d", "--out", "{root}/s"], "1D"),
+    ("study-rcwa-2d-even-orders", ["study", "rcwa", "gold2d", "--out", "{root}/s", "--max-orders", "24"], "odd"),
     ("study-render-missing", ["study", "render", "{root}/nosuch.toml", "--out", "{root}/s"], "not found"),
     ("plan-binary", ["plan", "{binary.toml}"], "not a text file"),
     ("plan-missing", ["plan", "{root}/nosuch.toml"], "not found"),

@@ -8,7 +8,9 @@ from collections.abc import Callable
 
 import rcwa
 import renderer.render_study
-from workbench.commands.arguments import STRUCTURE_HELP, positive_numbers
+from rcwa.convergence import MIN_CURVE_ORDERS, CurveConfig
+from rcwa.solve_cache import SolveCache, default_cache_path
+from workbench.commands.arguments import STRUCTURE_HELP, count_argument, positive_numbers
 from workbench.core.errors import UserInputError
 
 CALIBRATE = "calibrate"
@@ -18,9 +20,21 @@ def add_parser(commands: argparse._SubParsersAction) -> None:
     """Add the ``study`` group: ``rcwa``, ``render``, ``calibrate`` and ``fit``."""
     study = commands.add_parser("study", help="accuracy-versus-time studies")
     studies = study.add_subparsers(dest="study_command", required=True)
-    study_rcwa = studies.add_parser("rcwa", help="truncation and interpolation error versus time for tables")
+    study_rcwa = studies.add_parser(
+        "rcwa", help="truncation and interpolation error versus time for tables",
+        description="1D structures: truncation and interpolation error versus time, and presets. 2D structures "
+                    "(gold2d): each truncation N x N's error against the limit extrapolated in N, for Li's and the "
+                    "normal-vector rule, versus seconds per solve and per table (accuracy_time.csv, limits.csv, "
+                    "study_rcwa.png/.svg); raw solves are cached, so a rerun with a higher --max-orders solves only "
+                    "the new truncations.")
     study_rcwa.add_argument("structure", help=STRUCTURE_HELP)
     study_rcwa.add_argument("--out", required=True, metavar="DIR", help="folder for the JSON, CSV and figures")
+    study_rcwa.add_argument("--max-orders", type=count_argument(MIN_CURVE_ORDERS), default=CurveConfig.max_orders,
+                            metavar="N", help=f"2D: the highest truncation N x N, odd (default {CurveConfig.max_orders}; "
+                                              "each step up costs ~(N+2)^6/N^6: 35 takes minutes, 51 an hour)")
+    study_rcwa.add_argument("--solve-cache", metavar="FILE", default=None,
+                            help="2D: the JSON file of cached raw solves (default: NAME_raw.json in "
+                                 "$RCWA_CONVERGENCE_CACHE, else in the workbench cache's convergence/ folder)")
     study_rcwa.add_argument("--quiet", action="store_true", help="no progress bar")
 
     study_render = studies.add_parser("render", help="render error versus time, paper against improved BWDF")
@@ -79,8 +93,8 @@ def run_rcwa(args: argparse.Namespace) -> int:
     from rcwa.table_study import run_study  # deferred: pulls in scipy and shapely (start-up time)
 
     structure = rcwa.load_structure(args.structure)
-    if structure.dimension != 1:
-        raise UserInputError("the study covers 1D structures for now", field="structure", got=args.structure)
+    if structure.dimension == 2:
+        return run_rcwa_2d(args, structure)
     data = run_study(structure, args.out, progress=not args.quiet)
     print(f"wrote {args.out}/study_rcwa.json, truncation.csv, interpolation.csv, presets.csv, study_rcwa.png/.svg")
     for p in data["presets"]:
@@ -89,6 +103,25 @@ def run_rcwa(args: argparse.Namespace) -> int:
                   f"~{p['estimated_table_seconds']:.0f} s for a full table, {p['table_bytes'] / 1e6:.2f} MB")
         else:
             print(f"target {p['target_error']:g}: not reached by the measured settings")
+    return 0
+
+
+def run_rcwa_2d(args: argparse.Namespace, structure: rcwa.Structure) -> int:
+    from rcwa.table_study import run_convergence_study  # deferred: as run_rcwa
+
+    if args.max_orders % 2 == 0:
+        raise UserInputError("the truncation must be odd (symmetric about order 0)", field="--max-orders",
+                             expected=f"an odd integer >= {MIN_CURVE_ORDERS}", got=args.max_orders)
+    cache = SolveCache(args.solve_cache or default_cache_path(structure.name), structure)
+    cfg = CurveConfig(max_orders=args.max_orders, max_timed_orders=min(args.max_orders, CurveConfig.max_timed_orders))
+    data = run_convergence_study(structure, args.out, cfg, cache, progress=not args.quiet)
+    print(f"wrote {args.out}/study_rcwa.json, accuracy_time.csv, limits.csv, study_rcwa.png/.svg (raw solves: {cache.path})")
+    print(f"limits' largest error bar {data['reference_error']:.2g}")
+    print(f"{'rule':>5} {'N':>3} {'max error':>10} {'s/solve':>8} {'s/table':>10}")
+    for r in data["rows"]:
+        mark = "~" if r["table_seconds_estimated"] else " "
+        print(f"{r['rule']:>5} {r['orders']:>3} {r['max_error']:>10.2e} {r['seconds_per_solve']:>8.2f} "
+              f"{mark}{r['seconds_per_table']:>9.3g}")
     return 0
 
 
