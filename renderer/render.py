@@ -12,6 +12,12 @@ is what reports.region_compare uses; for one pixel alone it can overstate up to 
 key, the EXR's SHA-256, the settings, versions, timings and the efficiency tables used.
 As with tables, the same request on a finished render is served at once, and a different
 one at the same path needs ``force``.
+
+``target="report"`` (``--target report``) renders progressively instead: each region until
+what the report measures there is good enough, the CD as its own crop of the film
+(renderer.render_target; its sums and decisions saved after each pass, so it resumes the
+same way); the sidecar's ``spp`` is then the frame's (every pixel has at least that many)
+and ``target`` records each region's spp and noise.
 """
 
 from __future__ import annotations
