@@ -37,7 +37,6 @@ from renderer import lens
 from workbench.core.errors import UserInputError
 
 WARP_MARGIN_PX = 4
-UNDISTORT_ITERATIONS = 100
 MAX_HALF_FIELD_DEG = 75.0   # rays an ideal pinhole image can hold at a sane size (tan 75 deg = 3.7 focal lengths)
 MAX_PLAN_SIDE = 16384       # pixels a side of the pinhole image Mitsuba renders
 DENSITY_STEP_PX = 4         # output-pixel spacing at which the pinhole image's needed density is measured
