@@ -5,6 +5,9 @@ score is the pooled RMS of held-out views reprojected at their own best pose und
 fitted to the other folds [Stone 1974, cross-validation; mrcal's practice of judging a model by
 views it was not fitted to]; the simplest model (MODEL_ORDER) not worse than any richer one by
 more than NOT_WORSE_REL, and never one above POOR_RMS_PX when a richer one scores better.
+With too few views to hold any out (MIN_TRAINING_VIEWS), in-sample RMS is all there is and a
+richer model always fits it better: then only the POOR_RMS_PX rule can move the choice past
+the pinhole.
 """
 
 from __future__ import annotations
@@ -68,21 +71,24 @@ def _in_sample_score(points, corners, size, flags, model: str) -> float:
     return fit_model(points, corners, size, flags, model).rms_px
 
 
-def pick(scores: dict[str, float]) -> tuple[str, str]:
-    """The rule (module docstring) on scores listed simplest first: (model, why)."""
+def pick(scores: dict[str, float], tolerance: float = NOT_WORSE_REL) -> tuple[str, str]:
+    """The rule (module docstring) on scores listed simplest first: (model, why). ``tolerance``:
+    how much better (relative) a richer model must score to be preferred; infinite for in-sample
+    scores, where a richer model always fits better, so that only the POOR_RMS_PX rule applies."""
     names = [m for m in MODEL_ORDER if m in scores]
     for k, name in enumerate(names):
         richer = {m: scores[m] for m in names[k + 1:]}
         if not np.isfinite(scores[name]):
             continue
-        better = {m: s for m, s in richer.items() if s * (1 + NOT_WORSE_REL) < scores[name]}
+        better = {m: s for m, s in richer.items() if s * (1 + tolerance) < scores[name]}
         poor = scores[name] > POOR_RMS_PX and any(s < scores[name] for s in richer.values())
         if not better and not poor:
             if not richer:
                 return name, f"{name} scores best ({scores[name]:.3f} px)"
             rest = ", ".join(f"{m} {s:.3f}" for m, s in richer.items() if np.isfinite(s))
-            return name, (f"{name} ({scores[name]:.3f} px) is the simplest model no richer one beats by over "
-                          f"{100 * NOT_WORSE_REL:g} %" + (f" ({rest} px)" if rest else ""))
+            margin = f"by over {100 * tolerance:g} %" if np.isfinite(tolerance) else f"while under {POOR_RMS_PX:g} px"
+            return name, (f"{name} ({scores[name]:.3f} px) is the simplest model no richer one beats {margin}"
+                          + (f" ({rest} px)" if rest else ""))
     finite = {m: s for m, s in scores.items() if np.isfinite(s)}
     if not finite:
         raise UserInputError("no lens model could be fitted to the board views", field="IMAGE",
@@ -103,7 +109,7 @@ def choose_model(points: Sequence[np.ndarray], corners: Sequence[np.ndarray], si
         except UserInputError as error:
             score, notes[model] = float("inf"), error.reason
         scores[model] = score if np.isfinite(score) else float("inf")
-    model, why = pick(scores)
+    model, why = pick(scores, NOT_WORSE_REL if held_out else float("inf"))
     kind = f"held-out RMS over {len(folds_of(len(points)))} folds" if held_out else \
         f"in-sample RMS (only {len(points)} views: none can be held out)"
     return ModelChoice(model, scores, held_out, f"{why}; {kind}", notes)

@@ -13,7 +13,8 @@ Synthetic corners (tests/calibration/lens_views.py: exact projections through a 
   principal point within 2 px, the rays as above;
 * the rational model recovers a strong pincushion-and-barrel pinhole camera likewise;
 * ``--model auto`` picks the pinhole on pinhole data and the fisheye on the wide fisheye's
-  (where the pinhole's held-out RMS is 9 x the noise);
+  (where the pinhole's held-out RMS is 9 x the noise); with three views (none can be held out)
+  the pinhole stays unless its in-sample RMS is over 1 px;
 * a bad --model value exits 2 with argparse's message; the camera file records the model and
   refuses a wrong number of coefficients.
 """
@@ -132,3 +133,12 @@ def test_the_camera_file_carries_the_model(tmp_path):
     path.write_text(json.dumps({"camera": dict(camera, model="rational", xi=0.0)}))
     with pytest.raises(UserInputError, match="8 numbers"):
         read_camera(path, "photo.dng")
+
+
+def test_three_views_keep_the_pinhole_unless_it_fits_worse_than_a_pixel():
+    # in sample a richer model always fits better: only the 1 px rule may move the choice (three views: no fold
+    # can be held out, two views do not determine a camera)
+    pinhole = choose_model(*corner_views(*PINHOLE, SIZE, 3, seed=4), SIZE, cv2.CALIB_FIX_K3)
+    assert pinhole.model == "pinhole" and not pinhole.held_out and "in-sample" in pinhole.why
+    assert pick({"pinhole": 0.10, "fisheye": 0.05, "omnidir": 0.05, "rational": 0.04}, float("inf"))[0] == "pinhole"
+    assert pick({"pinhole": 1.5, "fisheye": 0.05, "omnidir": 0.05, "rational": 0.04}, float("inf"))[0] == "fisheye"
