@@ -74,7 +74,9 @@ def _publisher() -> dict:
 def _calibrate(views: list[Path], out: Path, capsys) -> tuple[dict, str]:
     assert main(["calibrate", "intrinsics", *map(str, views), "--board", "4x6", "--square-mm", str(SQUARE_MM),
                  "--no-tangential", "--out", str(out), "--quiet"]) == 0
-    return json.loads(out.read_text()), capsys.readouterr().out
+    record = json.loads(out.read_text())
+    assert record["model"] == "pinhole", record["model_choice"]   # --model auto keeps the publisher's model here
+    return record, capsys.readouterr().out
 
 
 def _camera(record: dict) -> tuple[np.ndarray, np.ndarray]:
