@@ -39,7 +39,9 @@ POLARIZATIONS = ("s", "p")
 QUANTITIES = ("T_total", "T00", "R_total")
 # Truncations N x N solved for every direction, and beyond them where a direction's cost allows (docs/gold2d_convergence.md).
 DENSE_ORDERS = tuple(range(9, 37, 2))
-HIGH_ORDERS = {(550.0, 0.0): tuple(range(37, 53, 2))}
+HIGH_ORDERS = {(550.0, 0.0): tuple(range(37, 63, 2)), (450.0, 0.0): tuple(range(37, 53, 2)),
+               (650.0, 0.0): tuple(range(37, 53, 2)),
+               **{(wl, 30.0): (37, 39, 41) for wl in WAVELENGTHS_NM}}
 TAIL = 6  # truncations per parity class in the primary fit
 
 
@@ -99,7 +101,7 @@ class ConvergedValue:
         return {"wavelength_nm": self.wavelength_nm, "theta_deg": self.theta_deg, "pol": self.pol, "rule": self.rule,
                 "quantity": self.quantity, "value": self.limit.value, "error": self.limit.error,
                 "max_orders": max(self.orders), "value_at_max_orders": self.values[self.orders.index(max(self.orders))],
-                "powers": "/".join(f"{f.power:.2f}" for f in self.limit.fits)}
+                "power": self.limit.fit.power}
 
 
 def sequence(cache: SolveCache, direction: Direction, rule: str, orders: Iterable[int]) -> list[tuple[int, RawSolve]]:

@@ -10,9 +10,10 @@ Synthetic sequences v(N) = a + b N^-p at the odd truncations 9..35 the gold2d st
   inside the last truncation's own error, or extrapolating would gain nothing: median
   below 0.3 of it, none above 1.5 (measured 0.18 and 0.99);
 * an oscillating sequence (even and odd M = (N - 1) / 2 approaching from opposite sides,
-  as Li's rule does on gold2d): extrapolated per residue class the limit must come out to
-  TOL_OSCILLATING = 1e-6, while fitting all truncations as one sequence does not get
-  within 100 x that (the contrast that makes the class split necessary).
+  as Li's rule does on gold2d): fitted with one amplitude per residue class the limit must
+  come out to TOL_OSCILLATING = 1e-6 with both amplitudes right, while fitting all
+  truncations as one sequence does not get within 100 x that (the contrast that makes the
+  class split necessary).
 """
 
 import math
@@ -72,7 +73,8 @@ def test_oscillating_sequence_needs_the_residue_classes():
     split = extrapolate(ORDERS, values, stride=2)
     assert split.value == pytest.approx(LIMIT, abs=TOL_OSCILLATING)
     assert split.error < 1e-5  # exact data: every choice with the right power agrees; fixed wrong powers stay small
-    assert [f.power for f in split.fits] == pytest.approx([POWER, POWER], abs=1e-4)
+    assert split.fit.power == pytest.approx(POWER, abs=1e-4)
+    assert split.fit.amplitudes == pytest.approx([AMPLITUDE + 1.5, AMPLITUDE - 1.5], rel=1e-6)
     whole = extrapolate(ORDERS, values, stride=1)
     assert abs(whole.value - LIMIT) > 100 * TOL_OSCILLATING
 
