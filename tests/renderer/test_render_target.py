@@ -154,3 +154,12 @@ def test_target_and_spp_together_are_refused(capsys):
     assert main(["render", "cornell_cd", "--out", "x.exr", "--target", "report", "--spp", "8", "--quiet"]) == 2
     err = capsys.readouterr().err
     assert err.startswith("error: ") and "--spp" in err and "Traceback" not in err
+
+
+def test_verify_renders_to_the_target_unless_spp_is_given():
+    """verify's presets render targeted; --spp N is the fixed render of N samples everywhere."""
+    from workbench.verify_run import VerifySettings
+
+    assert VerifySettings().render_target == "report" and VerifySettings(preset="paper").render_target == "report"
+    fixed = VerifySettings(spp=4)
+    assert fixed.render_target is None and fixed.render_spp == 4 and fixed.to_json()["render_target"] is None
