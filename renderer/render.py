@@ -392,8 +392,8 @@ def _refuse_to_overwrite(out: Path, partial: Path, key: str, force: bool) -> Non
     interrupted render of this request may carry on.
     """
     present = [p for p in _outputs(out) + [variance_path(out)] if p.exists()]
-    if not present or force or _resume(partial, key)[2] > 0:
-        return
+    if not present or force or _resume(partial, key)[2] > 0 or State.load(partial, key).passes > 0:
+        return  # (a fixed render's saved passes, or a targeted one's)
     info = _read_sidecar(out)
     if info is None:
         what = "files that no render of this workbench described: " + ", ".join(p.name for p in present)

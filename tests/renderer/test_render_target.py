@@ -78,8 +78,10 @@ def test_two_seeds_differ_by_the_noise_the_renders_state(mitsuba_variant, tmp_pa
 
 def test_a_killed_targeted_render_resumes_to_the_same_bytes(mitsuba_variant, tmp_path, low_cap, monkeypatch):
     """Killed after its fifth saved pass (inside the CD's crop), the same command finishes it:
-    the EXR, the variance and the decisions (every check) equal the uninterrupted render's."""
+    the EXR, the variance and the decisions (every check) equal the uninterrupted render's. It
+    replaced another render with --force; carrying on needs no --force again."""
     clean = render("cornell_cd", tmp_path / "clean.exr", **SMALL)
+    render("cornell_cd", tmp_path / "r.exr", spp=4, resolution=(48, 36), progress=False)  # another render there
     save, calls = State.save, []
 
     def save_then_stop(self, path):
@@ -90,7 +92,7 @@ def test_a_killed_targeted_render_resumes_to_the_same_bytes(mitsuba_variant, tmp
 
     monkeypatch.setattr(State, "save", save_then_stop)
     with pytest.raises(KeyboardInterrupt):
-        render("cornell_cd", tmp_path / "r.exr", **SMALL)
+        render("cornell_cd", tmp_path / "r.exr", force=True, **SMALL)
     monkeypatch.setattr(State, "save", save)
     info = render("cornell_cd", tmp_path / "r.exr", **SMALL)
     assert info["resumed_passes"] == 5 and "resumed after 5" in summary(info)
