@@ -9,11 +9,11 @@ through OpenCV's own function, and back through OpenCV's inverse refined by Newt
 * ``rational``: OpenCV's rational model (CALIB_RATIONAL_MODEL), (k1, k2, p1, p2, k3, k4,
   k5, k6): the radial factor (1 + k1 r^2 + k2 r^4 + k3 r^6) / (1 + k4 r^2 + k5 r^4 + k6 r^6)
   (same functions, eight coefficients).
-* ``fisheye``: Kannala-Brandt [Kannala 2006, Eq. 6] as OpenCV's fisheye module has it,
+* ``fisheye``: Kannala-Brandt [Kannala 2006] as OpenCV's fisheye module has it,
   (k1, k2, k3, k4): theta_d = theta (1 + k1 theta^2 + k2 theta^4 + k3 theta^6 + k4 theta^8),
   the distorted point at theta_d along the ray's azimuth (cv2.fisheye.projectPoints,
   cv2.fisheye.undistortPoints), no skew.
-* ``omnidir``: Mei's unified model [Mei 2007, Sec. II] (opencv-contrib's cv2.omnidir):
+* ``omnidir``: Mei's unified model [Mei 2007] (opencv-contrib's cv2.omnidir):
   the point on the unit sphere is projected from (0, 0, -xi), then the radial-tangential
   distortion (k1, k2, p1, p2); ``xi`` is the model's one extra parameter, no skew.
 
@@ -124,7 +124,7 @@ def _opencv_inverse(model: str, pixels: np.ndarray, K: np.ndarray, dist: np.ndar
     if model == "fisheye":
         return cv2.fisheye.undistortPoints(p, K, dist.reshape(4, 1), criteria=UNDISTORT_CRITERIA).reshape(-1, 2)
     # omnidir: OpenCV 5's undistortPoints (R = identity) gives x/z; OpenCV 4's gave the point
-    # re-projected from (0, 0, -xi), lifted here to the unit sphere [Mei 2007, Eq. 4 inverted]
+    # re-projected from (0, 0, -xi), lifted here to the unit sphere [Mei 2007], the projection inverted
     # and divided by z. Each pixel keeps whichever reading its projection reproduces.
     m = cv2.omnidir.undistortPoints(p.reshape(1, -1, 2), K, dist.reshape(1, 4), np.array([[float(xi)]]),
                                     np.eye(3)).reshape(-1, 2)
