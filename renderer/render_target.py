@@ -10,7 +10,8 @@ camera's image, per region (renderer.regions.region_masks, the report's masks), 
 each region at its goal:
 
 * everything: ``FLOOR_SPP`` samples (reports.region_compare.TRUSTED_SPP: below it the
-  passes' spread misses rare paths and the region test says so), in ``MIN_PASSES`` passes;
+  passes' spread misses rare paths and the region test says so), in four passes (3 degrees of
+  freedom per pixel for the variance, as renderer.render.MIN_PASSES);
 * the walls: the relative standard deviation of the photometric scale, the median over
   wall pixels of photo / render, that the render's noise causes, at most ``WALL_SCALE_REL``
   (0.2 %). The sample median of N independent values has asymptotic variance 1 / (4 N f(m)^2)
@@ -230,9 +231,9 @@ class State:
         return mean, var, units
 
     def save(self, path: Path) -> None:
-        arrays: dict[str, Any] = {k: v for k, v in (("frame_total", self.frame_total), ("frame_sq", self.frame_sq),
-                                                           ("crop_total", self.crop_total), ("crop_sq", self.crop_sq))
-                                         if v is not None}
+        sums = (("frame_total", self.frame_total), ("frame_sq", self.frame_sq), ("crop_total", self.crop_total),
+                ("crop_sq", self.crop_sq))
+        arrays: dict[str, Any] = {k: v for k, v in sums if v is not None}
         arrays["counts"] = np.array([self.frame_done, self.frame_goal, self.crop_done, self.crop_goal, int(self.complete)])
         arrays["key"], arrays["checks"] = np.array(self.key), np.array(json.dumps(self.checks))
 
