@@ -39,7 +39,7 @@ from tqdm import tqdm
 from renderer import render_target
 from renderer.mitsuba_scene import cropped_sensor, scene_dict
 from renderer.regions import region_masks
-from renderer.render_target import CROP_SEED_OFFSET, PASS_SPP, TARGETS, State, Target, Window, target_settings
+from renderer.render_target import CROP_SEED_OFFSET, PASS_SPP, TARGETS, State, Target, Window, crop_path, target_settings
 from renderer.scene import SceneSpec, load_scene
 from renderer.tables import table_keys
 from renderer.variant import set_variant
@@ -139,6 +139,7 @@ def render(scene: str | Path, out: str | Path, *, preset: str = "draft", spp: in
                     done) | extra
     atomic_write_text(out.with_suffix(".json"), json.dumps(info, indent=2))
     partial.unlink(missing_ok=True)
+    crop_path(partial).unlink(missing_ok=True)  # a targeted render's crop sums
     return info | {"served": False}
 
 

@@ -46,7 +46,8 @@ predicted to meet the goal (growing at most ``MAX_GROWTH`` times), so few checks
 Every pass has its own deterministic seed (the frame's pass p: renderer.render.pass_seed(seed,
 p); the crop's pass q: pass_seed(seed, CROP_SEED_OFFSET + q)), and the decisions depend only
 on the merged sums, so the same request gives the same bytes. After each pass the sums, the
-pass counts and the next check are saved atomically (``State``); a killed render resumes
+pass counts and the next check are saved atomically (``State``: the frame's sums while they
+change, then the crop's alone, beside them); a killed render resumes
 from them and decides as the uninterrupted one did. The sidecar's ``target`` records per
 region the spp used and the noise reached, and each check.
 """
@@ -231,36 +232,60 @@ class State:
         return mean, var, units
 
     def save(self, path: Path) -> None:
-        sums = (("frame_total", self.frame_total), ("frame_sq", self.frame_sq), ("crop_total", self.crop_total),
-                ("crop_sq", self.crop_sq))
-        arrays: dict[str, Any] = {k: v for k, v in sums if v is not None}
-        arrays["counts"] = np.array([self.frame_done, self.frame_goal, self.crop_done, self.crop_goal, int(self.complete)])
-        arrays["key"], arrays["checks"] = np.array(self.key), np.array(json.dumps(self.checks))
-
-        def write(tmp: Path) -> None:
-            with open(tmp, "wb") as f:
-                np.savez(f, **arrays)
-                f.flush()
-                os.fsync(f.fileno())
-        atomic_write(path, write)
+        """Atomically: the frame's sums in ``path`` while they change (and once more when its passes end),
+        then only the crop's in crop_path(path) (each with the counts and checks): the frame's sums are
+        large and fixed by then, the crop's passes many."""
+        counts = np.array([self.frame_done, self.frame_goal, self.crop_done, self.crop_goal, int(self.complete)])
+        common = {"key": np.array(self.key), "counts": counts, "checks": np.array(json.dumps(self.checks))}
+        if self.crop_done == 0:
+            _write_npz(path, common | {"frame_total": self.frame_total, "frame_sq": self.frame_sq})
+        else:
+            _write_npz(crop_path(path), common | {"crop_total": self.crop_total, "crop_sq": self.crop_sq})
 
     @classmethod
     def load(cls, path: Path, key: str) -> State:
-        """The saved state of this request at ``path``, or a fresh one."""
-        try:
-            with np.load(path) as d:
-                if str(d["key"]) != key:
-                    return cls(key)
-                done, goal, crop_done, crop_goal, complete = (int(v) for v in d["counts"])
-                get = {k: d[k] for k in ("frame_total", "frame_sq", "crop_total", "crop_sq") if k in d}
-                return cls(key, get.get("frame_total"), get.get("frame_sq"), done, goal, get.get("crop_total"),
-                           get.get("crop_sq"), crop_done, crop_goal, bool(complete), json.loads(str(d["checks"])))
-        except (OSError, KeyError, ValueError):
+        """The saved state of this request at ``path`` (and crop_path(path)), or a fresh one."""
+        frame = _read_npz(path, key, ("frame_total", "frame_sq"))
+        if frame is None:
             return cls(key)
+        state = cls(key, frame["frame_total"], frame["frame_sq"], *frame["counts"][:2])
+        crop = _read_npz(crop_path(path), key, ("crop_total", "crop_sq"))
+        if crop is not None and crop["counts"][0] == state.frame_done and frame["counts"][3] >= 0:
+            frame = crop
+            state.crop_total, state.crop_sq = crop["crop_total"], crop["crop_sq"]
+        state.crop_done, state.crop_goal, complete = frame["counts"][2:]
+        state.complete, state.checks = bool(complete), frame["checks"]
+        return state
 
     @property
     def passes(self) -> int:
         return self.frame_done + self.crop_done
+
+
+def crop_path(path: Path) -> Path:
+    """Where a targeted render's crop sums are saved beside its frame's (State.save)."""
+    return path.with_name(path.name.removesuffix(".npz") + ".crop.npz")
+
+
+def _write_npz(path: Path, arrays: dict[str, Any]) -> None:
+    def write(tmp: Path) -> None:
+        with open(tmp, "wb") as f:
+            np.savez(f, **arrays)
+            f.flush()
+            os.fsync(f.fileno())
+    atomic_write(path, write)
+
+
+def _read_npz(path: Path, key: str, names: tuple[str, ...]) -> dict[str, Any] | None:
+    """A saved part of this request's state: ``names``' arrays, the counts (ints) and checks; None if absent or not ours."""
+    try:
+        with np.load(path) as d:
+            if str(d["key"]) != key:
+                return None
+            return {n: d[n] for n in names} | {"counts": [int(v) for v in d["counts"]],
+                                               "checks": json.loads(str(d["checks"]))}
+    except (OSError, KeyError, ValueError):
+        return None
 
 
 # ---------------------------------------------------------------- the passes, and when to stop

@@ -94,8 +94,10 @@ def test_a_killed_targeted_render_resumes_to_the_same_bytes(mitsuba_variant, tmp
     with pytest.raises(KeyboardInterrupt):
         render("cornell_cd", tmp_path / "r.exr", force=True, **SMALL)
     monkeypatch.setattr(State, "save", save)
+    assert (tmp_path / "r.exr.partial.npz").is_file() and (tmp_path / "r.exr.partial.crop.npz").is_file()
     info = render("cornell_cd", tmp_path / "r.exr", **SMALL)
     assert info["resumed_passes"] == 5 and "resumed after 5" in summary(info)
+    assert not list(tmp_path.glob("r.exr.partial*"))  # the frame's and the crop's saved sums removed
     assert np.array_equal(_exr(tmp_path / "r.exr"), _exr(tmp_path / "clean.exr"))
     assert np.array_equal(_exr(variance_path(tmp_path / "r.exr")), _exr(variance_path(tmp_path / "clean.exr")))
     assert info["target"]["checks"] == clean["target"]["checks"]
