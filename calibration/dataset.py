@@ -11,7 +11,8 @@ follow as well::
 Steps, in order: the intrinsics from calibration/ (calibration.intrinsics, Zhang's method),
 the response from brackets/ (calibration.response: the curve from the non-raw files, the
 linearity check from the raw ones), then the pose of every photo with the intrinsics held
-fixed (calibration.pose). Without board views the first photo's fit frees the focal
+fixed (calibration.pose), and the lens's vignetting from the photos' walls against renders
+(calibration.vignetting_stage). Without board views the first photo's fit frees the focal
 length, principal point and k1, k2, and the others hold them. Nothing but these three
 folders is read: a dataset's truth.json never is.
 
@@ -26,7 +27,10 @@ DIR gets, each written atomically once everything has succeeded:
   for every photo of one scene), ``response`` (``points``: pairs of normalised irradiance
   and value), residuals, ``cd_fringes`` by photo (calibration.photometric: the CD-fringe
   photometric residual before and after, the rotation the fringes suggest, whether it
-  was taken and why), settings, versions and timings;
+  was taken and why), ``vignetting`` (calibration.vignetting_stage: the lens's falloff
+  per channel fitted on the walls against renders, its corners with std, whether it is
+  applied and why; where it is, ``exposure_scale`` is the exposure on the lens's axis),
+  settings, versions and timings;
 * ``intrinsics.json`` (when board views were used) and ``response.json`` (when a
   bracket was), as their own commands write them;
 * ``fitted_scene.toml``: the scene with the first photo's fitted camera and exposure, and
@@ -37,6 +41,7 @@ from __future__ import annotations
 
 import json
 import time
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
@@ -52,6 +57,7 @@ from calibration.pose_outputs import PHOTOMETRY_NOTE, json_default, result_json,
 from calibration.pose_photo import check_photo, fit_photo
 from calibration.response import calibrate_response
 from calibration.scene_model import scene_model
+from calibration.vignetting_stage import vignetting_stage
 from renderer.scene import load_scene
 from workbench.core.errors import UserInputError
 from workbench.core.files import atomic_write_text
@@ -144,21 +150,29 @@ def calibrate_dataset(dataset: str | Path, scene: str | Path, out: str | Path, *
     response = response_from_bracket(files["brackets"], progress=False)
     timings["response_s"] = time.perf_counter() - tick
     bar.update()
-    results = fit_photos(files["photos"], spec, intrinsics, response, settings, bar, timings)
+    results = fit_photos(files["photos"], spec, intrinsics, inverse_response(response), settings, bar, timings)
+    tick = time.perf_counter()
+    vignetting, results = vignetting_stage(results)
+    timings["vignetting_s"] = time.perf_counter() - tick
     bar.close()
     timings["total_s"] = time.perf_counter() - started
     record = _record(dataset, scene, spec, files, intrinsics, response, results, settings, board_spec, timings)
+    record["vignetting"] = vignetting
     _write(out, record, spec, results, intrinsics, response)
     return record
 
 
-def fit_photos(photos: list[Path], spec, intrinsics: dict | None, response: dict | None, settings: PoseSettings, bar,
-               timings: dict) -> dict:
+def inverse_response(response: dict | None) -> Callable[[np.ndarray], np.ndarray] | None:
+    """From normalised value to normalised irradiance, by the bracket's response curve (None without one)."""
+    if response is None or "points" not in response:
+        return None
+    points = np.asarray(response["points"], float)
+    return lambda v: np.interp(v, points[:, 1], points[:, 0]).astype(np.float32)
+
+
+def fit_photos(photos: list[Path], spec, intrinsics: dict | None, inverse: Callable[[np.ndarray], np.ndarray] | None,
+               settings: PoseSettings, bar, timings: dict) -> dict:
     """Each photo's PoseResult by file name; the first fixes the intrinsics when no boards did."""
-    inverse = None
-    if response is not None and "points" in response:
-        points = np.asarray(response["points"], float)
-        inverse = lambda v: np.interp(v, points[:, 1], points[:, 0]).astype(np.float32)  # noqa: E731
     model = scene_model(spec)
     renderer = None
     known = None if intrinsics is None else dict(intrinsics, dist=tuple((list(intrinsics["dist"]) + [0.0] * 5)[:5]))

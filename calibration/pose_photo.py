@@ -25,6 +25,7 @@ from calibration.pose_fit import (
 from calibration.pose_render_check import render_check_stage
 from calibration.pose_uncertainty import covariance, derived_std, fov_x_deg, fov_y_deg, per_feature_residuals
 from calibration.scene_model import SceneModel
+from calibration.vignetting import WallTiles
 from renderer.camera import CameraModel
 from workbench.core.errors import UserInputError
 
@@ -48,6 +49,7 @@ class PoseResult:
     exposure_time_s: float | None
     log: dict
     timings: dict
+    wall_tiles: WallTiles | None = None  # the render check's walls, photo / render in tiles (calibration.vignetting)
 
     def camera_json(self) -> dict:
         c = self.camera
@@ -107,12 +109,13 @@ def _fit_photo(photo: Photo, model: SceneModel, start: CameraModel, unknowns: Un
     camera, match, fine_log = fine_fit(image, model, camera, unknowns, settings)
     timings["fine_s"] = time.perf_counter() - tick
     _advance(bar)
-    scale = scale_std = None
+    scale = scale_std = tiles = None
     check_log: dict = {}
     if renderer is not None:
         tick = time.perf_counter()
-        camera, match, scale, scale_std, check_log = render_check_stage(renderer, photo, image, model, camera,
-                                                                        unknowns, settings, intrinsics_std)
+        camera, match, check, check_log = render_check_stage(renderer, photo, image, model, camera, unknowns, settings,
+                                                             intrinsics_std)
+        scale, scale_std, tiles = check.scale, check.scale_std, check.tiles
         timings["render_check_s"] = time.perf_counter() - tick
     _advance(bar)
     repeats = restarts(image, model, camera, unknowns, settings) if unknowns.intrinsics else None
@@ -131,7 +134,8 @@ def _fit_photo(photo: Photo, model: SceneModel, start: CameraModel, unknowns: Un
         timings["cd_fringes_s"] = time.perf_counter() - tick
     log = {"coarse": coarse_log, "fine": fine_log, "render_check": check_log,
            "cd_fringes": _fringe_log(fringes, renderer is not None, settings)}
-    return PoseResult(photo.path, camera, unknowns, std, residuals, scale, scale_std, photo.exposure_time_s, log, timings)
+    return PoseResult(photo.path, camera, unknowns, std, residuals, scale, scale_std, photo.exposure_time_s, log, timings,
+                      tiles)
 
 
 def _fringe_log(fringes: FringeResult | None, rendered: bool, settings: PoseSettings) -> dict:

@@ -60,6 +60,7 @@ from calibration.pose_fit import (
 )
 from calibration.pose_uncertainty import covariance, derived_std, readout
 from calibration.scene_model import SceneModel, occluder_mask, sample_features
+from calibration.vignetting import WallTiles, wall_tiles
 from renderer.camera import CameraModel, PinholePlan
 from workbench.core.errors import UserInputError
 
@@ -93,6 +94,7 @@ class RenderCheck:
     seconds: float
     spp: int = 0            # samples per pixel rendered in all
     noise: dict = dataclasses.field(default_factory=dict)  # the noise measured at each doubling of the passes
+    tiles: WallTiles | None = None  # the walls' photo / render tiles of a linear photo (calibration.vignetting)
 
 
 def render_pass(renderer, spp: int, seed: int) -> np.ndarray:
@@ -129,6 +131,11 @@ def _measure(render: np.ndarray, photo: Photo, model: SceneModel, camera: Camera
     return RenderCheck(scale, scale_std, _bias(render, scale, photo, match, window), int(mask.sum()), 0.0), mask
 
 
+def _tiles(photo: Photo, render: np.ndarray, mask: np.ndarray, camera: CameraModel) -> WallTiles | None:
+    """The walls' tiles for the vignetting fit (calibration.vignetting_stage); None for a non-linear photo."""
+    return wall_tiles(photo.rgb, render, mask, camera) if photo.linear else None
+
+
 def render_check(renderer, photo: Photo, model: SceneModel, camera: CameraModel, match: EdgeMatch, window: float,
                  settings: PoseSettings, pose_noise=None) -> RenderCheck:
     """Render at ``camera`` in passes (module docstring), find the photometric scale and the
@@ -142,9 +149,10 @@ def render_check(renderer, photo: Photo, model: SceneModel, camera: CameraModel,
         raise ValueError(f"PoseSettings.render_spp and render_pass_spp must be at least 1, not {settings.render_spp} "
                          f"and {per_pass}")
     if 2 * per_pass > settings.render_spp:  # one render at render_spp: nothing to measure the noise with
-        check, _ = _measure(render_pass(renderer, settings.render_spp, settings.render_seed), photo, model, camera, match,
-                            window)
-        return dataclasses.replace(check, seconds=time.perf_counter() - tick, spp=settings.render_spp)
+        render = render_pass(renderer, settings.render_spp, settings.render_seed)
+        check, mask = _measure(render, photo, model, camera, match, window)
+        return dataclasses.replace(check, seconds=time.perf_counter() - tick, spp=settings.render_spp,
+                                   tiles=_tiles(photo, render, mask, camera))
     most = settings.render_spp // per_pass
     passes: list[np.ndarray] = []
     noise: dict = {}
@@ -163,16 +171,17 @@ def render_check(renderer, photo: Photo, model: SceneModel, camera: CameraModel,
             enough = enough and small
         noise[str(count * per_pass)] = measured
         if enough or count >= most:
-            return dataclasses.replace(check, seconds=time.perf_counter() - tick, spp=count * per_pass, noise=noise)
+            return dataclasses.replace(check, seconds=time.perf_counter() - tick, spp=count * per_pass, noise=noise,
+                                       tiles=_tiles(photo, merged, mask, camera))
         count = min(2 * count, most)
 
 
 def render_check_stage(renderer, photo: Photo, image: np.ndarray, model: SceneModel, camera: CameraModel,
                        unknowns: Unknowns, settings: PoseSettings,
-                       intrinsics_std: dict | None = None) -> tuple[CameraModel, EdgeMatch, float, float, dict]:
+                       intrinsics_std: dict | None = None) -> tuple[CameraModel, EdgeMatch, RenderCheck, dict]:
     """Stage 3: the render check at ``camera``, the bias-corrected fine solves, and the scale
     measured again if they moved the camera by more than RESCALE_AFTER_PX: (camera, match,
-    scale, its spread, the stage's log)."""
+    the check (scale, its spread, the walls' tiles), the stage's log)."""
     window = settings.fine_windows_px[-1]
     match = match_edges(image, model, camera, window, settings)
     stated = derived_std(camera, unknowns, covariance(match, unknowns, camera, intrinsics_std)[0], intrinsics_std)
@@ -208,7 +217,7 @@ def render_check_stage(renderer, photo: Photo, image: np.ndarray, model: SceneMo
                  "pixels_compared": check.pixels_compared, "points": int(usable.sum()),
                  "moved_px": moved, "scale_measured_again": moved > RESCALE_AFTER_PX, "refit": refit_log,
                  "bias_median_px": {str(n): float(np.median(check.bias[usable][names == n])) for n in sorted(set(names))}}
-    return camera, match, check.scale, check.scale_std, check_log
+    return camera, match, check, check_log
 
 
 def _blocks(shape: tuple[int, int], n: int) -> list[np.ndarray]:

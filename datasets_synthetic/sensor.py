@@ -7,6 +7,13 @@ noise is Poisson in electrons, read noise Gaussian with sigma_read electrons; th
 value is round(black + gain * electrons) clipped to [0, white], gain in DN per electron.
 So a flat patch has mean black + gain mu_e and variance gain^2 (mu_e + sigma_read^2)
 (+1/12 for quantization), which tests/datasets_synthetic/test_sensor.py checks.
+
+Vignetting (optional, ``vignetting_power``): before the photo-electrons are counted, each
+channel c is multiplied by the lens's relative illumination cos^p_c(theta), theta the
+angle between the pixel's chief ray and the optical axis (the pixel undistorted through
+the camera's own model). p = 4 is the natural vignetting of an ideal lens, the "cos^4
+law" [Ray, "Applied Photographic Optics", 3rd ed. 2002, Sec. 18.2]; real lenses add
+mechanical vignetting and differ by colour, which a p per channel stands in for.
 """
 
 from __future__ import annotations
@@ -14,6 +21,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+
+from workbench.core.errors import UserInputError
 
 CHANNEL = {"R": 0, "G": 1, "B": 2}
 
@@ -26,10 +35,21 @@ class SensorModel:
     black_level: int = 512
     bits: int = 14
     cfa_pattern: str = "RGGB"
+    vignetting_power: tuple[float, float, float] | None = None  # p per channel (R, G, B) of cos^p(theta); None: none
 
     @property
     def white_level(self) -> int:
         return 2**self.bits - 1
+
+    def relative_illumination(self, camera) -> np.ndarray:
+        """(H, W, 3) cos^p_c(theta) for ``camera`` (renderer.camera.CameraModel); ones without vignetting."""
+        ones = np.ones((camera.height, camera.width, 3))
+        if self.vignetting_power is None:
+            return ones
+        v, u = np.mgrid[0:camera.height, 0:camera.width]
+        x = camera.normalized(np.stack([u.ravel(), v.ravel()], axis=1).astype(np.float64))  # through the lens model
+        cos_theta = (1.0 / np.sqrt(1.0 + (x**2).sum(axis=1))).reshape(camera.height, camera.width)
+        return ones * cos_theta[..., None] ** np.asarray(self.vignetting_power, float)
 
     def mosaic(self, rgb: np.ndarray) -> np.ndarray:
         """Keep, at each pixel, the channel of the Bayer filter above it (2x2 pattern)."""
@@ -54,6 +74,17 @@ class SensorModel:
         """Mean and variance of the digital values (before clipping), per pixel."""
         mu = self.expected_electrons(rgb, exposure_time_s)
         return self.black_level + self.gain * mu, self.gain**2 * (mu + self.read_noise_e**2) + 1.0 / 12.0
+
+
+def checked_vignetting(powers) -> tuple[float, float, float]:
+    """``powers`` as SensorModel.vignetting_power, or a UserInputError naming --vignetting."""
+    try:
+        values = tuple(float(q) for q in powers)
+    except (TypeError, ValueError):
+        values = ()
+    if len(values) != 3 or not all(0.0 <= q <= 20.0 for q in values):
+        raise UserInputError("needs three powers p (R, G, B) of cos^p, each in 0..20", field="--vignetting", got=powers)
+    return values
 
 
 # ------------------------------------------------------------------------------------ colour tags

@@ -77,7 +77,7 @@ from tqdm import tqdm
 from datasets_synthetic.board import BOARD_KEY, Checkerboard, corners_visible, sample_pose
 from datasets_synthetic.dng import DngMetadata, write_dng
 from datasets_synthetic.jpeg import develop, hidden_response, write_jpeg
-from datasets_synthetic.sensor import SensorModel, as_shot_neutral, xyz_to_camera
+from datasets_synthetic.sensor import SensorModel, as_shot_neutral, checked_vignetting, xyz_to_camera
 from renderer.fit import FitRenderer
 from renderer.render import with_resolution
 from renderer.scene import load_scene
@@ -161,6 +161,8 @@ class _Writer:
         self.shots: dict[str, _Shot] = {}
 
     def capture(self, folder: str, stem: str, rgb: np.ndarray, exposure_s: float, camera, rng, jpeg: bool = False) -> np.ndarray:
+        if self.sensor.vignetting_power is not None:  # the lens's relative illumination (datasets_synthetic.sensor)
+            rgb = rgb * self.sensor.relative_illumination(camera)
         raw = self.sensor.capture(rgb, exposure_s, rng)
         meta = DngMetadata(cfa_pattern=self.sensor.cfa_pattern, black_level=self.sensor.black_level,
                            white_level=self.sensor.white_level, exposure_time_s=exposure_s, iso=ISO, make=MAKE, model=MODEL,
@@ -176,13 +178,15 @@ class _Writer:
 
 
 def synth(scene: str, out: str | Path, *, seed: int = 0, preset: str = "draft", force: bool = False,
-          progress: bool = True, notify: Callable[[str], None] | None = None, render_seed: int | None = None) -> dict:
+          progress: bool = True, notify: Callable[[str], None] | None = None, render_seed: int | None = None,
+          vignetting: tuple[float, float, float] | None = None) -> dict:
     """Write the dataset for ``scene`` into ``out``; returns the truth (also in truth.json).
 
     ``render_seed`` (default: ``seed``) seeds the renders' Monte Carlo alone: the same
     ``seed`` with another ``render_seed`` is the same hidden camera, poses, exposures and
     sensor noise streams over another realisation of the renders' noise, which is what a
     dataset's numbers spread over when another CPU renders it (benchmarks/bench_calibration.py).
+    ``vignetting``: the lens's cos^p falloff, p per channel (SensorModel.vignetting_power).
 
     Everything is checked before anything is written. The dataset is made in a work folder
     beside ``out`` (``.NAME.synth-partial``) and moved into place when complete, so an
@@ -193,6 +197,7 @@ def synth(scene: str, out: str | Path, *, seed: int = 0, preset: str = "draft", 
     """
     say = notify or (_say if progress else (lambda _message: None))
     spec, p, folder = _checked_request(scene, out, seed, preset)
+    p = p if vignetting is None else p | {"vignetting_power": checked_vignetting(vignetting)}
     render_seed = seed if render_seed is None else _checked_seed(render_seed, "render_seed")
     work = folder.parent / f".{folder.name}{WORK_SUFFIX}"
     _restore_interrupted_swap(folder, work)
@@ -428,7 +433,7 @@ def _generate(spec, scene: str, out: Path, renders: _RenderStore, seeds: tuple[i
     exposure_scale = float(np.exp(rng_camera.normal(0.0, 0.3)))
     light_scale = float(np.exp(rng_camera.normal(0.0, 0.3)))
     response = hidden_response(rng_camera)
-    sensor = SensorModel()
+    sensor = SensorModel(vignetting_power=p.get("vignetting_power"))
     writer = _Writer(out, sensor, response, colour_tags(spec))
     hidden = dataclasses.replace(spec, camera=dataclasses.replace(spec.camera, model=camera))
     bar = tqdm(total=p["views"] + p["calibration_views"], desc="synth renders", unit="frame", disable=not progress)

@@ -163,14 +163,18 @@ def render_variance(render_path: Path) -> tuple[np.ndarray | None, int | None]:
 
 
 def region_test(spec, fitted, photo, render: np.ndarray, render_path: Path, calibration: Path,
-                masks: dict[str, np.ndarray]) -> dict:
+                masks: dict[str, np.ndarray], falloff: np.ndarray | None = None) -> dict:
     """report.json's ``region_test`` for ``photo`` (reports.images.Photo, as taken) against the
     render as written: stable masks over REGION_DRAWS drawn cameras, the photo's noise model,
-    the render's pass variance, the calibration's exposure std."""
+    the render's pass variance, the calibration's exposure std. ``falloff``: the lens's
+    vignetting (calibration.vignetting) that ``render`` has been multiplied by, so its pass
+    variance is too."""
     cameras = draw_cameras(fitted.model, fitted.std, REGION_DRAWS) if fitted.std else []
     drawn = [region_masks(spec, camera) for camera in cameras]
     inputs = RegionInputs(stable_masks(masks, drawn), exposure_relative_std(calibration, fitted.pose_key), len(drawn))
     variance, spp = render_variance(render_path)
+    if variance is not None and falloff is not None:
+        variance = variance * falloff**2
     out = compare_regions(photo.rgb, photo.clipped, photo.channel, photo.clip_level, render, variance, inputs,
                           fit_noise(photo.rgb, photo.clipped, photo.channel))
     out["render_spp"] = spp

@@ -12,7 +12,9 @@ DIR/report.html the page (reports.page). Steps:
    its darker frames (reports.exposure_merge): the filled photo is what the page shows and
    what prediction, hues and maps are measured on; photo and render are compared through
    the photo's own saturation as taken (``fringe_offset_px``) and, unclipped, on the filled
-   photo (``fringe_offset_unclipped_px``).
+   photo (``fringe_offset_unclipped_px``). Where the calibration applied the lens's
+   vignetting (calibration.vignetting), the render is multiplied by it first: the render
+   as this lens records it, in every comparison below.
 3. Regions from a shape-id render (reports.images.region_masks); one photometric scale
    fitted on the walls brings the render to the photo's units.
 4. The CD: rim ellipses found in both images; the grating-equation prediction
@@ -50,6 +52,7 @@ from typing import Any
 import numpy as np
 
 from calibration.decode import is_raw
+from calibration.vignetting import relative_illumination, vignetting_record, vignetting_summary
 from renderer.scene import load_scene
 from reports import fringes, image_tiles, images, metrics, page, polar
 from reports.camera_draws import CAMERA_STD_KEYS, draw_cameras
@@ -448,6 +451,11 @@ def _fringe_rows(cd: dict[str, Any]) -> tuple[list[dict], list[dict]]:
     return edge_rows, pair_rows
 
 
+def _through_lens(render: np.ndarray, falloff: np.ndarray | None) -> tuple[np.ndarray, np.ndarray | None]:
+    """The render as the photo's lens records it: times its vignetting (calibration.vignetting), where applied."""
+    return (render if falloff is None else (render * falloff).astype(np.float32)), falloff
+
+
 def build_report(inputs: Inputs) -> dict[str, Any]:
     """Write DIR/report.json, DIR/fringes.csv and DIR/report.html; returns report.json's content."""
     started = time.perf_counter()
@@ -458,6 +466,8 @@ def build_report(inputs: Inputs) -> dict[str, Any]:
     photo, as_taken = _photo(inputs, messages)
     render = images.read_linear(inputs.render, "--render")
     _check_sizes(photo.rgb, render, fitted, inputs)
+    vignetting = vignetting_record(inputs.calibration)
+    render, falloff = _through_lens(render, relative_illumination(vignetting, fitted.model))
     study_sections = study_sections_of(inputs.studies)
     masks = images.region_masks(spec)
     scale, wall_pixels = images.photometric_scale(photo.rgb, render, masks, photo.clipped)
@@ -471,7 +481,7 @@ def build_report(inputs: Inputs) -> dict[str, Any]:
     maps, exposure, flip_note = _error_maps(photo.rgb, aligned, photo_display, render_display, masks, messages)
     limits = {"relative error": RELATIVE_MAX, "CIEDE2000": DELTA_E_MAX, "FLIP": FLIP_MAX}
     statistics = metrics.region_statistics(maps, masks)
-    regions_tested = region_test(spec, fitted, as_taken, render, inputs.render, inputs.calibration, masks)
+    regions_tested = region_test(spec, fitted, as_taken, render, inputs.render, inputs.calibration, masks, falloff)
 
     report: dict[str, Any] = {
         "format": REPORT_FORMAT, "photo": str(inputs.photo), "render": str(inputs.render),
@@ -480,7 +490,7 @@ def build_report(inputs: Inputs) -> dict[str, Any]:
         "photo_decoding": photo.decoding,
         "photo_clipped_pixels": int(photo.clipped.sum()),
         "photometric_scale": {"render_to_photo": scale, "wall_pixels": wall_pixels, "how": "median of photo / render "
-                              "(channel sums) over the walls"},
+                              "(channel sums) over the walls", "vignetting": vignetting_summary(vignetting)},
         "display": {"camera_rgb_to_linear_srgb": matrix.tolist(), "white": "the scene's light",
                     "exposure_for_mid_grey_walls": exposure},
         "regions": {name: int(mask.sum()) for name, mask in masks.items()},

@@ -23,6 +23,8 @@ SUMMARY_TIPS = {
     "fitted camera": "calibration.json's camera with one standard deviation from its fit",
     "worst region (relative error, median)": "the region with the largest median |photo / render - 1| after the one "
                                              "photometric scale (table: error per region)",
+    "lens vignetting": "the lens's falloff towards the corners fitted by calibrate DATASET (the walls of every photo "
+                       "against renders); when applied, the render is multiplied by it before every comparison",
     "regions at the calibrated exposure": "regions whose photo and render means agree within the z bound, from the "
                                           "photo's, the render's and the exposure's noise (table below)",
 }
@@ -62,6 +64,7 @@ def summary_block(report: dict[str, Any]) -> str:
     if regions:
         worst = max(regions, key=lambda name: regions[name])
         rows["worst region (relative error, median)"] = f"{worst}: {fmt(regions[worst], 3)}"
+    rows["lens vignetting"] = _vignetting_row((report.get("photometric_scale") or {}).get("vignetting") or {})
     tested = (report.get("region_test") or {}).get("regions") or {}
     compared = {name: row for name, row in tested.items() if "z" in row}
     if compared:
@@ -70,6 +73,15 @@ def summary_block(report: dict[str, Any]) -> str:
             f"{len(compared) - len(flagged)} of {len(compared)} consistent (|z| <= "
             f"{fmt(report['region_test']['z_consistent'], 2)})" + ("; not: " + ", ".join(flagged) if flagged else ""))
     return "<section id='summary'>" + page.key_values(rows, tips=SUMMARY_TIPS) + "</section>"
+
+
+def _vignetting_row(record: dict[str, Any]) -> str:
+    """Applied (with the corners' falloff per channel) or not, and why (calibration.vignetting)."""
+    if not record.get("applied"):
+        return f"not applied: {record.get('why', 'not recorded')}"
+    corners = record.get("corners") or {}
+    darker = ", ".join(f"{ch} {100 * (1 - min(values)):.0f} %" for ch, values in corners.items())
+    return f"applied to the render: corners darker by up to {darker} ({record.get('why', '')})"
 
 
 def calibration_table(summary: dict[str, Any]) -> str:

@@ -43,13 +43,15 @@ def suite_cache(tmp_path_factory, request):
         os.environ[ENVIRONMENT_VARIABLE] = previous
 
 
-def synthetic_dataset(tmp_path_factory: pytest.TempPathFactory, seed: int, scene: str = "cornell_cd") -> Path:
-    """`workbench synth SCENE --seed SEED` (draft), made once per test session and shared by
-    every module that asks for the same one (each takes about a minute on 2 cores).
-    Tests must treat it as read-only."""
+def synthetic_dataset(tmp_path_factory: pytest.TempPathFactory, seed: int, scene: str = "cornell_cd",
+                      vignetting: tuple[float, float, float] | None = None) -> Path:
+    """`workbench synth SCENE --seed SEED [--vignetting PR,PG,PB]` (draft), made once per test
+    session and shared by every module that asks for the same one (each takes about a minute
+    on 2 cores). Tests must treat it as read-only."""
     from datasets_synthetic.synth import synth
 
-    folder = tmp_path_factory.getbasetemp() / f"dataset-{scene}-seed{seed}" / "dataset"
+    lens = "" if vignetting is None else "-vignetting" + "-".join(f"{p:g}" for p in vignetting)
+    folder = tmp_path_factory.getbasetemp() / f"dataset-{scene}-seed{seed}{lens}" / "dataset"
     if not (folder / "truth.json").exists():
-        synth(scene, folder, seed=seed, progress=False)
+        synth(scene, folder, seed=seed, progress=False, vignetting=vignetting)
     return folder

@@ -137,6 +137,7 @@ class _Photo:
         self.path = "rasterised"
         self.exposure_time_s = None
         self.cfa = None
+        self.linear = True
         self.width, self.height = grey.shape[1], grey.shape[0]
 
 

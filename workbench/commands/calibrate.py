@@ -211,6 +211,8 @@ def run_dataset(args: argparse.Namespace) -> int:
           f"(FOV {camera['fov_x_deg']:.3f} deg; intrinsics: {record['intrinsics']['source']})")
     for name, photo in record["photos"].items():
         print(pose_summary_line(name, photo))
+    vignetting = record.get("vignetting") or {}
+    print(f"vignetting: {'applied' if vignetting.get('applied') else 'not applied'}: {vignetting.get('why')}")
     print(f"wrote {args.out}/calibration.json and fitted_scene.toml in {record['timings']['total_s']:.1f} s")
     return 0
 

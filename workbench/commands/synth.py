@@ -23,7 +23,17 @@ def add_parser(commands: argparse._SubParsersAction) -> None:
                             "full: 978 x 734, 3 views (about 14 minutes); large: one 6000 x 4000 view at 2 spp and "
                             "4 board views at 1 spp, for reports of large photos (about 5 minutes)")
     synth.add_argument("--force", action="store_true", help="replace an existing dataset in DIR")
+    synth.add_argument("--vignetting", metavar="PR,PG,PB", type=_powers, default=None,
+                       help="give the lens vignetting: each channel darkened by cos^p of the field angle (4: the cos^4 "
+                            "law of an ideal lens), e.g. 3.8,4,4.4; truth.json's sensor records it (default: none)")
     add_cache_option(synth)
+
+
+def _powers(text: str) -> tuple[float, ...]:
+    try:
+        return tuple(float(part) for part in text.split(","))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected three numbers PR,PG,PB, got {text!r}") from None
 
 
 def run(args: argparse.Namespace) -> int:
@@ -31,7 +41,7 @@ def run(args: argparse.Namespace) -> int:
 
     if Path(args.out).exists() and not Path(args.out).is_dir():
         raise UserInputError("is a file, not a folder", field="--out", expected="a new or dataset folder", got=args.out)
-    truth = synth(args.scene, args.out, seed=args.seed, preset=args.preset, force=args.force)
+    truth = synth(args.scene, args.out, seed=args.seed, preset=args.preset, force=args.force, vignetting=args.vignetting)
     n = {k: sum(1 for name in truth["exposure_time_s"] if name.startswith(k)) for k in ("view", "ev", "board")}
     print(f"wrote {args.out}: {n['view']} photos (photos/*.dng), {n['ev']} bracket files (brackets/*.dng, *.jpg), "
           f"{n['board']} calibration views (calibration/*.dng), truth.json and run.json "
