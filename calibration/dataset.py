@@ -97,12 +97,14 @@ def dataset_board(files: dict[str, list[Path]], dataset: str | Path, board: tupl
     return resolve_board(Path(dataset) / "calibration", board, square_mm)
 
 
-def intrinsics_from_boards(boards: list[Path], board: BoardSpec | None, progress: bool) -> dict | None:
-    """intrinsics.json's content from the board views (calibration.intrinsics), or None without views."""
+def intrinsics_from_boards(boards: list[Path], board: BoardSpec | None, progress: bool,
+                           model: str = "auto") -> dict | None:
+    """intrinsics.json's content from the board views (calibration.intrinsics; ``model``: a lens
+    model of renderer.lens, or ``auto``), or None without views."""
     if not boards or board is None:
         return None
     calibration = calibrate_board_views(boards, board.size, board.square_mm / 1000.0, charuco=board.charuco(),
-                                        progress=progress)
+                                        progress=progress, model=model)
     record = calibration.to_json()
     return record | {"source": f"{boards[0].parent} ({len(boards)} views)", "timings": calibration.timings,
                      "settings": {"board": board.to_json()}}
@@ -126,12 +128,14 @@ def response_from_bracket(brackets: list[Path], progress: bool) -> dict | None:
 
 def calibrate_dataset(dataset: str | Path, scene: str | Path, out: str | Path, *, board: tuple[int, int] | None = None,
                       square_mm: float | None = None, settings: PoseSettings | None = None,
-                      progress: bool = True) -> dict:
+                      progress: bool = True, model: str = "auto") -> dict:
     """Run every step on ``dataset`` and write DIR's files (module docstring); returns calibration.json's content.
 
     ``board`` (inner corners or ChArUco squares, cols x rows) and ``square_mm`` override
     the dataset's calibration/board.json; without that file both are needed when there are
-    board views (a UserInputError naming the file and the flags, before anything runs)."""
+    board views (a UserInputError naming the file and the flags, before anything runs).
+    ``model``: the board views' lens model (a model of renderer.lens, or ``auto``:
+    calibration.lens_choice picks the simplest that held-out views do not reject)."""
     started = time.perf_counter()
     settings = settings or PoseSettings()
     out = Path(out)
@@ -143,7 +147,7 @@ def calibrate_dataset(dataset: str | Path, scene: str | Path, out: str | Path, *
     bar = tqdm(total=2 + 3 * len(files["photos"]), desc="calibrate dataset", unit="step", disable=not progress)
     timings: dict = {}
     tick = time.perf_counter()
-    intrinsics = intrinsics_from_boards(files["boards"], board_spec, progress=False)
+    intrinsics = intrinsics_from_boards(files["boards"], board_spec, progress=False, model=model)
     timings["intrinsics_s"] = time.perf_counter() - tick
     bar.update()
     tick = time.perf_counter()
@@ -175,7 +179,7 @@ def fit_photos(photos: list[Path], spec, intrinsics: dict | None, inverse: Calla
     """Each photo's PoseResult by file name; the first fixes the intrinsics when no boards did."""
     model = scene_model(spec)
     renderer = None
-    known = None if intrinsics is None else dict(intrinsics, dist=tuple((list(intrinsics["dist"]) + [0.0] * 5)[:5]))
+    known = None if intrinsics is None else held_intrinsics(intrinsics)
     results = {}
     for path in photos:
         tick = time.perf_counter()
@@ -189,11 +193,21 @@ def fit_photos(photos: list[Path], spec, intrinsics: dict | None, inverse: Calla
         if known is None:  # no boards: this photo's intrinsics hold for the rest
             c = result.camera
             known = {"width": c.width, "height": c.height, "fx": c.fx, "fy": c.fy, "cx": c.cx, "cy": c.cy,
+                     "model": c.model, "xi": c.xi,
                      "dist": tuple(c.dist), "source": f"fitted on {path.name}",
                      "std": {k: result.std[k] for k in ("fx", "fy", "cx", "cy", "dist")}}
         results[path.name] = result
         timings[f"pose_{path.name}_s"] = time.perf_counter() - tick
     return results
+
+
+def held_intrinsics(intrinsics: dict) -> dict:
+    """intrinsics.json's record as the pose fit holds it: the pinhole's dist padded to its five
+    coefficients (older files wrote four), every other lens model's as written."""
+    dist = list(intrinsics["dist"])
+    if intrinsics.get("model", "pinhole") == "pinhole":
+        dist = (dist + [0.0] * 5)[:5]
+    return dict(intrinsics, dist=tuple(dist))
 
 
 def _record(dataset, scene, spec, files, intrinsics, response, results, settings: PoseSettings, board: BoardSpec | None,
@@ -208,7 +222,8 @@ def _record(dataset, scene, spec, files, intrinsics, response, results, settings
     return {
         "format": DATASET_FORMAT, "command": "workbench calibrate DATASET", "dataset": str(dataset), "scene": str(scene),
         "camera": {"width": c.width, "height": c.height, "fx": c.fx, "fy": c.fy, "cx": c.cx, "cy": c.cy,
-                   "dist": [float(d) for d in c.dist], "fov_x_deg": first.camera_json()["fov_x_deg"],
+                   "dist": [float(d) for d in c.dist], "model": c.model, **({"xi": c.xi} if c.model == "omnidir" else {}),
+                   "fov_x_deg": first.camera_json()["fov_x_deg"],
                    "world_to_camera": {name: r.camera.world_to_camera.tolist() for name, r in results.items()}},
         "std": intrinsic_std | {"fov_x_deg": first.std["fov_x_deg"],
                                 "poses": {name: {k: r.std[k] for k in ("rotation_deg", "rotation_total_deg",
@@ -217,7 +232,8 @@ def _record(dataset, scene, spec, files, intrinsics, response, results, settings
         "exposure_scale": scales, "exposure_time_s": {name: r.exposure_time_s for name, r in results.items()},
         "exposure_scale_per_second": per_second, "light_power_scale": 1.0, "photometry": PHOTOMETRY_NOTE,
         "response": _response_summary(response),
-        "intrinsics": {"source": intrinsics["source"], "rms_px": intrinsics.get("rms_px"),
+        "intrinsics": {"source": intrinsics["source"], "model": intrinsics.get("model", "pinhole"),
+                       "model_choice": (intrinsics.get("model_choice") or {}).get("why"), "rms_px": intrinsics.get("rms_px"),
                        "views": intrinsics.get("views"), "flags": intrinsics.get("flags")} if intrinsics
         else {"source": f"fitted on {next(iter(results))} (no board views in calibration/)"},
         "residuals": {name: {k: v for k, v in r.residuals.items()} for name, r in results.items()},

@@ -57,7 +57,7 @@ import cv2
 import numpy as np
 from tqdm import tqdm
 
-from calibration.dataset import IMAGE_SUFFIXES, dataset_board, dataset_files, intrinsics_from_boards
+from calibration.dataset import IMAGE_SUFFIXES, dataset_board, dataset_files, held_intrinsics, intrinsics_from_boards
 from calibration.photo import read_photo
 from calibration.pose_fit import FREE_RADIAL_TERMS, PoseSettings, Unknowns
 from calibration.pose_inputs import fit_renderer, start_camera
@@ -273,7 +273,7 @@ def _prepare(dataset: Path, scene: str | Path, cfg: CalibrateStudyConfig) -> _In
         board = dataset_board(files, dataset)
         record = intrinsics_from_boards(files["boards"], board, progress=False)
         if record is not None:
-            known = dict(record, dist=tuple((list(record["dist"]) + [0.0] * 5)[:5]))
+            known = held_intrinsics(record)
     bracket = [p for p in files["brackets"] if p.suffix.lower() in IMAGE_SUFFIXES]
     return _Inputs(spec, photos, known, truth, bracket, time.perf_counter() - tick)
 

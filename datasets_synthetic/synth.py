@@ -495,7 +495,7 @@ def _truth(spec, seed: int, preset: str, camera, writer: _Writer, response, ligh
     return {
         "format": MARKER, "seed": seed, "preset": preset, "scene": spec.name,
         "camera": {"width": camera.width, "height": camera.height, "fx": camera.fx, "fy": camera.fy,
-                   "cx": camera.cx, "cy": camera.cy, "dist": list(camera.dist),
+                   "cx": camera.cx, "cy": camera.cy, "dist": list(camera.dist), "model": camera.model, "xi": camera.xi,
                    "world_to_camera": {name: shot.world_to_camera.tolist() for name, shot in writer.shots.items()}},
         "exposure_time_s": {name: shot.exposure_time_s for name, shot in writer.shots.items()},
         "response": response.to_json() | {"applies_to": "brackets/*.jpg (the DNGs are linear)"},

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 from typing import Any
 
+from renderer.lens import LENS_MODELS
 from reports import page
 
 CALIBRATION_ROWS = (("fx", "px", "fx"), ("fy", "px", "fy"), ("cx", "px", "cx"), ("cy", "px", "cy"),
@@ -91,7 +92,9 @@ def calibration_table(summary: dict[str, Any]) -> str:
     rows = [{"quantity": key, "value": summary.get(key), "std": std.get(std_key) if std_key else None, "unit": unit}
             for key, unit, std_key in CALIBRATION_ROWS]
     rows.append({"quantity": "rotation", "value": None, "std": std.get("rotation_deg"), "unit": "deg"})
-    rows.append({"quantity": "dist (k1, k2, p1, p2, k3)", "value": summary.get("dist"), "std": None, "unit": ""})
+    lens = LENS_MODELS.get(summary.get("model", "pinhole"), LENS_MODELS["pinhole"])
+    rows.append({"quantity": f"dist, {lens.name} ({', '.join(lens.coefficients)})", "value": summary.get("dist"),
+                 "std": None, "unit": ""})
     where = {k: summary.get(k) for k in ("source", "pose_of", "scene", "width", "height")}
     return (page.table(rows, caption="the fitted camera; std from the calibration", tips=CALIBRATION_TIPS)
             + page.key_values(where))

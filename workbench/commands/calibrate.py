@@ -177,6 +177,8 @@ def add_dataset(steps: argparse._SubParsersAction) -> None:
                         "calibration/board.json (the default), needed without it")
     p.add_argument("--square-mm", type=positive_number(float), default=None, metavar="S",
                    help="the board's square size in mm; overrides calibration/board.json (the default), needed without it")
+    p.add_argument("--model", choices=MODEL_CHOICES, default="auto",
+                   help="the board views' lens model, as for `calibrate intrinsics` (default: auto)")
     _add_fit_options(p)
 
 
@@ -200,7 +202,7 @@ def run_dataset(args: argparse.Namespace) -> int:
     from calibration.dataset import calibrate_dataset  # deferred: pulls in the renderer and scipy (start-up time)
 
     record = calibrate_dataset(args.dataset, args.scene, args.out, board=args.board, square_mm=args.square_mm,
-                               settings=_pose_settings(args), progress=not args.quiet)
+                               settings=_pose_settings(args), progress=not args.quiet, model=args.model)
     camera, std = record["camera"], record["std"]
     board = record["settings"]["board"]
     if board is not None:
@@ -208,7 +210,7 @@ def run_dataset(args: argparse.Namespace) -> int:
         print(f"board: {board['kind']} {size[0]}x{size[1]}, {board['square_mm']:g} mm squares ({board['source']})")
     print(f"camera: fx {camera['fx']:.2f} +- {std['fx']:.2f}, fy {camera['fy']:.2f} +- {std['fy']:.2f}, "
           f"cx {camera['cx']:.2f} +- {std['cx']:.2f}, cy {camera['cy']:.2f} +- {std['cy']:.2f} px "
-          f"(FOV {camera['fov_x_deg']:.3f} deg; intrinsics: {record['intrinsics']['source']})")
+          f"(FOV {camera['fov_x_deg']:.3f} deg; {camera['model']} lens; intrinsics: {record['intrinsics']['source']})")
     for name, photo in record["photos"].items():
         print(pose_summary_line(name, photo))
     vignetting = record.get("vignetting") or {}
