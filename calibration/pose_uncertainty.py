@@ -61,10 +61,11 @@ def covariance(match: EdgeMatch, unknowns: Unknowns, camera: CameraModel,
     normal = np.linalg.pinv(J.T @ (w[:, None] * J))
     cov = s2 * normal + _feature_bias_covariance(match, r, J, w, normal)
     if fixed_std is not None and not unknowns.intrinsics:
-        _, jac = project(camera, match.samples.points, with_jacobian=True)
-        J_K = np.einsum("ikj,ik->ij", jac[:, 6:15].reshape(-1, 2, 9), match.normals)
+        _, jac = project(camera, match.samples.points, with_jacobian=True)  # rvec, tvec, fx, fy, cx, cy, the model's dist
+        count = jac.shape[1] - 6
+        J_K = np.einsum("ikj,ik->ij", jac[:, 6:].reshape(-1, 2, count), match.normals)
         sigma = np.array([fixed_std.get("fx", 0.0), fixed_std.get("fy", 0.0), fixed_std.get("cx", 0.0),
-                          fixed_std.get("cy", 0.0), *(list(fixed_std.get("dist", [])) + [0.0] * 5)[:5]], float)
+                          fixed_std.get("cy", 0.0), *(list(fixed_std.get("dist", [])) + [0.0] * count)[:count - 4]], float)
         G = -normal @ J.T @ (w[:, None] * J_K)
         cov = cov + G @ np.diag(np.nan_to_num(sigma) ** 2) @ G.T
     stats = {"points": int(len(r)), "rms_px": float(np.sqrt(np.mean(r**2))), "median_abs_px": float(np.median(np.abs(r))),

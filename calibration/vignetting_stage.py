@@ -6,7 +6,7 @@ render of the scene file seen by the fitted camera (within RESCALE_AFTER_PX of t
 pose, which a 16-pixel tile of a wall does not see) against the photo, over the walls, in
 tiles, for every linear photo (a raw, or a non-raw file with the bracket's inverse
 response). So the stage renders nothing. Where the fit is applied (a corner falloff over
-3 std and 0.5 %), each photo's ``exposure_scale`` becomes photo / (V render) over those
+3 std and 5 %), each photo's ``exposure_scale`` becomes photo / (V render) over those
 tiles, the exposure on the lens's axis (the pose's, photo / render, is lowered by the
 walls' mean falloff), and its ``exposure_scale_std`` the spread of that ratio over 4 x 4
 blocks of the image, as the pose states its own; a render at the calibrated exposure,

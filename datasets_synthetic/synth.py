@@ -120,12 +120,12 @@ def hidden_camera(camera, rng: np.random.Generator):
     T[:3, :3], T[:3, 3] = R, -R @ origin
     fov = 2 * math.degrees(math.atan(0.5 * camera.width / camera.fx)) + rng.normal(0.0, 1.0)
     f = 0.5 * camera.width / math.tan(math.radians(fov) / 2)
-    return dataclasses.replace(
-        camera, world_to_camera=T, fx=f, fy=f * (1 + rng.normal(0, 0.002)),
-        cx=camera.cx + rng.normal(0, 0.01 * camera.width), cy=camera.cy + rng.normal(0, 0.01 * camera.height),
-        dist=(float(rng.normal(-0.08, 0.03)), float(rng.normal(0.02, 0.01)), float(rng.normal(0, 5e-4)),
-              float(rng.normal(0, 5e-4)), 0.0),
-    )
+    fy, cx, cy = f * (1 + rng.normal(0, 0.002)), camera.cx + rng.normal(0, 0.01 * camera.width), \
+        camera.cy + rng.normal(0, 0.01 * camera.height)
+    dist = ((float(rng.normal(-0.08, 0.03)), float(rng.normal(0.02, 0.01)), float(rng.normal(0, 5e-4)),
+             float(rng.normal(0, 5e-4)), 0.0) if camera.model == "pinhole"
+            else tuple(float(d + rng.normal(0.0, 0.005)) for d in camera.dist))  # other lenses: their own, a little off
+    return dataclasses.replace(camera, world_to_camera=T, fx=f, fy=fy, cx=cx, cy=cy, dist=dist)
 
 
 def orbit(camera, yaw_deg: float, pitch_deg: float):
