@@ -65,11 +65,16 @@ def _cost_lines(values: list[g2.ConvergedValue]) -> list[str]:
     return lines
 
 
+def _cell(v: g2.ConvergedValue) -> str:
+    """``value ± error`` with the highest N and the fitted power (``!`` where the power ran to its bound)."""
+    flag = "!" if v.limit.fit.power_at_bound else ""
+    return f"{v.limit.value:.4f} ± {v.limit.error:.4f} (N<={max(v.orders)}, p {v.limit.fit.power:.1f}{flag})"
+
+
 def gold2d_markdown(cache: SolveCache) -> str:
     """The converged-value table (markdown) and the reciprocity checks, as docs/gold2d_convergence.md shows them."""
     values = g2.converged_table(cache)
-    lines = ["| nm | theta | pol | quantity | li (N <= max) | nv (N <= max) | li - nv | bars overlap |",
-             "|---|---|---|---|---|---|---|---|"]
+    lines = ["| nm | theta | pol | quantity | li | nv | li - nv | bars overlap |", "|---|---|---|---|---|---|---|---|"]
     for v in values:
         if v.rule != "li":
             continue
@@ -78,18 +83,25 @@ def gold2d_markdown(cache: SolveCache) -> str:
         gap = v.limit.value - w.limit.value
         overlap = abs(gap) <= v.limit.error + w.limit.error
         pol = "s = p" if v.theta_deg == 0 else v.pol
-        lines.append(f"| {v.wavelength_nm:g} | {v.theta_deg:g} | {pol} | {v.quantity} | {v.limit.value:.4f} ± "
-                     f"{v.limit.error:.4f} ({max(v.orders)}) | {w.limit.value:.4f} ± {w.limit.error:.4f} ({max(w.orders)}) "
+        lines.append(f"| {v.wavelength_nm:g} | {v.theta_deg:g} | {pol} | {v.quantity} | {_cell(v)} | {_cell(w)} "
                      f"| {gap:+.4f} | {'yes' if overlap else 'no'} |")
-    lines += ["", "Reciprocity, order (1, 0) from 30 deg against its reciprocal incidence (extrapolated over N = 9..35):", "",
-              "| nm | rule | pol | side | forward | backward | difference | within the bars |",
-              "|---|---|---|---|---|---|---|---|"]
+    lines += ["", "Reciprocity, order (1, 0) from 30 deg against its reciprocal incidence (extrapolated over N = 9..35; "
+              "'at 35': the two at N = 35):", "",
+              "| nm | rule | pol | side | forward | backward | difference | within the bars | difference at 35 |",
+              "|---|---|---|---|---|---|---|---|---|"]
     for c in g2.reciprocity(cache):
         lines.append(f"| {c.wavelength_nm:g} | {c.rule} | {c.pol} | {c.side} | {c.forward.value:.5f} ± {c.forward.error:.5f} "
                      f"| {c.backward.value:.5f} ± {c.backward.error:.5f} | {c.difference:.5f} | "
-                     f"{'yes' if c.within_errors else 'no'} |")
+                     f"{'yes' if c.within_errors else 'no'} | {abs(c.forward.last_value - c.backward.last_value):.5f} |")
     return "\n".join(lines + ["", "Cost of one solve (s and p; at normal incidence s only, p by the diagonal mirror):", ""]
                      + _cost_lines(values))
+
+
+def published_literal(cache: SolveCache) -> str:
+    """The converged values as the Python dict tests/rcwa/test_gold2d_convergence.py holds them to."""
+    rows = [f"    ({v.wavelength_nm!r}, {v.theta_deg!r}, {v.pol!r}, {v.quantity!r}, {v.rule!r}): "
+            f"({v.limit.value:.6f}, {v.limit.error:.6f})," for v in g2.converged_table(cache)]
+    return "PUBLISHED = {\n" + "\n".join(rows) + "\n}"
 
 
 def main(argv: list[str] | None = None) -> None:
@@ -97,10 +109,12 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--max-orders", type=int, default=CurveConfig.max_orders, help="gold2d curve's highest N")
     parser.add_argument("--gold2d-table", action="store_true", help="print the converged-value table (markdown)")
     parser.add_argument("--solve-cache", default=None, help="the raw-solve cache (JSON)")
+    parser.add_argument("--published-literal", action="store_true",
+                        help="print the converged values as the heavy test's PUBLISHED dict")
     args = parser.parse_args(argv)
     cache = g2.open_cache(args.solve_cache)
-    if args.gold2d_table:
-        print(gold2d_markdown(cache))
+    if args.gold2d_table or args.published_literal:
+        print(gold2d_markdown(cache) if args.gold2d_table else published_literal(cache))
         return
     points = lamellar_tm_study()
     _print(points, "Metallic lamellar grating, TM, Littrow order (reference: Li rule, 801 harmonics)")

@@ -41,7 +41,7 @@ QUANTITIES = ("T_total", "T00", "R_total")
 DENSE_ORDERS = tuple(range(9, 37, 2))
 HIGH_ORDERS = {(550.0, 0.0): tuple(range(37, 63, 2)), (450.0, 0.0): tuple(range(37, 53, 2)),
                (650.0, 0.0): tuple(range(37, 53, 2)),
-               **{(wl, 30.0): (37, 39, 41) for wl in WAVELENGTHS_NM}}
+               **{(wl, 30.0): tuple(range(37, 49, 2)) for wl in WAVELENGTHS_NM}}
 TAIL = 6  # truncations per parity class in the primary fit
 
 
@@ -149,14 +149,14 @@ class ReciprocityCheck:
         return self.difference <= self.forward.error + self.backward.error
 
 
-def reciprocity(cache: SolveCache, orders: tuple[int, ...] = DENSE_ORDERS,
-                wavelengths: tuple[float, ...] = WAVELENGTHS_NM) -> list[ReciprocityCheck]:
+def reciprocity(cache: SolveCache, orders: tuple[int, ...] = DENSE_ORDERS, wavelengths: tuple[float, ...] = WAVELENGTHS_NM,
+                rules: tuple[str, ...] = RULES) -> list[ReciprocityCheck]:
     """Order (1, 0) from (theta = 30, phi = 0) against its reciprocal incidence (module docstring), extrapolated."""
     checks = []
     for wl in wavelengths:
         a = Direction(wl, 30.0)
         b, m_b = reverse_direction(wl)
-        for rule in RULES:
+        for rule in rules:
             fa, fb = sequence(cache, a, rule, orders), sequence(cache, b, rule, orders)
             for i, pol in enumerate(POLARIZATIONS):
                 for side in ("R", "T"):

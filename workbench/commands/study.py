@@ -30,8 +30,9 @@ def add_parser(commands: argparse._SubParsersAction) -> None:
     study_rcwa.add_argument("structure", help=STRUCTURE_HELP)
     study_rcwa.add_argument("--out", required=True, metavar="DIR", help="folder for the JSON, CSV and figures")
     study_rcwa.add_argument("--max-orders", type=count_argument(MIN_CURVE_ORDERS), default=CurveConfig.max_orders,
-                            metavar="N", help=f"2D: the highest truncation N x N, odd (default {CurveConfig.max_orders}; "
-                                              "each step up costs ~(N+2)^6/N^6: 35 takes minutes, 51 an hour)")
+                            metavar="N", help=f"2D: the highest truncation N x N, odd (default {CurveConfig.max_orders}: "
+                                              "about a minute with a cold cache; 41: about 8 minutes, 51: about half "
+                                              "an hour)")
     study_rcwa.add_argument("--solve-cache", metavar="FILE", default=None,
                             help="2D: the JSON file of cached raw solves (default: NAME_raw.json in "
                                  "$RCWA_CONVERGENCE_CACHE, else in the workbench cache's convergence/ folder)")
