@@ -25,7 +25,7 @@ def add_parser(commands: argparse._SubParsersAction) -> None:
                         help="report: sample each region until what the report measures there is good enough (the CD's "
                              "band edges to 0.1 px, rendered as its own crop, at most 1024 spp (draft) or 4096 (paper); "
                              "the walls' photometric scale to 0.2 %%; 64 spp elsewhere; the preset's spp caps the frame); "
-                             "the sidecar records each region's spp and noise")
+                             "the sidecar records each region's spp and noise (default: none, the fixed render)")
     render.add_argument("--resolution", type=resolution_argument, metavar="WxH", help="image size (default: the preset's)")
     render.add_argument("--integrator", choices=["path", "direct"], default="path",
                         help="path: global illumination; direct: light sources only, as the paper's second mode")

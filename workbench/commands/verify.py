@@ -33,7 +33,8 @@ def add_parser(commands: argparse._SubParsersAction) -> None:
                              "to what the report measures there (`render --target report`; the frame at most 256 and "
                              "2045 spp)")
     verify.add_argument("--spp", type=count_argument(1), metavar="N",
-                        help="render this many samples per pixel everywhere instead (the fixed render: draft 256, paper 2045)")
+                        help="render this many samples per pixel everywhere instead (the fixed render: draft 256, paper "
+                             "2045; default: each region to what the report needs, render --target report)")
     verify.add_argument("--photo", action="append", default=[], metavar="NAME",
                         help="render and report only this photo of photos/ (repeatable; default: every photo)")
     verify.add_argument("--seed", type=count_argument(0, SEED_MAX), default=0, help="the render's random seed")
