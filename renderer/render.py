@@ -25,7 +25,6 @@ from __future__ import annotations
 import hashlib
 import json
 import math
-import os
 import time
 from collections.abc import Iterator
 from dataclasses import dataclass, replace
@@ -45,7 +44,7 @@ from renderer.tables import table_keys
 from renderer.variant import set_variant
 from workbench.core.errors import UserInputError
 from workbench.core.files import atomic_write as _atomic
-from workbench.core.files import atomic_write_text, file_sha256
+from workbench.core.files import atomic_write_npz, atomic_write_text, file_sha256
 from workbench.core.timing import timed
 from workbench.core.version import __version__ as workbench_version
 from workbench.core.version import versions
@@ -153,7 +152,7 @@ def _fixed_passes(mi, scene_d: dict, passes: _Passes, partial: Path, key: str, e
         image = np.asarray(image, np.float64)
         total = image if total is None else total + image
         total_sq = image**2 if total_sq is None else total_sq + image**2
-        _atomic_npz(partial, total=total, total_sq=total_sq, done=p + 1, key=key)
+        atomic_write_npz(partial, total=total, total_sq=total_sq, done=p + 1, key=key)
         pass_seconds.append(seconds)
         bar.update(1)
     bar.close()
@@ -426,12 +425,5 @@ def _resume(partial: Path, key: str):
     return None, None, 0
 
 
-def _atomic_npz(path: Path, **arrays) -> None:
-    def write(tmp: Path) -> None:
-        with open(tmp, "wb") as f:
-            np.savez(f, **arrays)
-            f.flush()
-            os.fsync(f.fileno())
-    _atomic(path, write)
 
 

@@ -56,7 +56,6 @@ from __future__ import annotations
 
 import json
 import math
-import os
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -67,7 +66,7 @@ import numpy as np
 
 from renderer.camera import CameraModel, PinholePlan
 from renderer.regions import WALL_REGIONS
-from workbench.core.files import atomic_write
+from workbench.core.files import atomic_write_npz
 
 TARGETS = ("report",)
 EDGE_SIGMA_PX = 0.1  # a third of reports.fringes.EDGE_SIGMA_MAX_PX (0.35), issue 28
@@ -238,9 +237,9 @@ class State:
         counts = np.array([self.frame_done, self.frame_goal, self.crop_done, self.crop_goal, int(self.complete)])
         common = {"key": np.array(self.key), "counts": counts, "checks": np.array(json.dumps(self.checks))}
         if self.crop_done == 0:
-            _write_npz(path, common | {"frame_total": self.frame_total, "frame_sq": self.frame_sq})
+            atomic_write_npz(path, **common, frame_total=self.frame_total, frame_sq=self.frame_sq)
         else:
-            _write_npz(crop_path(path), common | {"crop_total": self.crop_total, "crop_sq": self.crop_sq})
+            atomic_write_npz(crop_path(path), **common, crop_total=self.crop_total, crop_sq=self.crop_sq)
 
     @classmethod
     def load(cls, path: Path, key: str) -> State:
@@ -267,13 +266,6 @@ def crop_path(path: Path) -> Path:
     return path.with_name(path.name.removesuffix(".npz") + ".crop.npz")
 
 
-def _write_npz(path: Path, arrays: dict[str, Any]) -> None:
-    def write(tmp: Path) -> None:
-        with open(tmp, "wb") as f:
-            np.savez(f, **arrays)
-            f.flush()
-            os.fsync(f.fileno())
-    atomic_write(path, write)
 
 
 def _read_npz(path: Path, key: str, names: tuple[str, ...]) -> dict[str, Any] | None:

@@ -280,11 +280,12 @@ def synthetic_dataset(tmp_path_factory) -> Path:
     return shared(tmp_path_factory, SEED)
 
 
-def calibrated_dataset(tmp_path_factory) -> tuple[Path, dict, dict]:
-    """`calibrate DATASET` on a copy of the dataset without its truth: (out, calibration.json, truth.json)."""
+def calibrated_dataset(tmp_path_factory, dataset: Path | None = None) -> tuple[Path, dict, dict]:
+    """`calibrate DATASET` on a copy of the dataset (default: the shared seed-0 one) without its
+    truth, once per session: (out, calibration.json, truth.json)."""
     from calibration.dataset import calibrate_dataset
 
-    dataset = synthetic_dataset(tmp_path_factory)
+    dataset = dataset or synthetic_dataset(tmp_path_factory)
     out = dataset.parent / "calibrated"
     if not (out / "calibration.json").exists():
         blind = dataset.parent / "photos-only"

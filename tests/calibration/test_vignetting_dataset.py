@@ -35,18 +35,8 @@ SCALE_AFTER = 0.02       # the report's walls scale, render x falloff against th
 
 @pytest.fixture(scope="module")
 def vignetted(tmp_path_factory) -> tuple[Path, Path, dict, dict]:
-    from calibration.dataset import calibrate_dataset
-
     dataset = synthetic_dataset(tmp_path_factory, 0, vignetting=POWERS)
-    out = dataset.parent / "calibrated"
-    if not (out / "calibration.json").exists():
-        blind = dataset.parent / "photos-only"
-        blind.mkdir(exist_ok=True)
-        for sub in ("photos", "brackets", "calibration"):
-            if not (blind / sub).exists():
-                (blind / sub).symlink_to(dataset / sub, target_is_directory=True)
-        calibrate_dataset(blind, "cornell_cd", out, progress=False)
-    return dataset, out, json.loads((out / "calibration.json").read_text()), json.loads((dataset / "truth.json").read_text())
+    return (dataset, *calibrated_dataset(tmp_path_factory, dataset))
 
 
 def _true_corners(truth: dict) -> dict[str, np.ndarray]:

@@ -59,7 +59,7 @@ def test_an_interrupted_render_resumes_and_says_so(mitsuba_variant, tmp_path, mo
     settings = TINY | {"spp": 128}
     clean = render("cornell_cd", tmp_path / "clean.exr", **settings)
     assert clean["passes"] == 4
-    save = module._atomic_npz
+    save = module.atomic_write_npz
     calls = []
 
     def save_then_stop(*args, **kwargs):
@@ -67,10 +67,10 @@ def test_an_interrupted_render_resumes_and_says_so(mitsuba_variant, tmp_path, mo
         calls.append(1)
         raise KeyboardInterrupt
 
-    monkeypatch.setattr(module, "_atomic_npz", save_then_stop)
+    monkeypatch.setattr(module, "atomic_write_npz", save_then_stop)
     with pytest.raises(KeyboardInterrupt):
         render("cornell_cd", tmp_path / "r.exr", **settings)
-    monkeypatch.setattr(module, "_atomic_npz", save)
+    monkeypatch.setattr(module, "atomic_write_npz", save)
     assert not (tmp_path / "r.exr").exists() and (tmp_path / "r.exr.partial.npz").exists()
     info = render("cornell_cd", tmp_path / "r.exr", **settings)
     assert info["resumed_passes"] == 1 and "resumed after 1 of 4 passes" in summary(info)

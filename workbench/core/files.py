@@ -27,6 +27,18 @@ def atomic_write(path: str | Path, write: Callable[[Path], None]) -> Path:
     return path
 
 
+def atomic_write_npz(path: str | Path, **arrays) -> Path:
+    """numpy.savez of ``arrays`` to ``path``, synced to disk before the rename (a checkpoint survives a crash)."""
+    import numpy as np  # deferred: the kernel's other writers need no numpy
+
+    def write(tmp: Path) -> None:
+        with open(tmp, "wb") as f:
+            np.savez(f, **arrays)
+            f.flush()
+            os.fsync(f.fileno())
+    return atomic_write(path, write)
+
+
 def atomic_write_text(path: str | Path, text: str, *, sync: bool = False) -> Path:
     """Write ``text`` atomically; ``sync`` flushes it to disk before the rename."""
     def write(tmp: Path) -> None:
