@@ -46,6 +46,7 @@ from calibration.images import grey_unit
 from calibration.intrinsics_fit import CRITERIA, FEW_VIEWS, MIN_VIEWS, fit_without_outliers, held_out_rms
 from calibration.lens_choice import ModelChoice, choose_model
 from calibration.lens_models import MODEL_CHOICES
+from calibration.projection_uncertainty import PNG_SCALE, Camera, ProjectionUncertainty, assess, write_map_png
 from renderer.lens import LENS_MODELS
 from workbench.core.errors import UserInputError
 from workbench.core.files import atomic_write_text
@@ -88,6 +89,7 @@ class Calibration:
     model: str = "pinhole"               # renderer.lens.LENS_MODELS
     xi: float = 0.0                      # Mei's xi (omnidir)
     choice: ModelChoice | None = None    # how --model auto chose
+    uncertainty: ProjectionUncertainty | None = None   # the projection uncertainty map and cross-validation diff
 
     @property
     def found(self) -> list[str]:
@@ -105,7 +107,8 @@ class Calibration:
                 "warnings": list(self.warnings), "model": self.model,
                 "coefficients": list(LENS_MODELS[self.model].coefficients),
                 **({"xi": float(self.xi)} if self.model == "omnidir" else {}),
-                **({"model_choice": self.choice.to_json()} if self.choice is not None else {})}
+                **({"model_choice": self.choice.to_json()} if self.choice is not None else {}),
+                **(self.uncertainty.to_json() if self.uncertainty is not None else {})}
 
 
 def board_points(inner_corners: tuple[int, int], square_size_m: float) -> np.ndarray:
@@ -238,7 +241,7 @@ def _few_view_warnings(used: int, K: np.ndarray, std: np.ndarray) -> list[str]:
 def calibrate_board_views(paths: Sequence[str | Path], board_size: tuple[int, int], square_size_m: float,
                           image_size: tuple[int, int] | None = None, flags: int = cv2.CALIB_FIX_K3, *,
                           charuco: CharucoSpec | None = None, progress: bool = False,
-                          model: str = "pinhole") -> Calibration:
+                          model: str = "pinhole", with_uncertainty: bool = True) -> Calibration:
     """Find the board in each view and calibrate.
 
     ``board_size``: inner corners (cols, rows) of a checkerboard, or with ``charuco`` the
@@ -246,6 +249,8 @@ def calibrate_board_views(paths: Sequence[str | Path], board_size: tuple[int, in
     the side of a square. ``image_size``: (width, height) every view must have (default: the
     first view's). Needs the board in at least MIN_VIEWS views; warns under FEW_VIEWS.
     ``model``: a lens model of renderer.lens, or ``auto`` (calibration.lens_choice).
+    ``with_uncertainty``: the projection uncertainty map and the cross-validation diff
+    (calibration.projection_uncertainty) of the chosen model, under ``uncertainty``.
     """
     start = time.perf_counter()
     if not charuco:
@@ -272,17 +277,39 @@ def calibrate_board_views(paths: Sequence[str | Path], board_size: tuple[int, in
         if view.usable and not view.report.used:
             view.report.rms_px = held_out_rms(view.points, view.corners, K, dist, fit.model, fit.xi)
     warnings = _few_view_warnings(len(used), K, std) + warnings
+    fitted_s = time.perf_counter() - start - detected_s
+    uncertainty = assess(Camera(model, K, dist, fit.xi), [v.points for v in used], [v.corners for v in used], size,
+                         flags) if with_uncertainty else None
+    warnings += uncertainty.warnings if uncertainty is not None else []
     std_json = {"fx": float(std[0]), "fy": float(std[1]), "cx": float(std[2]), "cy": float(std[3]),
                 "dist": [float(s) for s in std[4:]], **({"xi": fit.xi_std} if model == "omnidir" else {})}
-    timings = {"detection_s": detected_s, "calibration_s": time.perf_counter() - start - detected_s,
+    timings = {"detection_s": detected_s, "calibration_s": fitted_s,
+               "uncertainty_s": uncertainty.seconds if uncertainty is not None else 0.0,
                "total_s": time.perf_counter() - start}
     return Calibration(K, dist, std_json, fit.rms_px, size[0], size[1], [v.report for v in views], flags,
-                       [v.corners for v in used], [v.points for v in used], timings, warnings, model, fit.xi, choice)
+                       [v.corners for v in used], [v.points for v in used], timings, warnings, model, fit.xi, choice,
+                       uncertainty)
+
+
+def _write_maps(uncertainty: ProjectionUncertainty, out: Path, record: dict[str, Any]) -> None:
+    """The projection uncertainty map and the first split's cross-validation diff as 16-bit PNGs beside
+    ``out`` (OUT.projection_uncertainty.png, OUT.cross_validation_diff.png), named in ``record``."""
+    scale = f"grid-node values: px = value / {PNG_SCALE:g}; 65535 = over range or no ray through the pixel"
+    maps = [("projection_uncertainty", uncertainty.map.std_px)]
+    if uncertainty.cross_validation is not None:
+        maps.append(("cross_validation", uncertainty.cross_validation.splits[0].diff_px))
+    for key, values in maps:
+        name = f"{out.stem}.{'cross_validation_diff' if key == 'cross_validation' else key}.png"
+        write_map_png(out.with_name(name), values)
+        record[key].update({"image": name, "image_scale": scale})
 
 
 def write_intrinsics(calibration: Calibration, out: str | Path, settings: dict[str, Any]) -> dict[str, Any]:
-    """intrinsics.json: the result, the settings, versions and timings; written atomically."""
+    """intrinsics.json: the result, the settings, versions and timings; written atomically. With
+    the calibration's uncertainty, its maps beside it (``_write_maps``)."""
     record = {**calibration.to_json(), "settings": settings, "versions": versions(), "timings": calibration.timings}
+    if calibration.uncertainty is not None:
+        _write_maps(calibration.uncertainty, Path(out), record)
     atomic_write_text(out, json.dumps(record, indent=2) + "\n")
     return record
 
