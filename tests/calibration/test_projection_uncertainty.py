@@ -5,7 +5,7 @@ Synthetic corners as tests/calibration/lens_views.py draws them (exact projectio
 known camera plus Gaussian noise), and the real Bumblebee2 views:
 
 * the intrinsics' covariance (poses marginalised) gives OpenCV's own standard deviations, with
-  the fit's flags holding parameters;
+  the fit's flags holding parameters (a fixed aspect ratio ties fx to fy);
 * the predicted uncertainty covers the cross-validation diff of a pinhole camera within a
   factor of 2 (the geometric mean over SEEDS draws: one draw's ratio spreads widely, measured
   0.34-2.23 over 12 seeds, so a single seed would test the draw, not the prediction);
@@ -53,6 +53,17 @@ def test_the_covariance_gives_opencvs_standard_deviations(flags):
     free = opencv_std > 0
     assert np.allclose(ours[free], opencv_std[free], rtol=1e-3)
     assert np.all(ours[~free] == 0.0)        # held parameters (k3; p1, p2 radial-only) carry no variance
+
+
+def test_a_fixed_aspect_ratio_moves_fx_and_fy_together():
+    # OpenCV states the tied focal length's std on fy alone (fx's reads 0); here both carry it (aspect 1)
+    flags = cv2.CALIB_FIX_K3 | cv2.CALIB_FIX_ASPECT_RATIO
+    points, corners = corner_views(*PINHOLE, SIZE, 10, seed=3)
+    camera, opencv_std = _fit(points, corners, flags, "pinhole")
+    ours = pu.intrinsics_covariance(camera, points, corners, flags)
+    assert opencv_std[0] == 0.0 and ours.std[0] == pytest.approx(opencv_std[1], rel=1e-3)
+    assert ours.std[1] == pytest.approx(opencv_std[1], rel=1e-3)
+    assert ours.matrix[0, 1] == pytest.approx(ours.std[0] * ours.std[1], rel=1e-6)   # fully correlated
 
 
 def test_the_predicted_uncertainty_covers_the_cross_validation_diff():
