@@ -21,6 +21,11 @@ each): ``model`` names one, or ``auto`` chooses by held-out views (calibration.l
 records the scores and why in intrinsics.json ``model_choice``. Outlier views are then left out
 under the chosen model.
 
+Uncertainty (calibration.projection_uncertainty, mrcal's practice): the chosen model's projection
+uncertainty map and cross-validation diff, in intrinsics.json ``projection_uncertainty`` and
+``cross_validation`` and as 16-bit PNGs beside it (OUT.projection_uncertainty.png,
+OUT.cross_validation_diff.png); a model too poor for the data is a warning.
+
 Distortion terms of the pinhole: OpenCV's flags choose them; the command's ``--no-tangential`` holds p1, p2
 at 0 (CALIB_ZERO_TANGENT_DIST) and ``--fit-k3`` frees k3, so a calibration can use the
 same model as another tool's (BoofCV's "radial 2, tangential false" is k1, k2 alone).
