@@ -201,6 +201,20 @@ def fit_photos(photos: list[Path], spec, intrinsics: dict | None, inverse: Calla
     return results
 
 
+def lens_uncertainty_summary(intrinsics: dict) -> dict:
+    """calibration.json's digest of intrinsics.json's projection uncertainty and cross-validation
+    (calibration.projection_uncertainty): the map's std at the centre, corners and median, the diff's medians."""
+    unc, cross = intrinsics.get("projection_uncertainty") or {}, intrinsics.get("cross_validation") or {}
+    out: dict = {}
+    if "std_px" in unc:
+        out["projection_uncertainty_px"] = unc["std_px"]
+    if "diff_px" in cross:
+        out["cross_validation"] = {"diff_median_px": cross["diff_px"]["median"],
+                                   "predicted_median_px": cross["predicted_px"]["median"],
+                                   "pooled_ratio": cross["splits"]["pooled_ratio"], "too_poor": cross.get("too_poor")}
+    return out
+
+
 def held_intrinsics(intrinsics: dict) -> dict:
     """intrinsics.json's record as the pose fit holds it: the pinhole's dist padded to its five
     coefficients (older files wrote four), every other lens model's as written."""
@@ -234,6 +248,7 @@ def _record(dataset, scene, spec, files, intrinsics, response, results, settings
         "response": _response_summary(response),
         "intrinsics": {"source": intrinsics["source"], "model": intrinsics.get("model", "pinhole"),
                        "model_choice": (intrinsics.get("model_choice") or {}).get("why"), "rms_px": intrinsics.get("rms_px"),
+                       **lens_uncertainty_summary(intrinsics),
                        "views": intrinsics.get("views"), "flags": intrinsics.get("flags")} if intrinsics
         else {"source": f"fitted on {next(iter(results))} (no board views in calibration/)"},
         "residuals": {name: {k: v for k, v in r.residuals.items()} for name, r in results.items()},

@@ -40,6 +40,7 @@ class FittedCamera:
     pose_key: str
     scene: str | None
     std: dict[str, Any] = field(default_factory=dict)
+    lens_uncertainty: dict[str, Any] = field(default_factory=dict)  # calibration.json's intrinsics digest, if any
 
     def summary(self) -> dict[str, Any]:
         m = self.model
@@ -48,7 +49,7 @@ class FittedCamera:
         return {"source": self.source, "pose_of": self.pose_key, "scene": self.scene, "width": m.width,
                 "height": m.height, "fx": m.fx, "fy": m.fy, "cx": m.cx, "cy": m.cy, "dist": list(m.dist),
                 "model": m.model, **({"xi": m.xi} if m.model == "omnidir" else {}), "fov_x_deg": fov_x,
-                "position_m": origin.tolist(), "std": self.std}
+                "position_m": origin.tolist(), "std": self.std, **self.lens_uncertainty}
 
 
 def _number(value: Any, where: str, source: str) -> float:
@@ -104,7 +105,11 @@ def read_camera(path: str | Path, photo_name: str) -> FittedCamera:
     model = CameraModel(int(values["width"]), int(values["height"]), values["fx"], values["fy"], values["cx"],
                         values["cy"], dist, _pose(poses[key], f"camera.world_to_camera.{key}", source), lens, xi)
     scene = data.get("scene")
-    return FittedCamera(model, source, key, str(scene) if scene is not None else None, _camera_std(data, block, key))
+    given = data.get("intrinsics")
+    intrinsics: dict = given if isinstance(given, dict) else {}
+    digest = {k: intrinsics[k] for k in ("projection_uncertainty_px", "cross_validation") if k in intrinsics}
+    return FittedCamera(model, source, key, str(scene) if scene is not None else None, _camera_std(data, block, key),
+                        digest)
 
 
 def _lens(block: dict, source: str) -> tuple[str, tuple[float, ...], float]:

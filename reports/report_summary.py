@@ -24,6 +24,9 @@ SUMMARY_TIPS = {
     "fitted camera": "calibration.json's camera with one standard deviation from its fit",
     "worst region (relative error, median)": "the region with the largest median |photo / render - 1| after the one "
                                              "photometric scale (table: error per region)",
+    "lens model and its uncertainty": "the board views' lens model (calibrate --model auto), the std of where a ray "
+                                      "lands from the fit's covariance (worst direction), and the cross-validation of "
+                                      "two fits from disjoint halves of the views (mrcal's practice)",
     "lens vignetting": "the lens's falloff towards the corners fitted by calibrate DATASET (the walls of every photo "
                        "against renders); when applied, the render is multiplied by it before every comparison",
     "regions at the calibrated exposure": "regions whose photo and render means agree within the z bound, from the "
@@ -65,6 +68,7 @@ def summary_block(report: dict[str, Any]) -> str:
     if regions:
         worst = max(regions, key=lambda name: regions[name])
         rows["worst region (relative error, median)"] = f"{worst}: {fmt(regions[worst], 3)}"
+    rows["lens model and its uncertainty"] = _lens_row(cal)
     rows["lens vignetting"] = _vignetting_row((report.get("photometric_scale") or {}).get("vignetting") or {})
     tested = (report.get("region_test") or {}).get("regions") or {}
     compared = {name: row for name, row in tested.items() if "z" in row}
@@ -74,6 +78,20 @@ def summary_block(report: dict[str, Any]) -> str:
             f"{len(compared) - len(flagged)} of {len(compared)} consistent (|z| <= "
             f"{fmt(report['region_test']['z_consistent'], 2)})" + ("; not: " + ", ".join(flagged) if flagged else ""))
     return "<section id='summary'>" + page.key_values(rows, tips=SUMMARY_TIPS) + "</section>"
+
+
+def _lens_row(cal: dict[str, Any]) -> str:
+    """The lens model, where a ray lands (the calibration's projection uncertainty), and its cross-validation."""
+    unc, cross = cal.get("projection_uncertainty_px"), cal.get("cross_validation")
+    text = cal.get("model", "pinhole")
+    if unc:
+        corners = max(unc[k] for k in ("top_left", "top_right", "bottom_left", "bottom_right"))
+        text += f"; a ray lands within +- {unc['centre']:.2f} px at the centre, {corners:.2f} px at the corners (1 std)"
+    if cross:
+        text += (f"; two halves of the board views differ by {cross['diff_median_px']:.2f} px (median) against "
+                 f"{cross['predicted_median_px']:.2f} predicted" + (": the model is too poor for the data"
+                                                                      if cross.get("too_poor") else ""))
+    return text
 
 
 def _vignetting_row(record: dict[str, Any]) -> str:

@@ -71,6 +71,22 @@ def test_calibration_json_layout(calibrated) -> None:
     assert "truth" not in json.dumps(result["files"])  # it read the three folders only
 
 
+@pytest.mark.slow
+def test_calibration_json_carries_the_lens_model_and_its_uncertainty(calibrated) -> None:
+    """The board views' lens model (auto keeps the pinhole of the synthetic camera) and the digest
+    of intrinsics.json's projection uncertainty and cross-validation (calibration.projection_uncertainty):
+    a ray is pinned best near the centre (the map's std there under its corners'), and two halves of
+    the views agree within twice their predicted difference (none of 30 synthetic pinhole seeds went
+    over: tests/calibration/test_projection_uncertainty.py)."""
+    _, result, _ = calibrated
+    intrinsics = result["intrinsics"]
+    assert intrinsics["model"] == "pinhole" and result["camera"]["model"] == "pinhole"
+    std = intrinsics["projection_uncertainty_px"]
+    assert 0 < std["centre"] < min(std[k] for k in ("top_left", "top_right", "bottom_left", "bottom_right"))
+    cross = intrinsics["cross_validation"]
+    assert cross["too_poor"] is False and 0 < cross["pooled_ratio"] < 2
+
+
 def expected_scale(truth: dict, photo: str) -> float:
     """The synthetic photo's normalised raw value per unit of the scene file's render (datasets_synthetic.sensor)."""
     sensor = truth["sensor"]

@@ -72,6 +72,21 @@ def add_intrinsics(steps: argparse._SubParsersAction) -> None:
     p.add_argument("--quiet", action="store_true", help="no progress bar")
 
 
+def uncertainty_line(record: dict) -> str:
+    """intrinsics.json's projection uncertainty and cross-validation diff in one line (calibration.projection_uncertainty)."""
+    unc, cross = record.get("projection_uncertainty"), record.get("cross_validation") or {}
+    if not unc:
+        return "projection uncertainty: not computed"
+    s = unc["std_px"]
+    corners = max(s[k] for k in ("top_left", "top_right", "bottom_left", "bottom_right"))
+    line = (f"projection uncertainty (worst direction, rays at infinity): centre {s['centre']:.2f}, median "
+            f"{s['median']:.2f}, corners up to {corners:.2f} px; ")
+    if "diff_px" not in cross:
+        return line + f"no cross-validation: {cross.get('skipped')}"
+    return line + (f"cross-validation diff median {cross['diff_px']['median']:.2f} px against "
+                   f"{cross['predicted_px']['median']:.2f} predicted (pooled ratio {cross['splits']['pooled_ratio']:.2f})")
+
+
 def run_intrinsics(args: argparse.Namespace) -> int:
     charuco = parse_charuco(args.charuco) if args.charuco else None
     flags = (0 if args.fit_k3 else cv2.CALIB_FIX_K3) | (cv2.CALIB_ZERO_TANGENT_DIST if args.no_tangential else 0)
@@ -92,6 +107,7 @@ def run_intrinsics(args: argparse.Namespace) -> int:
           f"dist {', '.join(f'{d:.4g}' for d in record['dist'])}" + (f", xi {record['xi']:.4g}" if "xi" in record else ""))
     choice = record.get("model_choice")
     print(f"model {record['model']}: " + (choice["why"] if choice else "as asked (--model)"))
+    print(uncertainty_line(record))
     for view in result.views:
         if not view.found:
             print(f"  {Path(view.file).name}: board not found, skipped")
