@@ -56,7 +56,7 @@ def _cost_lines(values: list[g2.ConvergedValue]) -> list[str]:
         nv = next(w for w in values if w.rule == "nv" and (w.wavelength_nm, w.theta_deg, w.pol, w.quantity) ==
                   (v.wavelength_nm, v.theta_deg, v.pol, v.quantity))
         for i, n in enumerate(v.orders):
-            if (v.wavelength_nm, v.theta_deg, n) in seen or (n < 25 and n not in (9, 15)):
+            if (v.wavelength_nm, v.theta_deg, n) in seen or (n not in (9, 15, 25, 35, 41, 51, 61) and n != max(v.orders)):
                 continue
             seen.add((v.wavelength_nm, v.theta_deg, n))
             gb = [f"{x / 1e9:.2f}" if x else "-" for x in (v.peak_rss_bytes[i], nv.peak_rss_bytes[i])]
