@@ -51,10 +51,12 @@ from calibration.board_file import BoardSpec, resolve_board
 from calibration.fitted_scene import fitted_scene_text
 from calibration.intrinsics import calibrate_board_views
 from calibration.photo import RAW_SUFFIXES, read_photo
+from calibration.photometric import cd_mask
 from calibration.pose_fit import FREE_RADIAL_TERMS, PoseSettings, Unknowns
 from calibration.pose_inputs import fit_renderer, start_camera
 from calibration.pose_outputs import PHOTOMETRY_NOTE, json_default, result_json, versions
 from calibration.pose_photo import check_photo, fit_photo
+from calibration.projection_uncertainty import map_over
 from calibration.response import calibrate_response
 from calibration.scene_model import scene_model
 from calibration.vignetting_stage import vignetting_stage
@@ -201,13 +203,19 @@ def fit_photos(photos: list[Path], spec, intrinsics: dict | None, inverse: Calla
     return results
 
 
-def lens_uncertainty_summary(intrinsics: dict) -> dict:
+def lens_uncertainty_summary(intrinsics: dict, spec, results: dict) -> dict:
     """calibration.json's digest of intrinsics.json's projection uncertainty and cross-validation
-    (calibration.projection_uncertainty): the map's std at the centre, corners and median, the diff's medians."""
+    (calibration.projection_uncertainty): the map's std at the centre, corners and median, and over each
+    photo's CD (its top's annulus as calibration.photometric.cd_mask draws it at the fitted camera), the
+    diff's medians."""
     unc, cross = intrinsics.get("projection_uncertainty") or {}, intrinsics.get("cross_validation") or {}
     out: dict = {}
     if "std_px" in unc:
         out["projection_uncertainty_px"] = unc["std_px"]
+    if "map_px" in unc and spec.cds:
+        model = scene_model(spec)
+        out["projection_uncertainty_cd_px"] = {name: map_over(unc["map_px"], cd_mask(model, r.camera, 0.0))
+                                               for name, r in results.items()}
     if "diff_px" in cross:
         out["cross_validation"] = {"diff_median_px": cross["diff_px"]["median"],
                                    "predicted_median_px": cross["predicted_px"]["median"],
@@ -248,7 +256,7 @@ def _record(dataset, scene, spec, files, intrinsics, response, results, settings
         "response": _response_summary(response),
         "intrinsics": {"source": intrinsics["source"], "model": intrinsics.get("model", "pinhole"),
                        "model_choice": (intrinsics.get("model_choice") or {}).get("why"), "rms_px": intrinsics.get("rms_px"),
-                       **lens_uncertainty_summary(intrinsics),
+                       **lens_uncertainty_summary(intrinsics, spec, results),
                        "views": intrinsics.get("views"), "flags": intrinsics.get("flags")} if intrinsics
         else {"source": f"fitted on {next(iter(results))} (no board views in calibration/)"},
         "residuals": {name: {k: v for k, v in r.residuals.items()} for name, r in results.items()},

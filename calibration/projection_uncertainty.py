@@ -246,7 +246,29 @@ class UncertaintyMap:
                 "frame": "the camera rotation that best takes up each perturbation over the grid removed, as the "
                          "cross-validation removes the rotation between two fits",
                 "grid_step_px": float(self.us[1] - self.us[0]), "grid": [len(self.us), len(self.vs)],
-                "std_px": _summary(self.std_px), "fixed_frame_std_px": _summary(self.fixed_frame_px)}
+                "std_px": _summary(self.std_px), "fixed_frame_std_px": _summary(self.fixed_frame_px),
+                "map_px": {"u": self.us.tolist(), "v": self.vs.tolist(),
+                           "std": np.round(np.where(np.isfinite(self.std_px), self.std_px, -1.0), 5).tolist(),
+                           "note": "the map's grid nodes (rows v, columns u); -1 where no ray"}}
+
+
+def map_over(map_px: dict, mask: np.ndarray) -> dict[str, float] | None:
+    """Median and largest std (px) of a ``map_px`` record (UncertaintyMap.to_json) over the pixels
+    of ``mask`` (H, W), bilinear between the grid's nodes; None where the mask is empty."""
+    from scipy.interpolate import RegularGridInterpolator  # deferred: start-up time
+
+    rows, cols = np.nonzero(mask)
+    if rows.size == 0:
+        return None
+    std = np.asarray(map_px["std"], float)
+    std[std < 0] = np.nan
+    sample = RegularGridInterpolator((np.asarray(map_px["v"], float), np.asarray(map_px["u"], float)), std,
+                                     bounds_error=False, fill_value=np.nan)
+    values = sample(np.stack([rows, cols], axis=1).astype(float))
+    values = values[np.isfinite(values)]
+    if values.size == 0:
+        return None
+    return {"median": float(np.median(values)), "max": float(values.max()), "pixels": int(rows.size)}
 
 
 def uncertainty_map(camera: Camera, covariance: np.ndarray, size: tuple[int, int],

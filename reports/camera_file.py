@@ -108,6 +108,9 @@ def read_camera(path: str | Path, photo_name: str) -> FittedCamera:
     given = data.get("intrinsics")
     intrinsics: dict = given if isinstance(given, dict) else {}
     digest = {k: intrinsics[k] for k in ("projection_uncertainty_px", "cross_validation") if k in intrinsics}
+    over_cd = (intrinsics.get("projection_uncertainty_cd_px") or {}).get(key)
+    if isinstance(over_cd, dict):
+        digest["projection_uncertainty_cd_px"] = over_cd  # this photo's CD (calibration.dataset)
     return FittedCamera(model, source, key, str(scene) if scene is not None else None, _camera_std(data, block, key),
                         digest)
 

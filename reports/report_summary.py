@@ -86,7 +86,9 @@ def _lens_row(cal: dict[str, Any]) -> str:
     text = cal.get("model", "pinhole")
     if unc:
         corners = max(unc[k] for k in ("top_left", "top_right", "bottom_left", "bottom_right"))
-        text += f"; a ray lands within +- {unc['centre']:.2f} px at the centre, {corners:.2f} px at the corners (1 std)"
+        text += f"; a ray lands within +- {unc['centre']:.2f} px at the centre, {corners:.2f} px at the corners"
+        over_cd = cal.get("projection_uncertainty_cd_px")
+        text += (f", {over_cd['median']:.2f} px over the CD (at most {over_cd['max']:.2f})" if over_cd else "") + " (1 std)"
     if cross:
         text += (f"; two halves of the board views differ by {cross['diff_median_px']:.2f} px (median) against "
                  f"{cross['predicted_median_px']:.2f} predicted" + (": the model is too poor for the data"

@@ -85,6 +85,10 @@ def test_calibration_json_carries_the_lens_model_and_its_uncertainty(calibrated)
     assert 0 < std["centre"] < min(std[k] for k in ("top_left", "top_right", "bottom_left", "bottom_right"))
     cross = intrinsics["cross_validation"]
     assert cross["too_poor"] is False and 0 < cross["pooled_ratio"] < 2
+    # over each photo's CD: the map sampled between its nodes, within the map's own range (the CD lies inside it)
+    for name, over_cd in intrinsics["projection_uncertainty_cd_px"].items():
+        assert over_cd["pixels"] > 1000, name
+        assert 0 < over_cd["median"] <= over_cd["max"] <= std["max"] + 1e-9, (name, over_cd, std)
 
 
 def expected_scale(truth: dict, photo: str) -> float:

@@ -143,3 +143,24 @@ def test_the_real_bumblebee2_views_give_finite_numbers(tmp_path):
     assert png.dtype == np.uint16 and png.shape == result.uncertainty.map.std_px.shape
     assert np.allclose(png / pu.PNG_SCALE, result.uncertainty.map.std_px, atol=0.5 / pu.PNG_SCALE)  # rounding only
     assert json.loads((tmp_path / "intrinsics.json").read_text())["cross_validation"]["image"].endswith(".png")
+
+
+def test_the_map_is_read_between_its_nodes_over_a_region():
+    """calibration.projection_uncertainty.map_over: a map linear in u and v is read exactly between
+    its nodes (bilinear), nodes marked -1 (no ray) are left out, an empty region gives None."""
+    from calibration.projection_uncertainty import map_over
+
+    us, vs = np.linspace(0.0, 99.0, 7), np.linspace(0.0, 49.0, 5)
+    std = 0.01 * us[None, :] + 0.02 * vs[:, None]
+    record = {"u": us.tolist(), "v": vs.tolist(), "std": std.tolist()}
+    mask = np.zeros((50, 100), bool)
+    mask[10:20, 30:40] = True
+    out = map_over(record, mask)
+    rows, cols = np.nonzero(mask)
+    expected = 0.01 * cols + 0.02 * rows
+    assert out is not None and out["pixels"] == 100
+    assert out["median"] == pytest.approx(np.median(expected), abs=1e-12)
+    assert out["max"] == pytest.approx(expected.max(), abs=1e-12)
+    assert map_over(record, np.zeros((50, 100), bool)) is None
+    holed = {**record, "std": np.where(std > 1.0, -1.0, std).tolist()}
+    assert map_over(holed, np.ones((50, 100), bool))["max"] <= 1.0
