@@ -72,6 +72,10 @@ def squared_field_tangent(camera: CameraModel, shape: tuple[int, int] | None = N
     """The squared field tangent x of every pixel (H, W) for ``camera``'s fx, fy, cx, cy."""
     h, w = shape or (camera.height, camera.width)
     v, u = np.mgrid[0:h, 0:w].astype(np.float64)
+    return _field_x(camera, u, v)
+
+
+def _field_x(camera: CameraModel, u: np.ndarray, v: np.ndarray) -> np.ndarray:
     return ((u - camera.cx) / camera.fx) ** 2 + ((v - camera.cy) / camera.fy) ** 2
 
 
@@ -129,7 +133,7 @@ def corner_x(camera: CameraModel) -> np.ndarray:
     """The squared field tangent x at the image's four corner pixels (top-left, top-right, bottom-left, bottom-right)."""
     u = np.array([0.0, camera.width - 1.0, 0.0, camera.width - 1.0])
     v = np.array([0.0, 0.0, camera.height - 1.0, camera.height - 1.0])
-    return ((u - camera.cx) / camera.fx) ** 2 + ((v - camera.cy) / camera.fy) ** 2
+    return _field_x(camera, u, v)
 
 
 def fit_vignetting(tiles: dict[str, WallTiles], camera: CameraModel) -> dict:
