@@ -76,6 +76,16 @@ class SensorModel:
         return self.black_level + self.gain * mu, self.gain**2 * (mu + self.read_noise_e**2) + 1.0 / 12.0
 
 
+
+def auto_exposure(rgb: np.ndarray, sensor: SensorModel) -> float:
+    """An exposure time that puts the 99th percentile of ``rgb`` (linear camera RGB per second)
+    at 70 % of ``sensor``'s raw range (before the seeded 'off by a factor' the photographer
+    could not control, datasets_synthetic.synth)."""
+    level = np.percentile(rgb.max(axis=-1), 99.0)
+    usable = sensor.white_level - sensor.black_level
+    return float(0.7 * usable / (sensor.gain * sensor.electrons_per_unit * max(level, 1e-12)))
+
+
 def checked_vignetting(powers) -> tuple[float, float, float]:
     """``powers`` as SensorModel.vignetting_power, or a UserInputError naming --vignetting."""
     try:

@@ -8,7 +8,7 @@ Layout (other tools read it; DESIGN.md section 6)::
                                   ev-2 to ev+2 (for the response curve), and ev-4, ev-6 for the CD's bright orders
     DIR/calibration/board*.dng    a checkerboard held in the box in several poses, seen by view0's camera
                                   with its flash on
-    DIR/calibration/board.json    what that board is, as a photographer would note it (BOARD_FORMAT:
+    DIR/calibration/board.json    what that board is, as a photographer would note it (board_views.BOARD_FORMAT:
                                   kind, inner corners, square size in mm); ``calibrate DATASET`` reads it
     DIR/truth.json                the truth (never inside the photos)
     DIR/run.json                  settings, versions and timings of the run, and every file it wrote
@@ -51,7 +51,9 @@ ceiling light alone lit only boards turned up towards it. The draft preset rende
 0.4 % (one standard deviation, cv2.calibrateCameraExtended) even with the best corner
 refinement found; at 640 x 480 with 16 spp per board view (the flash's direct light
 is clean, so few samples do) it is 0.25 %, and the run takes about as long as 320 x 240
-with 64 spp per board view did (about a minute here).
+with 64 spp per board view did (about a minute here). The board views are rendered by
+datasets_synthetic.board_views with Mitsuba's direct-light integrator (why, and what it costs
+the board's photometry, there); the scene's photos with the scene's path tracer.
 """
 
 from __future__ import annotations
@@ -74,14 +76,15 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 from tqdm import tqdm
 
-from datasets_synthetic.board import BOARD_KEY, Checkerboard, corners_visible, sample_pose
+from datasets_synthetic.board import Checkerboard
+from datasets_synthetic.board_views import BOARD_INTEGRATOR, FLASH_W_PER_SR, board_description, calibration_set
 from datasets_synthetic.dng import DngMetadata, write_dng
 from datasets_synthetic.jpeg import develop, hidden_response, write_jpeg
-from datasets_synthetic.sensor import SensorModel, as_shot_neutral, checked_vignetting, xyz_to_camera
+from datasets_synthetic.sensor import SensorModel, as_shot_neutral, auto_exposure, checked_vignetting, xyz_to_camera
 from renderer.fit import FitRenderer
 from renderer.render import with_resolution
 from renderer.scene import load_scene
-from renderer.spectra import camera_sensitivities, irregular, light_spectrum
+from renderer.spectra import camera_sensitivities, light_spectrum
 from renderer.tables import table_keys
 from workbench.core.errors import UserInputError
 from workbench.core.files import atomic_write, atomic_write_text
@@ -98,10 +101,7 @@ BRACKET_EV = (-2, -1, 0, 1, 2)  # view0 re-exposed, 1 EV apart, RAW+JPEG: the re
 HIGHLIGHT_EV = (-4, -6)  # darker frames of view0 for the CD's first orders (30-60x the walls' level: clipped at ev-2);
 # taken after the board views, so the frames before them keep their noise draws
 ALL_BRACKET_EV = tuple(sorted(BRACKET_EV + HIGHLIGHT_EV))
-FLASH_KEY = "calibration_flash"
-FLASH_W_PER_SR = 20.0
 MARKER = "workbench-synthetic-dataset"
-BOARD_FORMAT = "workbench-board"
 WORK_SUFFIX = ".synth-partial"  # the work folder beside DIR: .DIR.synth-partial/{request.json, renders/, dataset/}
 WORK_FORMAT = "workbench-synthetic-dataset-work"
 LEGACY_LAYOUT = re.compile(  # the files of a dataset written before run.json listed them
@@ -247,7 +247,7 @@ def _checked_seed(seed: int, field: str) -> int:
 def _request_key(spec, seed: int, preset: str, settings: dict, render_seed: int) -> str:
     """What a dataset is of: the scene's text and tables, seeds, preset, workbench version."""
     request = {"scene": spec.text, "tables": table_keys(spec), "seed": seed, "preset": preset,
-               "render_seed": render_seed,
+               "render_seed": render_seed, "board_integrator": BOARD_INTEGRATOR,
                "settings": {k: list(v) if isinstance(v, tuple) else v for k, v in settings.items()},
                "version": workbench_version}
     return hashlib.sha256(json.dumps(request, sort_keys=True).encode()).hexdigest()
@@ -451,8 +451,8 @@ def _generate(spec, scene: str, out: Path, renders: _RenderStore, seeds: tuple[i
 
     tick = time.perf_counter()
     board = Checkerboard()
-    poses = _calibration_set(hidden, camera, board, p, light_scale, render_seed, writer, rng_board, rng_noise, bar,
-                             renders)
+    poses = calibration_set(hidden, camera, board, p, light_scale, partial(_frame_seed, render_seed), writer,
+                            (rng_board, rng_noise), bar, renders)
     atomic_write_text(out / "calibration" / "board.json", json.dumps(board_description(board), indent=2) + "\n")
     timings["calibration_s"] = time.perf_counter() - tick
     for ev in HIGHLIGHT_EV:
@@ -463,7 +463,8 @@ def _generate(spec, scene: str, out: Path, renders: _RenderStore, seeds: tuple[i
     truth["render_seed"] = render_seed
     atomic_write_text(out / "truth.json", json.dumps(truth, indent=2))
     timings["total_s"] = time.perf_counter() - started
-    _write_run_record(out, scene, seed, preset, p | {"render_seed": render_seed}, timings, renders.reused)
+    _write_run_record(out, scene, seed, preset, p | {"render_seed": render_seed, "board_integrator": BOARD_INTEGRATOR},
+                      timings, renders.reused)
     return truth
 
 
@@ -479,7 +480,7 @@ def _photos(hidden, camera, p: dict, light_scale: float, exposure_scale: float, 
                                                    rng_views.uniform(-3, 3))
         fit.set(camera=view_camera)
         rgb = renders.get(f"view{k}", partial(fit.render, seed=_frame_seed(render_seed, k)))
-        exposure_s = _auto_exposure(rgb, writer.sensor) * exposure_scale
+        exposure_s = auto_exposure(rgb, writer.sensor) * exposure_scale
         writer.capture("photos", f"view{k}", rgb, exposure_s, view_camera, rng_noise)
         if k == 0:
             view0 = (rgb, exposure_s)
@@ -509,41 +510,6 @@ def _truth(spec, seed: int, preset: str, camera, writer: _Writer, response, ligh
     }
 
 
-def _calibration_set(hidden, camera, board: Checkerboard, p: dict, light_scale: float, render_seed: int, writer: _Writer,
-                     rng_board, rng_noise, bar, renders: _RenderStore) -> dict[str, np.ndarray]:
-    """Board views from view0's camera, its flash on: seeded poses in which nothing hides the board."""
-    import mitsuba as mi  # deferred: start-up time
-
-    first = sample_pose(board, camera, rng_board, view=0)
-    fit = FitRenderer(hidden, resolution=(camera.width, camera.height), spp=p["calibration_spp"],
-                      extra_objects={BOARD_KEY: board.mitsuba_shape(mi, first), FLASH_KEY: _flash(hidden, camera)})
-    fit.set(light_power_scale=light_scale)
-    poses: dict[str, np.ndarray] = {}
-    pose = first
-    for i in range(p["calibration_views"]):
-        while True:
-            fit.move(BOARD_KEY, board.shape_matrix(pose))
-            if corners_visible(mi, fit.scene, board, pose, camera):
-                break
-            pose = sample_pose(board, camera, rng_board, view=i)
-        name = f"board{i:02d}"
-        rgb = renders.get(name, partial(fit.render, seed=_frame_seed(render_seed, 500 + i)))
-        writer.capture("calibration", name, rgb, _auto_exposure(rgb, writer.sensor), camera, rng_noise)
-        poses[f"{name}.dng"] = pose
-        if i + 1 < p["calibration_views"]:
-            pose = sample_pose(board, camera, rng_board, view=i + 1)
-        bar.update()
-    return poses
-
-
-def board_description(board: Checkerboard) -> dict:
-    """calibration/board.json: the board of the calibration views (the format
-    calibration.dataset reads: ``kind`` "checkerboard", ``inner_corners`` [cols, rows] as
-    OpenCV's patternSize counts them, ``square_mm``)."""
-    return {"format": BOARD_FORMAT, "kind": "checkerboard", "inner_corners": list(board.inner_corners),
-            "square_mm": round(board.square_size_m * 1000.0, 9)}
-
-
 def colour_tags(spec) -> dict:
     """The DNG colour tags of every file (datasets_synthetic.sensor): ``as_shot_neutral``, the
     scene camera's RGB of a white diffuse surface under the scene light's spectrum (the
@@ -564,17 +530,6 @@ def _frame_seed(seed: int, frame: int) -> int:
     return (seed * 1000 + frame) % 2**32
 
 
-def _flash(spec, camera) -> dict:
-    """The photographer's flash: a point light at the camera's centre with the scene light's
-    spectrum and radiant intensity FLASH_W_PER_SR (W/sr), so that it outshines the ceiling
-    light on the board (80 W/m^2 at 0.5 m, against about 25 W/m^2 at 35 cm from the
-    10 W ceiling light).
-    """
-    wl, s = light_spectrum(spec.light.spectrum)
-    centre = np.linalg.inv(camera.world_to_camera)[:3, 3]
-    return {"type": "point", "position": centre.tolist(), "intensity": irregular(wl, s * FLASH_W_PER_SR / np.trapezoid(s, wl))}
-
-
 def _write_run_record(out: Path, scene: str, seed: int, preset: str, settings: dict, timings: dict,
                       resumed_renders: int) -> None:
     """run.json: settings, timings, versions, and every file the run wrote (size, SHA-256),
@@ -585,12 +540,3 @@ def _write_run_record(out: Path, scene: str, seed: int, preset: str, settings: d
               "versions": versions("mitsuba", "drjit", "numpy"),
               "files": _dataset_files(out)}
     atomic_write_text(out / "run.json", json.dumps(record, indent=2, default=list))
-
-
-def _auto_exposure(rgb: np.ndarray, sensor: SensorModel) -> float:
-    """An exposure time that puts the 99th percentile at 70 % of the raw range (before the
-    seeded 'off by a factor' the photographer could not control).
-    """
-    level = np.percentile(rgb.max(axis=-1), 99.0)
-    usable = sensor.white_level - sensor.black_level
-    return float(0.7 * usable / (sensor.gain * sensor.electrons_per_unit * max(level, 1e-12)))

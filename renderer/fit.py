@@ -28,17 +28,18 @@ FOV_MARGIN = 1.15  # the wide render covers intrinsics up to 15 % shorter than t
 
 class FitRenderer:
     def __init__(self, scene, resolution: tuple[int, int] = FIT_RESOLUTION, spp: int = FIT_SPP, mode: str = "improved",
-                 extra_objects: dict | None = None) -> None:
+                 extra_objects: dict | None = None, integrator: str = "path", max_depth: int = 8) -> None:
         """``scene``: a built-in name, a TOML path, or a parsed renderer.scene.SceneSpec.
         ``extra_objects``: Mitsuba dicts by key, added to the scene (e.g. a calibration
-        board); ``move(key, to_world)`` repositions one in place."""
+        board); ``move(key, to_world)`` repositions one in place. ``integrator`` and
+        ``max_depth``: as renderer.mitsuba_scene.scene_dict (the scene's path tracer by default)."""
         set_variant()
         import mitsuba as mi  # deferred: after set_variant, and start-up time
 
         self.mi = mi
         spec = scene if isinstance(scene, SceneSpec) else load_scene(scene)
         self.spec = with_resolution(spec, resolution)
-        d, built = scene_dict(mi, self.spec, spp=spp, mode=mode)
+        d, built = scene_dict(mi, self.spec, spp=spp, mode=mode, integrator=integrator, max_depth=max_depth)
         plan = built["plan"]
         # A wider pinhole render, so that shorter focal lengths stay covered while fitting.
         self.wide_size = (int(plan.width * FOV_MARGIN) // 2 * 2, int(plan.height * FOV_MARGIN) // 2 * 2)
