@@ -26,9 +26,13 @@ uncertainty map and cross-validation diff, in intrinsics.json ``projection_uncer
 ``cross_validation`` and as 16-bit PNGs beside it (OUT.projection_uncertainty.png,
 OUT.cross_validation_diff.png); a model too poor for the data is a warning.
 
-Distortion terms of the pinhole: OpenCV's flags choose them; the command's ``--no-tangential`` holds p1, p2
-at 0 (CALIB_ZERO_TANGENT_DIST) and ``--fit-k3`` frees k3, so a calibration can use the
-same model as another tool's (BoofCV's "radial 2, tangential false" is k1, k2 alone).
+Distortion terms: OpenCV's flags bound them; the command's ``--no-tangential`` holds p1, p2
+at 0 (CALIB_ZERO_TANGENT_DIST) and ``--fit-k3`` lets k3 be fitted, so a calibration can use the
+same model as another tool's (BoofCV's "radial 2, tangential false" is k1, k2 alone). Within that
+bound the terms are chosen by held-out views (calibration.lens_choice.choose_terms; ``terms="all"``
+fits every term the flags free, as OpenCV does): intrinsics.json ``model_choice.terms`` gives the
+candidates, their scores and the chosen set; the fit, its standard deviations (0 for a held
+term), the outlier rule and the uncertainty maps are the chosen set's.
 """
 
 from __future__ import annotations
@@ -49,7 +53,7 @@ from calibration.corners import find_board_corners, validate_pattern
 from calibration.decode import decode, versions
 from calibration.images import grey_unit
 from calibration.intrinsics_fit import CRITERIA, FEW_VIEWS, MIN_VIEWS, fit_without_outliers, held_out_rms
-from calibration.lens_choice import ModelChoice, choose_model
+from calibration.lens_choice import ModelChoice, TermChoice, choose_model, choose_terms
 from calibration.lens_models import MODEL_CHOICES
 from calibration.projection_uncertainty import PNG_SCALE, Camera, ProjectionUncertainty, assess, write_map_png
 from renderer.lens import LENS_MODELS
@@ -64,6 +68,7 @@ POOR_FOCAL_REL = 0.01       # a focal length known to worse than 1 % (one std) i
 FLAG_NAMES = ("CALIB_USE_INTRINSIC_GUESS", "CALIB_FIX_ASPECT_RATIO", "CALIB_FIX_PRINCIPAL_POINT",
               "CALIB_ZERO_TANGENT_DIST", "CALIB_FIX_FOCAL_LENGTH", "CALIB_FIX_K1", "CALIB_FIX_K2", "CALIB_FIX_K3")
 UNSUPPORTED_FLAGS = ("CALIB_RATIONAL_MODEL", "CALIB_THIN_PRISM_MODEL", "CALIB_TILTED_MODEL")
+TERM_RULES = ("auto", "all")  # distortion terms chosen by held-out views, or every term the flags free
 
 
 @dataclass
@@ -95,6 +100,7 @@ class Calibration:
     xi: float = 0.0                      # Mei's xi (omnidir)
     choice: ModelChoice | None = None    # how --model auto chose
     uncertainty: ProjectionUncertainty | None = None   # the projection uncertainty map and cross-validation diff
+    terms: TermChoice | None = None      # which distortion terms were fitted, and why
 
     @property
     def found(self) -> list[str]:
@@ -112,8 +118,16 @@ class Calibration:
                 "warnings": list(self.warnings), "model": self.model,
                 "coefficients": list(LENS_MODELS[self.model].coefficients),
                 **({"xi": float(self.xi)} if self.model == "omnidir" else {}),
-                **({"model_choice": self.choice.to_json()} if self.choice is not None else {}),
+                **self._choice_json(),
                 **(self.uncertainty.to_json() if self.uncertainty is not None else {})}
+
+
+    def _choice_json(self) -> dict[str, Any]:
+        """``model_choice``: how the model was chosen (or that it was asked for) and its terms."""
+        if self.choice is None and self.terms is None:
+            return {}
+        record = self.choice.to_json() if self.choice is not None else {"model": self.model, "why": "as asked (--model)"}
+        return {"model_choice": record | ({"terms": self.terms.to_json()} if self.terms is not None else {})}
 
 
 def board_points(inner_corners: tuple[int, int], square_size_m: float) -> np.ndarray:
@@ -129,10 +143,13 @@ def flag_names(flags: int) -> list[str]:
     return [name for name in FLAG_NAMES if flags & getattr(cv2, name)]
 
 
-def _check_flags(flags: int, model: str) -> None:
+def _check_flags(flags: int, model: str, terms: str = "auto") -> None:
     if model not in MODEL_CHOICES:
         raise UserInputError("unknown lens model", field="--model", expected=f"one of {', '.join(MODEL_CHOICES)}",
                              got=model)
+    if terms not in TERM_RULES:
+        raise UserInputError("unknown rule for the distortion terms", field="terms",
+                             expected=f"one of {', '.join(TERM_RULES)}", got=terms)
     for name in UNSUPPORTED_FLAGS:
         if flags & getattr(cv2, name):
             raise UserInputError("lens models are chosen by name (the rational model: model='rational'), not by flags",
@@ -214,10 +231,11 @@ def _check_enough_views(views: list[_View], what: str) -> None:
                              got={"not found": missed} if missed else None)
 
 
-def _calibrate_without_outliers(views: list[_View], size: tuple[int, int], flags: int, model: str):
+def _calibrate_without_outliers(views: list[_View], size: tuple[int, int], flags: int, model: str,
+                                terms: tuple[str, ...] | None = None):
     """calibration.intrinsics_fit.fit_without_outliers on the views' corners; the views' reports
     get their RMS, whether used and why not. Returns the fit, the views used and warnings."""
-    robust = fit_without_outliers([v.points for v in views], [v.corners for v in views], size, flags, model)
+    robust = fit_without_outliers([v.points for v in views], [v.corners for v in views], size, flags, model, terms)
     for index, note in robust.notes.items():
         report = views[index].report
         report.note = "; ".join(n for n in (report.note, note) if n)
@@ -246,7 +264,7 @@ def _few_view_warnings(used: int, K: np.ndarray, std: np.ndarray) -> list[str]:
 def calibrate_board_views(paths: Sequence[str | Path], board_size: tuple[int, int], square_size_m: float,
                           image_size: tuple[int, int] | None = None, flags: int = cv2.CALIB_FIX_K3, *,
                           charuco: CharucoSpec | None = None, progress: bool = False,
-                          model: str = "pinhole", with_uncertainty: bool = True) -> Calibration:
+                          model: str = "pinhole", with_uncertainty: bool = True, terms: str = "auto") -> Calibration:
     """Find the board in each view and calibrate.
 
     ``board_size``: inner corners (cols, rows) of a checkerboard, or with ``charuco`` the
@@ -255,14 +273,16 @@ def calibrate_board_views(paths: Sequence[str | Path], board_size: tuple[int, in
     first view's). Needs the board in at least MIN_VIEWS views; warns under FEW_VIEWS.
     ``model``: a lens model of renderer.lens, or ``auto`` (calibration.lens_choice).
     ``with_uncertainty``: the projection uncertainty map and the cross-validation diff
-    (calibration.projection_uncertainty) of the chosen model, under ``uncertainty``.
+    (calibration.projection_uncertainty) of the chosen model, under ``uncertainty``. ``terms``:
+    ``auto`` chooses the distortion terms by held-out views (calibration.lens_choice.choose_terms),
+    ``all`` fits every term the flags free.
     """
     start = time.perf_counter()
     if not charuco:
         board_size = validate_pattern(board_size)
     if not square_size_m > 0:
         raise UserInputError("the square size must be positive", field="--square-mm", got=square_size_m)
-    _check_flags(flags, model)
+    _check_flags(flags, model, terms)
     files = [Path(p) for p in paths]
     if not files:
         raise UserInputError("no views given", field="IMAGE")
@@ -276,15 +296,20 @@ def calibrate_board_views(paths: Sequence[str | Path], board_size: tuple[int, in
     if model == "auto":
         choice = choose_model([v.points for v in usable], [v.corners for v in usable], size, flags)
         model = choice.model
-    fit, used, warnings = _calibrate_without_outliers(usable, size, flags, model)
+    term_choice = None
+    if terms == "auto":
+        known = choice.per_view.get(model) if choice is not None and choice.held_out else None
+        term_choice = choose_terms([v.points for v in usable], [v.corners for v in usable], size, flags, model, known)
+    fit, used, warnings = _calibrate_without_outliers(usable, size, flags, model,
+                                                      term_choice.chosen if term_choice is not None else None)
     K, dist, std = fit.K, fit.dist, fit.std
     for view in views:
         if view.usable and not view.report.used:
             view.report.rms_px = held_out_rms(view.points, view.corners, K, dist, fit.model, fit.xi)
     warnings = _few_view_warnings(len(used), K, std) + warnings
     fitted_s = time.perf_counter() - start - detected_s
-    uncertainty = assess(Camera(model, K, dist, fit.xi), [v.points for v in used], [v.corners for v in used], size,
-                         flags) if with_uncertainty else None
+    uncertainty = assess(Camera(model, K, dist, fit.xi, fit.terms), [v.points for v in used],
+                         [v.corners for v in used], size, flags) if with_uncertainty else None
     warnings += uncertainty.warnings if uncertainty is not None else []
     std_json = {"fx": float(std[0]), "fy": float(std[1]), "cx": float(std[2]), "cy": float(std[3]),
                 "dist": [float(s) for s in std[4:]], **({"xi": fit.xi_std} if model == "omnidir" else {})}
@@ -293,7 +318,7 @@ def calibrate_board_views(paths: Sequence[str | Path], board_size: tuple[int, in
                "total_s": time.perf_counter() - start}
     return Calibration(K, dist, std_json, fit.rms_px, size[0], size[1], [v.report for v in views], flags,
                        [v.corners for v in used], [v.points for v in used], timings, warnings, model, fit.xi, choice,
-                       uncertainty)
+                       uncertainty, term_choice)
 
 
 def _write_maps(uncertainty: ProjectionUncertainty, out: Path, record: dict[str, Any]) -> None:

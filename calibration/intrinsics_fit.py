@@ -65,11 +65,12 @@ class RobustFit:
 
 
 def fit_views(points: Sequence[np.ndarray], corners: Sequence[np.ndarray], size: tuple[int, int], flags: int,
-              model: str = "pinhole") -> Fit:
+              model: str = "pinhole", terms: Sequence[str] | None = None) -> Fit:
     """[Zhang 2000] through cv2.calibrateCameraExtended for the pinhole (the other lens models:
     calibration.lens_models.fit_model): board points (N, 3) and their corners (N, 1, 2) per
-    view, image ``size`` (width, height), OpenCV's calibration ``flags``."""
-    return fit_model(points, corners, size, flags, model)
+    view, image ``size`` (width, height), OpenCV's calibration ``flags``, the coefficients
+    ``terms`` fitted (default: those the flags leave free)."""
+    return fit_model(points, corners, size, flags, model, terms)
 
 
 def held_out_rms(points: np.ndarray, corners: np.ndarray, K: np.ndarray, dist: np.ndarray, model: str = "pinhole",
@@ -110,7 +111,8 @@ def _leave_one_out(points: list[np.ndarray], corners: list[np.ndarray], size: tu
     best: tuple[int, Fit] | None = None
     for k in range(len(points)):
         try:
-            rest = fit_views(points[:k] + points[k + 1:], corners[:k] + corners[k + 1:], size, flags, whole.model)
+            rest = fit_views(points[:k] + points[k + 1:], corners[:k] + corners[k + 1:], size, flags, whole.model,
+                             whole.terms)
         except UserInputError:
             continue
         if best is None or rest.rms_px < best[1].rms_px:
@@ -129,14 +131,14 @@ def _is_outlier(candidate: _Candidate | None) -> bool:
 
 
 def fit_without_outliers(points: Sequence[np.ndarray], corners: Sequence[np.ndarray], size: tuple[int, int],
-                         flags: int, model: str = "pinhole") -> RobustFit:
-    """Fit ``model`` (renderer.lens), dropping outlier views by the module docstring's rules, never
-    below MIN_VIEWS views."""
+                         flags: int, model: str = "pinhole", terms: Sequence[str] | None = None) -> RobustFit:
+    """Fit ``model`` (renderer.lens) with the coefficients ``terms`` (default: those the flags leave
+    free), dropping outlier views by the module docstring's rules, never below MIN_VIEWS views."""
     if len(points) < MIN_VIEWS:
         raise UserInputError(f"calibration needs at least {MIN_VIEWS} board views, got {len(points)}", field="IMAGE")
     kept = list(range(len(points)))
     notes: dict[int, str] = {}
-    current = fit_views(points, corners, size, flags, model)
+    current = fit_views(points, corners, size, flags, model, terms)
     while len(kept) > MIN_VIEWS:
         if len(kept) >= FEW_VIEWS:
             worst = int(np.argmax(current.per_view_px))
@@ -144,7 +146,7 @@ def fit_without_outliers(points: Sequence[np.ndarray], corners: Sequence[np.ndar
             if current.per_view_px[worst] <= threshold:
                 break
             notes[kept.pop(worst)] = _why(float(current.per_view_px[worst]), threshold, held_out=False)
-            current = fit_views([points[i] for i in kept], [corners[i] for i in kept], size, flags, model)
+            current = fit_views([points[i] for i in kept], [corners[i] for i in kept], size, flags, model, terms)
             continue
         found = _leave_one_out([points[i] for i in kept], [corners[i] for i in kept], size, flags, current)
         if found is None or not _is_outlier(found):

@@ -9,7 +9,8 @@ over the free intrinsics and all poses (renderer.lens.project_with_jacobian; omn
 central differences, as calibration.lens_models does), sigma^2 the residual sum of squares
 over the degrees of freedom left. The intrinsics' block of the inverse is their covariance
 with the poses marginalised. Parameters the fit holds (OpenCV's flags: k3 by default, p1 and
-p2 under --no-tangential, ...) have no variance.
+p2 under --no-tangential, ...; and the coefficients the term choice left out, Camera.terms) have
+no variance.
 
 Projection uncertainty. For each node of a grid over the image (every SAMPLE_STEP_PX pixels,
 corners and centre on it), the ray through the pixel under the nominal intrinsics is taken
@@ -57,7 +58,7 @@ import cv2
 import numpy as np
 from scipy.optimize import least_squares
 
-from calibration.lens_models import _pose_jacobian, fit_model, solve_pose
+from calibration.lens_models import _pose_jacobian, allowed_terms, fit_model, intrinsic_free, solve_pose
 from renderer.lens import LENS_MODELS, normalized, project, project_with_jacobian
 from workbench.core.errors import UserInputError
 
@@ -68,17 +69,18 @@ MIN_HALF_VIEWS = 3      # views each half needs to determine the intrinsics (int
 CV_SPLITS = 5           # splits of the views into halves (module docstring: one split is one draw of the noise)
 CV_SEED = 0             # the random splits' seed (the same views give the same record)
 XI_STEP = 1e-6          # central-difference step of xi's column (calibration.lens_models.XI_STEP)
-OPENCV_FIXED = {"CALIB_FIX_K1": 0, "CALIB_FIX_K2": 1, "CALIB_FIX_K3": 4}   # flag -> index in dist
 
 
 @dataclass
 class Camera:
-    """One lens model's intrinsics (renderer.lens)."""
+    """One lens model's intrinsics (renderer.lens); ``terms``: the coefficients fitted (None: those the
+    flags leave free, calibration.lens_models.allowed_terms)."""
 
     model: str
     K: np.ndarray
     dist: np.ndarray
     xi: float = 0.0
+    terms: tuple[str, ...] | None = None
 
     @property
     def size(self) -> int:
@@ -86,31 +88,22 @@ class Camera:
         return 4 + LENS_MODELS[self.model].count + (self.model == "omnidir")
 
 
-def _free_mask(model: str, flags: int) -> np.ndarray:
-    """Which entries of the intrinsic vector the fit frees (calibration.lens_models' flags per model)."""
-    count = LENS_MODELS[model].count
-    free = np.ones(4 + count + (model == "omnidir"), bool)
+def _free_mask(model: str, flags: int, terms: tuple[str, ...] | None = None) -> np.ndarray:
+    """Which entries of the intrinsic vector the fit frees: the coefficients ``terms`` (default: those
+    the flags leave free), and OpenCV's flags holding the focal length or principal point."""
+    free = intrinsic_free(model, allowed_terms(model, flags) if terms is None else terms)
     if model in ("pinhole", "rational"):
-        if model == "rational":
-            flags &= ~cv2.CALIB_FIX_K3
         if flags & cv2.CALIB_FIX_FOCAL_LENGTH:
             free[0:2] = False
         if flags & cv2.CALIB_FIX_PRINCIPAL_POINT:
             free[2:4] = False
-        if flags & cv2.CALIB_ZERO_TANGENT_DIST:
-            free[4 + 2:4 + 4] = False
-        for name, index in OPENCV_FIXED.items():
-            if flags & getattr(cv2, name):
-                free[4 + index] = False
-    elif model == "omnidir" and flags & cv2.CALIB_ZERO_TANGENT_DIST:
-        free[4 + 2:4 + 4] = False
     return free
 
 
 def free_parameters(camera: Camera, flags: int) -> np.ndarray:
     """T (full, free): the intrinsic vector's change is T times the free parameters' change.
     CALIB_FIX_ASPECT_RATIO ties fy to fx (one column moving both by fy/fx)."""
-    free = _free_mask(camera.model, flags)
+    free = _free_mask(camera.model, flags, camera.terms)
     tied = camera.model in ("pinhole", "rational") and bool(flags & cv2.CALIB_FIX_ASPECT_RATIO) and free[0]
     columns = []
     for i in np.flatnonzero(free):
@@ -340,6 +333,9 @@ class CrossValidation:
     def to_json(self) -> dict[str, Any]:
         first = self.splits[0]
         diff, predicted = _stats(first.diff_px), _stats(first.predicted_px)
+
+        def grid(values: np.ndarray) -> list:
+            return np.round(np.where(np.isfinite(values), values, -1.0), 5).tolist()
         return {"halves": "even and odd used views, each fitted alone", "views": [len(v) for v in first.views],
                 "diff": "the ray through a pixel under A projected under B, the best-fit rotation between the "
                         "frames removed (rays at infinity), px", "rotation_removed_deg": first.rotation_deg,
@@ -352,6 +348,9 @@ class CrossValidation:
                                   "pooled ratio is the RMS of the splits' median diffs over that of their medians "
                                   "predicted"},
                 "too_poor": self.too_poor, "poor_ratio": POOR_RATIO,
+                "map_px": {"u": self.us.tolist(), "v": self.vs.tolist(), "diff": grid(first.diff_px),
+                           "predicted": grid(first.predicted_px),
+                           "note": "the first split's maps at the grid nodes (rows v, columns u); -1 where no ray"},
                 **({"verdict": f"the halves differ by {self.ratio:.1f} x what the noise explains: the model is too "
                                "poor for the data"} if self.too_poor else {})}
 
@@ -367,16 +366,17 @@ def partitions(count: int, splits: int = CV_SPLITS) -> list[tuple[list[int], lis
 
 
 def _half(model: str, points: Sequence[np.ndarray], corners: Sequence[np.ndarray], size: tuple[int, int],
-          flags: int) -> tuple[Camera, np.ndarray]:
-    fit = fit_model(points, corners, size, flags, model)
-    half = Camera(fit.model, fit.K, fit.dist, fit.xi)
+          flags: int, terms: tuple[str, ...] | None) -> tuple[Camera, np.ndarray]:
+    fit = fit_model(points, corners, size, flags, model, terms)
+    half = Camera(fit.model, fit.K, fit.dist, fit.xi, fit.terms)
     return half, intrinsics_covariance(half, points, corners, flags).matrix
 
 
 def split_diff(model: str, points: Sequence[np.ndarray], corners: Sequence[np.ndarray], size: tuple[int, int],
-               flags: int, views: tuple[list[int], list[int]], step: float = SAMPLE_STEP_PX) -> SplitDiff:
-    """One split's diff map and predicted map (module docstring)."""
-    (a, cov_a), (b, cov_b) = (_half(model, [points[i] for i in h], [corners[i] for i in h], size, flags)
+               flags: int, views: tuple[list[int], list[int]], step: float = SAMPLE_STEP_PX,
+               terms: tuple[str, ...] | None = None) -> SplitDiff:
+    """One split's diff map and predicted map (module docstring), each half fitting ``terms``."""
+    (a, cov_a), (b, cov_b) = (_half(model, [points[i] for i in h], [corners[i] for i in h], size, flags, terms)
                               for h in views)
     pixels, shape = _grid_pixels(size, step)
     rays_a = rays_through(a, pixels)
@@ -390,14 +390,15 @@ def split_diff(model: str, points: Sequence[np.ndarray], corners: Sequence[np.nd
 
 
 def cross_validate(model: str, points: Sequence[np.ndarray], corners: Sequence[np.ndarray], size: tuple[int, int],
-                   flags: int, step: float = SAMPLE_STEP_PX, splits: int = CV_SPLITS) -> CrossValidation:
-    """The cross-validation diff (module docstring) of ``model`` on the views given; UserInputError
-    when either half has fewer than MIN_HALF_VIEWS views or cannot be fitted."""
+                   flags: int, step: float = SAMPLE_STEP_PX, splits: int = CV_SPLITS,
+                   terms: tuple[str, ...] | None = None) -> CrossValidation:
+    """The cross-validation diff (module docstring) of ``model`` fitting ``terms`` on the views given;
+    UserInputError when either half has fewer than MIN_HALF_VIEWS views or cannot be fitted."""
     if len(points) < 2 * MIN_HALF_VIEWS:
         raise UserInputError(f"a cross-validation needs {2 * MIN_HALF_VIEWS} views (two halves of "
                              f"{MIN_HALF_VIEWS}), got {len(points)}", field="IMAGE")
     us, vs = grid_axes(size, step)
-    return CrossValidation(us, vs, [split_diff(model, points, corners, size, flags, views, step)
+    return CrossValidation(us, vs, [split_diff(model, points, corners, size, flags, views, step, terms)
                                     for views in partitions(len(points), splits)])
 
 
@@ -427,7 +428,8 @@ def assess(camera: Camera, points: Sequence[np.ndarray], corners: Sequence[np.nd
     covariance = intrinsics_covariance(camera, points, corners, flags)
     result = ProjectionUncertainty(covariance, uncertainty_map(camera, covariance.matrix, size, step), None)
     try:
-        result.cross_validation = cross_validate(camera.model, points, corners, size, flags, step)
+        result.cross_validation = cross_validate(camera.model, points, corners, size, flags, step,
+                                                 terms=camera.terms)
     except UserInputError as error:
         result.cross_validation_note = error.reason
     if result.cross_validation is not None and result.cross_validation.too_poor:

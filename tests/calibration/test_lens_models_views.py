@@ -56,4 +56,4 @@ def test_wide_lens_board_images_calibrate(tmp_path, case, capsys):
         scores = record["model_choice"]["rms_px"]
         assert scores["pinhole"] > POOR_PINHOLE * scores["fisheye"] and record["fy"] == pytest.approx(K[1, 1], rel=FOCAL_REL)
     else:
-        assert "xi" in record and "xi" in record["std"] and "model_choice" not in record
+        assert "xi" in record and "xi" in record["std"] and record["model_choice"]["why"] == "as asked (--model)"

@@ -65,10 +65,12 @@ def add_intrinsics(steps: argparse._SubParsersAction) -> None:
                    help="the lens model: pinhole (OpenCV's k1, k2, p1, p2, k3), rational (k1..k6, p1, p2), fisheye "
                         "(Kannala-Brandt k1..k4), omnidir (Mei: xi, k1, k2, p1, p2), or auto: the simplest model whose "
                         "held-out-view RMS no richer model beats (default: auto)")
-    p.add_argument("--fit-k3", action="store_true", help="pinhole: fit k3 too (default: held at 0)")
+    p.add_argument("--fit-k3", action="store_true", help="pinhole: let k3 be fitted too where the held-out views "
+                   "support it (default: held at 0)")
     p.add_argument("--no-tangential", action="store_true",
                    help="hold the tangential terms p1, p2 at 0 (OpenCV's CALIB_ZERO_TANGENT_DIST): radial distortion "
-                        "only, as calibrations that report no tangential terms use (default: fitted)")
+                        "only, as calibrations that report no tangential terms use (default: fitted where the held-out views support "
+                        "them)")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
 
 
@@ -107,6 +109,8 @@ def run_intrinsics(args: argparse.Namespace) -> int:
           f"dist {', '.join(f'{d:.4g}' for d in record['dist'])}" + (f", xi {record['xi']:.4g}" if "xi" in record else ""))
     choice = record.get("model_choice")
     print(f"model {record['model']}: " + (choice["why"] if choice else "as asked (--model)"))
+    if choice and "terms" in choice:   # calibration.lens_choice.choose_terms
+        print(f"distortion terms {', '.join(choice['terms']['chosen'])}: {choice['terms']['why']}")
     print(uncertainty_line(record))
     for view in result.views:
         if not view.found:
