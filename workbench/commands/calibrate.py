@@ -69,8 +69,8 @@ def add_intrinsics(steps: argparse._SubParsersAction) -> None:
                    "support it (default: held at 0)")
     p.add_argument("--no-tangential", action="store_true",
                    help="hold the tangential terms p1, p2 at 0 (OpenCV's CALIB_ZERO_TANGENT_DIST): radial distortion "
-                        "only, as calibrations that report no tangential terms use (default: fitted where the held-out views support "
-                        "them)")
+                        "only, as calibrations that report no tangential terms use (default: fitted where the held-out "
+                        "views support them)")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
 
 
