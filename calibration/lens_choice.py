@@ -27,8 +27,10 @@ the 5 % margin they left cy 4.2 of its std from the truth, kept 2.0). TERM_T is 
 costs are unequal: a spurious term adds a little variance that the stated std carries, a dropped
 real one a bias that no std covers. The never-above-POOR_RMS_PX rule holds as for the models.
 The richest set's per-view errors are the model choice's own (the same folds and fits), so auto
-fits only the smaller sets again. With too few views to hold any out, every term the flags free
-is fitted (in-sample RMS always prefers more terms, so it cannot choose), as the record says.
+fits only the smaller sets again. Where the chosen set's cross-validation diff then flags it as too
+poor for the data, calibration.intrinsics fits the first richer set that is not. With too few views
+to hold any out, every term the flags free is fitted (in-sample RMS always prefers more terms, so it
+cannot choose), as the record says.
 """
 
 from __future__ import annotations
@@ -176,6 +178,7 @@ class TermChoice:
     held_out: bool
     why: str
     t: dict[str, float] = field(default_factory=dict)   # paired t of each pair tried, "simpler vs richer"
+    cross_validation: dict[str, float] = field(default_factory=dict)   # pooled ratios, where a set was too poor
 
     def to_json(self) -> dict[str, Any]:
         def number(s: float | None) -> float | None:
@@ -186,6 +189,7 @@ class TermChoice:
                 "rule": f"the simplest set that no richer set beats by over {TERM_T:g} standard error of the paired "
                         "per-view difference of held-out squared errors",
                 "paired_t": dict(self.t), "chosen": list(self.chosen),
+                **({"cross_validation_pooled_ratio": dict(self.cross_validation)} if self.cross_validation else {}),
                 "fixed": [n for n in LENS_MODELS[self.model].coefficients if n not in self.chosen],
                 "fixed_note": "held at 0: no standard deviation (its std reads 0)", "why": self.why}
 
