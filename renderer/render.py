@@ -53,6 +53,8 @@ PRESETS: dict[str, dict[str, Any]] = {"draft": {"spp": 256, "pass_spp": 64},
                                       "paper": {"spp": 2045, "pass_spp": 128, "resolution": (978, 734)}}
 SIDECAR_FORMAT = "workbench-render"
 MIN_PASSES = 4  # where spp allows: the variance between passes (variance_path) then has 3 degrees of freedom per pixel
+WORKER_SCENES = 2  # scenes a worker keeps loaded (render_pass): a targeted render's frame and crop
+_WORKER_SCENES: dict[str, Any] = {}  # on a worker: loaded Mitsuba scenes by their pass settings' hash, oldest first
 
 
 def with_resolution(spec: SceneSpec, resolution: tuple[int, int] | None) -> SceneSpec:
@@ -67,17 +69,37 @@ def with_resolution(spec: SceneSpec, resolution: tuple[int, int] | None) -> Scen
 
 
 def render_pass(spec: SceneSpec, pass_spp: int, integrator: str, mode: str, pass_seed: int, plan: bool = True,
-                crop: Window | None = None) -> np.ndarray:
-    """One pass on a dask worker: build the scene there (tables come from the cache) and render
-    (only the film's ``crop`` window, where given: renderer.render_target)."""
+                crop: Window | None = None, threads: int | None = None) -> np.ndarray:
+    """One pass on a dask worker: build the scene there (tables come from the cache; the last
+    WORKER_SCENES scenes stay loaded, so a render's next passes only render) and render (only the
+    film's ``crop`` window, where given: renderer.render_target). ``threads``: the client's Dr.Jit
+    thread count, which sets the order the film sums in (renderer.variant): with it, a pass is the
+    same bytes on any worker as in the client's own render."""
     set_variant()
-    import mitsuba as mi  # deferred: after set_variant, and start-up time
+    import drjit as dr  # deferred: after set_variant, and start-up time
+    import mitsuba as mi
 
-    scene_d, _ = scene_dict(mi, spec, spp=pass_spp, integrator=integrator, mode=mode, plan=plan)
-    if crop is not None:
-        scene_d["sensor"] = cropped_sensor(scene_d["sensor"], (crop.x, crop.y), (crop.width, crop.height))
+    if threads is not None and dr.thread_count() != threads:
+        dr.set_thread_count(threads)
+    key = hashlib.sha256(json.dumps([spec.text, table_keys(spec), spec.camera.model.width, spec.camera.model.height,
+                                     pass_spp, integrator, mode, plan, None if crop is None else crop.to_json()],
+                                    default=str).encode()).hexdigest()
+    if key not in _WORKER_SCENES:
+        scene_d, _ = scene_dict(mi, spec, spp=pass_spp, integrator=integrator, mode=mode, plan=plan)
+        if crop is not None:
+            scene_d["sensor"] = cropped_sensor(scene_d["sensor"], (crop.x, crop.y), (crop.width, crop.height))
+        while len(_WORKER_SCENES) >= WORKER_SCENES:
+            _WORKER_SCENES.pop(next(iter(_WORKER_SCENES)))
+        _WORKER_SCENES[key] = mi.load_dict(scene_d)
     # Mitsuba's stub types seed as UInt32; a Python int is what it takes at run time
-    return np.array(mi.render(mi.load_dict(scene_d), seed=pass_seed))  # type: ignore[arg-type]
+    return np.array(mi.render(_WORKER_SCENES[key], seed=pass_seed))  # type: ignore[arg-type]
+
+
+def client_threads() -> int:
+    """The Dr.Jit thread count here (after set_variant), which every pass sent to a worker renders with."""
+    import drjit as dr  # deferred: start-up time
+
+    return int(dr.thread_count())
 
 
 @dataclass(frozen=True)
@@ -182,6 +204,7 @@ def _target_pass_images(mi, scene_d: dict, passes: _Passes, target: Target, exec
     own seed (module docstring of renderer.render_target), here or on ``executor``'s workers."""
     window = target.window
     loaded = mi.load_dict(scene_d) if executor is None else None
+    threads = client_threads()
     crop = None
     if executor is None and window is not None:
         cropped = cropped_sensor(scene_d["sensor"], (window.x, window.y), (window.width, window.height))
@@ -198,7 +221,7 @@ def _target_pass_images(mi, scene_d: dict, passes: _Passes, target: Target, exec
             return
         spp, where = (target.crop_pass_spp, window) if kind == "crop" else (passes.pass_spp, None)
         futures = [executor.submit(timed, render_pass, passes.spec, spp, passes.integrator, passes.mode, s, passes.plan,
-                                   where) for s in seeds]
+                                   where, threads, alone=True) for s in seeds]
         for future in futures:
             image, took = future.result()
             seconds.append(took)
@@ -240,8 +263,9 @@ def _pass_images(mi, scene_d: dict, passes: _Passes, done: int, executor) -> Ite
         # Mitsuba's stub types seed as UInt32; a Python int is what it takes at run time
         return ((p, timed(lambda p=p: np.array(mi.render(loaded, seed=pass_seed(passes.seed, p)))))
                 for p in range(done, passes.count))
+    threads = client_threads()
     futures = {p: executor.submit(timed, render_pass, passes.spec, passes.pass_spp, passes.integrator, passes.mode,
-                                  pass_seed(passes.seed, p), passes.plan)
+                                  pass_seed(passes.seed, p), passes.plan, None, threads, alone=True)
                for p in range(done, passes.count)}
     return ((p, futures[p].result()) for p in range(done, passes.count))
 

@@ -1,17 +1,31 @@
 """Where independent work runs: here, or on a dask.distributed cluster.
 
-``DaskExecutor`` is what ``workbench rcwa table`` and ``workbench render`` (and the
-verification run) hand their chunks and passes to when ``--scheduler`` or ``--workers``
-is given. It offers ``submit(fn, *args)`` returning futures, like
-``concurrent.futures``.
+``DaskExecutor`` is what ``workbench rcwa table``, ``workbench render`` and ``workbench
+verify`` hand their chunks, photos and passes to when ``--scheduler`` or ``--workers`` is
+given. It offers ``submit(fn, *args)`` returning futures, like ``concurrent.futures``.
+
+A task that renders with Mitsuba is submitted with ``alone=True``: it runs under one lock per
+worker process (``run_alone``), so a worker started with several threads still runs one
+Mitsuba render at a time (Mitsuba's variant and Dr.Jit's thread pool are process-wide, and
+two renders in one process would share that pool and sum their films in another order).
+Table chunks need no lock: the solver's threads are its own.
 """
 
 from __future__ import annotations
 
+import threading
 from collections.abc import Callable
 from typing import Any
 
 from workbench.core.errors import UserInputError
+
+_ALONE = threading.Lock()  # one per process: held by every ``alone`` task while it runs
+
+
+def run_alone(fn: Callable[..., Any], *args: Any) -> Any:
+    """``fn(*args)`` while this process runs no other ``alone`` task (the module's docstring)."""
+    with _ALONE:
+        return fn(*args)
 
 
 class DaskExecutor:
@@ -26,6 +40,7 @@ class DaskExecutor:
         from distributed import Client, LocalCluster  # deferred: start-up time (only --scheduler/--workers need it)
 
         self._cluster = None
+        self.submitted = 0  # tasks handed to the cluster so far (a verify run records each stage's)
         if scheduler:
             try:
                 self._client = Client(scheduler, timeout="10s")
@@ -36,8 +51,17 @@ class DaskExecutor:
                                          host="127.0.0.1", dashboard_address=None)
             self._client = Client(self._cluster)
 
-    def submit(self, fn: Callable[..., Any], *args: Any) -> Any:
+    def submit(self, fn: Callable[..., Any], *args: Any, alone: bool = False) -> Any:
+        """A future of ``fn(*args)`` on a worker; ``alone``: under the worker's Mitsuba lock (run_alone)."""
+        self.submitted += 1
+        if alone:
+            return self._client.submit(run_alone, fn, *args, pure=False)
         return self._client.submit(fn, *args, pure=False)
+
+    @property
+    def workers(self) -> int:
+        """How many workers the scheduler has now."""
+        return len(self._client.scheduler_info().get("workers", {}))
 
     def close(self) -> None:
         self._client.close()
