@@ -55,14 +55,16 @@ from calibration.photometric import cd_mask
 from calibration.pose_fit import FREE_RADIAL_TERMS, PoseSettings, Unknowns
 from calibration.pose_inputs import fit_renderer, start_camera
 from calibration.pose_outputs import PHOTOMETRY_NOTE, json_default, result_json, versions
-from calibration.pose_photo import check_photo, fit_photo
+from calibration.pose_photo import PoseResult, check_photo, fit_photo
 from calibration.projection_uncertainty import map_over
 from calibration.response import calibrate_response
 from calibration.scene_model import scene_model
 from calibration.vignetting_stage import vignetting_stage
+from renderer.camera import CameraModel
 from renderer.scene import load_scene
 from workbench.core.errors import UserInputError
 from workbench.core.files import atomic_write_text
+from workbench.core.timing import timed
 
 DATASET_FORMAT = "workbench-calibration"
 IMAGE_SUFFIXES = {".jpg", ".jpeg", ".png", ".tif", ".tiff"}
@@ -130,14 +132,16 @@ def response_from_bracket(brackets: list[Path], progress: bool) -> dict | None:
 
 def calibrate_dataset(dataset: str | Path, scene: str | Path, out: str | Path, *, board: tuple[int, int] | None = None,
                       square_mm: float | None = None, settings: PoseSettings | None = None,
-                      progress: bool = True, model: str = "auto") -> dict:
+                      progress: bool = True, model: str = "auto", executor=None) -> dict:
     """Run every step on ``dataset`` and write DIR's files (module docstring); returns calibration.json's content.
 
     ``board`` (inner corners or ChArUco squares, cols x rows) and ``square_mm`` override
     the dataset's calibration/board.json; without that file both are needed when there are
     board views (a UserInputError naming the file and the flags, before anything runs).
     ``model``: the board views' lens model (a model of renderer.lens, or ``auto``:
-    calibration.lens_choice picks the simplest that held-out views do not reject)."""
+    calibration.lens_choice picks the simplest that held-out views do not reject).
+    ``executor`` (workbench.core.executor.DaskExecutor): the intrinsics and the response run as two
+    tasks and each photo's pose as its own (fit_photos_on); the vignetting, over all photos, here."""
     started = time.perf_counter()
     settings = settings or PoseSettings()
     out = Path(out)
@@ -148,15 +152,22 @@ def calibrate_dataset(dataset: str | Path, scene: str | Path, out: str | Path, *
     board_spec = dataset_board(files, dataset, board, square_mm)
     bar = tqdm(total=2 + 3 * len(files["photos"]), desc="calibrate dataset", unit="step", disable=not progress)
     timings: dict = {}
-    tick = time.perf_counter()
-    intrinsics = intrinsics_from_boards(files["boards"], board_spec, progress=False, model=model)
-    timings["intrinsics_s"] = time.perf_counter() - tick
-    bar.update()
-    tick = time.perf_counter()
-    response = response_from_bracket(files["brackets"], progress=False)
-    timings["response_s"] = time.perf_counter() - tick
-    bar.update()
-    results = fit_photos(files["photos"], spec, intrinsics, inverse_response(response), settings, bar, timings)
+    if executor is None:
+        tick = time.perf_counter()
+        intrinsics = intrinsics_from_boards(files["boards"], board_spec, progress=False, model=model)
+        timings["intrinsics_s"] = time.perf_counter() - tick
+        bar.update()
+        tick = time.perf_counter()
+        response = response_from_bracket(files["brackets"], progress=False)
+        timings["response_s"] = time.perf_counter() - tick
+        bar.update()
+        results = fit_photos(files["photos"], spec, intrinsics, inverse_response(response), settings, bar, timings)
+    else:
+        shared = (executor.submit(timed, intrinsics_from_boards, files["boards"], board_spec, False, model),
+                  executor.submit(timed, response_from_bracket, files["brackets"], False))
+        (intrinsics, timings["intrinsics_s"]), (response, timings["response_s"]) = (f.result() for f in shared)
+        bar.update(2)
+        results = fit_photos_on(executor, files["photos"], spec, intrinsics, response, settings, bar, timings)
     tick = time.perf_counter()
     vignetting, results = vignetting_stage(results)
     timings["vignetting_s"] = time.perf_counter() - tick
@@ -193,13 +204,57 @@ def fit_photos(photos: list[Path], spec, intrinsics: dict | None, inverse: Calla
         unknowns = Unknowns(intrinsics=known is None, radial=FREE_RADIAL_TERMS if known is None else 0)
         result = fit_photo(photo, model, start, unknowns, settings, renderer, bar, known.get("std") if known else None)
         if known is None:  # no boards: this photo's intrinsics hold for the rest
-            c = result.camera
-            known = {"width": c.width, "height": c.height, "fx": c.fx, "fy": c.fy, "cx": c.cx, "cy": c.cy,
-                     "model": c.model, "xi": c.xi,
-                     "dist": tuple(c.dist), "source": f"fitted on {path.name}",
-                     "std": {k: result.std[k] for k in ("fx", "fy", "cx", "cy", "dist")}}
+            known = _known_from(result, path)
         results[path.name] = result
         timings[f"pose_{path.name}_s"] = time.perf_counter() - tick
+    return results
+
+
+def _known_from(result: PoseResult, path: Path) -> dict:
+    """The intrinsics a photo's fit (intrinsics free) fixes for the dataset's other photos."""
+    c = result.camera
+    return {"width": c.width, "height": c.height, "fx": c.fx, "fy": c.fy, "cx": c.cx, "cy": c.cy, "model": c.model,
+            "xi": c.xi, "dist": tuple(c.dist), "source": f"fitted on {path.name}",
+            "std": {k: result.std[k] for k in ("fx", "fy", "cx", "cy", "dist")}}
+
+
+def fit_one_photo(path: Path, spec, known: dict | None, response: dict | None, settings: PoseSettings,
+                  renderer_camera: CameraModel | None = None) -> tuple[PoseResult, CameraModel, float]:
+    """One photo's pose as fit_photos fits it, on a dask worker: (its PoseResult, its start camera, seconds).
+    The render check's renderer is built from ``renderer_camera`` (default: the photo's start camera), the
+    first photo's start camera in fit_photos, so that each photo's render check renders what it renders there."""
+    tick = time.perf_counter()
+    photo = read_photo(path, inverse_response(response) if path.suffix.lower() not in RAW_SUFFIXES else None)
+    check_photo(photo)
+    start = start_camera(spec, photo, known)
+    renderer = fit_renderer(spec, renderer_camera or start, settings.render_spp) if settings.render_check else None
+    unknowns = Unknowns(intrinsics=known is None, radial=FREE_RADIAL_TERMS if known is None else 0)
+    result = fit_photo(photo, scene_model(spec), start, unknowns, settings, renderer, None,
+                       known.get("std") if known else None)
+    return result, start, time.perf_counter() - tick
+
+
+def fit_photos_on(executor, photos: list[Path], spec, intrinsics: dict | None, response: dict | None,
+                  settings: PoseSettings, bar, timings: dict) -> dict:
+    """fit_photos with each photo's pose a task on ``executor`` (one Mitsuba render at a time per worker:
+    workbench.core.executor.run_alone): all at once when the intrinsics are known; without them the first
+    photo's fit fixes them, so it runs first and the others after it."""
+    known = None if intrinsics is None else held_intrinsics(intrinsics)
+    results: dict = {}
+    rest, renderer_camera = list(photos), None
+    if known is None:
+        first, rest = rest[0], rest[1:]
+        result, renderer_camera, seconds = executor.submit(fit_one_photo, first, spec, None, response, settings,
+                                                           alone=True).result()
+        known = _known_from(result, first)
+        results[first.name], timings[f"pose_{first.name}_s"] = result, seconds
+        bar.update(3)
+    futures = {path: executor.submit(fit_one_photo, path, spec, known, response, settings, renderer_camera, alone=True)
+               for path in rest}  # with known intrinsics every photo's start camera is the first's (same size)
+    for path, future in futures.items():
+        result, _start, seconds = future.result()
+        results[path.name], timings[f"pose_{path.name}_s"] = result, seconds
+        bar.update(3)
     return results
 
 
