@@ -46,6 +46,19 @@ finished photos, the table build from its finished chunks in the cache; the cali
 one optimisation, starts again) and a changed key clears it. RUN/run.json records the
 settings, versions, each stage's key, status, estimate and timings, and the summary.
 verify never reads truth.json (``workbench score`` does, workbench.score).
+
+On a dask.distributed cluster (``--scheduler ADDRESS``, or ``--workers N`` for a local one;
+workbench.core.executor) the same stages run with their work as tasks: the tables' wavelength
+chunks, the calibration's intrinsics and response (two tasks) and each photo's pose (one task
+a photo, all at once when board views fix the intrinsics), the scene fit (one task: it is one
+least-squares problem over every photo's band edges), every render pass (each with its own
+seed and the client's Dr.Jit thread count, so a pass is the same bytes wherever it runs, merged
+here by their sample counts) and each photo's report. Stages, keys and resuming are as without
+a cluster: this process writes the records, the calibration and the renders; a report task
+writes its photo's folder in the stage's staging folder; a worker renders one Mitsuba pass at
+a time. The workers read the dataset, RUN and the cache's tables at the paths this process
+names: a shared filesystem at the same paths. Each stage's ``dask_tasks`` in run.json counts
+the tasks it sent to the cluster.
 """
 
 from __future__ import annotations
@@ -54,6 +67,7 @@ import json
 import os
 import time
 import tomllib
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -243,7 +257,8 @@ def _stage_calibration(run: Run) -> dict:
     estimate = SECONDS_CALIBRATION_BASE + SECONDS_PER_POSE * len(dataset_files(run.dataset)["photos"])
 
     def work(folder: Path) -> dict[str, Any]:
-        record = calibrate_dataset(run.dataset, run.scene, folder, progress=run.settings.progress, **options)
+        record = calibrate_dataset(run.dataset, run.scene, folder, progress=run.settings.progress,
+                                   executor=run.executor, **options)
         return {"residuals_rms_px": {name: r.get("rms_px") for name, r in record["residuals"].items()},
                 "intrinsics_rms_px": record.get("intrinsics", {}).get("rms_px")}
 
@@ -265,8 +280,8 @@ def _stage_fit(run: Run) -> dict:
             atomic_write_text(folder / NOT_FITTED, "the scene has no CD or no free [fit] parameter: nothing to fit\n")
             return {"verdict": None, "rerender": False, "reason": "nothing to fit"}
         try:
-            record = run_fit(FitInputs(run.dataset, str(run.scene), calibration, folder,
-                                       tuple(p.name for p in run.photos)))
+            record = _fit(run, FitInputs(run.dataset, str(run.scene), calibration, folder,
+                                         tuple(p.name for p in run.photos)))
         except UserInputError as error:  # the photos do not constrain the scene (too few band edges): say so, go on
             atomic_write_text(folder / NOT_FITTED, error.reason + "\n")
             return {"verdict": None, "rerender": False, "reason": error.reason}
@@ -284,6 +299,14 @@ def _stage_fit(run: Run) -> dict:
 
     return run_stage(run, "fit", inputs, {}, SECONDS_FIT, work,
                      lambda folder: (folder / "scene_fit.json").is_file() or (folder / NOT_FITTED).is_file())
+
+
+def _fit(run: Run, inputs: FitInputs) -> dict[str, Any]:
+    """reports.scene_fit_job.run_fit, here or as one task on the run's executor: the fit is joint over the photos
+    (one least-squares problem over every photo's band edges), so it stays one task."""
+    if run.executor is None:
+        return run_fit(inputs)
+    return run.executor.submit(run_fit, inputs).result()
 
 
 def _render_scenes(run: Run) -> dict[str, Path]:
@@ -348,30 +371,53 @@ def _stage_report(run: Run) -> dict:
               | {f"studies/{k}/{f.name}": f for k, folder in enumerate(run.settings.study_folders)
                  for f in study_figures((folder,))})
 
-    def one(photo: Path, render_path: Path, scene: Path, out: Path, before: dict | None = None) -> dict[str, Any]:
-        if (out / "report.html").is_file():  # finished by a killed run with these inputs (written after report.json)
-            return json.loads((out / "report.json").read_text())
-        return build_report(Inputs(photo, render_path, calibration, str(scene), out, brackets=brackets,
-                                   brackets_strict=False, scene_fit=scene_fit, offsets_nominal_scene=before,
-                                   studies=run.settings.study_folders))
+    common = _ReportCommon(calibration, brackets, scene_fit, run.settings.study_folders)
+
+    def photo_args(photo: Path, folder: Path) -> tuple:
+        fitted = renders.get(f"{photo.stem}{FITTED_SUFFIX}")
+        return (common, photo, renders[photo.stem], run.scene, fitted, run.root / "fit" / "fitted_scene.toml",
+                folder / photo.stem)
 
     def work(folder: Path) -> dict[str, Any]:
-        reports = {}
-        for photo in tqdm(run.photos, desc="report", unit="photo", disable=not run.settings.progress):
-            fitted = renders.get(f"{photo.stem}{FITTED_SUFFIX}")
-            if fitted is None:
-                report = one(photo, renders[photo.stem], run.scene, folder / photo.stem)
-            else:
-                nominal = one(photo, renders[photo.stem], run.scene, folder / photo.stem / "nominal")
-                report = one(photo, fitted, run.root / "fit" / "fitted_scene.toml", folder / photo.stem,
-                             nominal["fringe_offset_px"])
-            reports[photo.name] = {"html": f"{photo.stem}/report.html", "fringe_offset_px": report["fringe_offset_px"],
-                                   "verdict": report.get("verdict", {}).get("verdict"),
-                                   "problems": report.get("problems", []), "seconds": report["seconds"]}
-        return {"reports": reports}
+        if run.executor is None:
+            return {"reports": {photo.name: _report_photo(*photo_args(photo, folder)) for photo in
+                                tqdm(run.photos, desc="report", unit="photo", disable=not run.settings.progress)}}
+        futures = {photo.name: run.executor.submit(_report_photo, *photo_args(photo, folder)) for photo in run.photos}
+        return {"reports": {name: future.result() for name, future in futures.items()}}
 
     return run_stage(run, "report", inputs, {}, SECONDS_PER_REPORT * len(renders), work,
                      lambda folder: all((folder / p.stem / "report.html").is_file() for p in run.photos))
+
+
+@dataclass(frozen=True)
+class _ReportCommon:
+    """What every photo's report of a run reads besides its photo and render."""
+
+    calibration: Path
+    brackets: tuple[Path, ...]
+    scene_fit: Path | None
+    studies: tuple[Path, ...]
+
+    def report(self, photo: Path, render_path: Path, scene: Path, out: Path, before: dict | None = None) -> dict:
+        if (out / "report.html").is_file():  # finished by a killed run with these inputs (written after report.json)
+            return json.loads((out / "report.json").read_text())
+        return build_report(Inputs(photo, render_path, self.calibration, str(scene), out, brackets=self.brackets,
+                                   brackets_strict=False, scene_fit=self.scene_fit, offsets_nominal_scene=before,
+                                   studies=self.studies))
+
+
+def _report_photo(common: _ReportCommon, photo: Path, nominal_render: Path, scene: Path, fitted_render: Path | None,
+                  fitted_scene: Path, out: Path) -> dict[str, Any]:
+    """One photo's report (here, or as a task on a dask worker, which writes into the run's staging folder): against
+    its render, or after a re-render against the fitted scene's, with the nominal one's in ``out``/nominal."""
+    if fitted_render is None:
+        report = common.report(photo, nominal_render, scene, out)
+    else:
+        nominal = common.report(photo, nominal_render, scene, out / "nominal")
+        report = common.report(photo, fitted_render, fitted_scene, out, nominal["fringe_offset_px"])
+    return {"html": f"{photo.stem}/report.html", "fringe_offset_px": report["fringe_offset_px"],
+            "verdict": report.get("verdict", {}).get("verdict"), "problems": report.get("problems", []),
+            "seconds": report["seconds"]}
 
 
 def _json_default(value: Any) -> Any:
@@ -410,7 +456,7 @@ def _verify_locked(root: Path, dataset: Path, scene: str | Path, spec: SceneSpec
     run.save()
     started = time.perf_counter()
     try:
-        run.executor = _executor(settings.scheduler)
+        run.executor = _executor(settings.scheduler, settings.workers)
         plan = _stage_plan(run)
         _stage_tables(run, plan)
         _stage_calibration(run)
@@ -436,10 +482,11 @@ def _verify_locked(root: Path, dataset: Path, scene: str | Path, spec: SceneSpec
     return run.record
 
 
-def _executor(scheduler: str | None) -> DaskExecutor | None:
-    if not scheduler:
+def _executor(scheduler: str | None, workers: int | None) -> DaskExecutor | None:
+    """The run's dask executor: the scheduler at ``scheduler``, a LocalCluster of ``workers`` processes, or none."""
+    if not scheduler and not workers:
         return None
-    return DaskExecutor(scheduler).__enter__()
+    return DaskExecutor(scheduler, workers).__enter__()
 
 
 def run_summary(run: Run) -> dict[str, Any]:

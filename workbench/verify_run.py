@@ -55,7 +55,8 @@ class VerifySettings:
     board: tuple[int, int] | None = None  # checkerboard inner corners (default: calibration's)
     square_mm: float | None = None
     studies: tuple[str, ...] = ()  # `workbench study` folders whose figures each report and the index show
-    scheduler: str | None = field(default=None, compare=False)
+    scheduler: str | None = field(default=None, compare=False)  # a dask scheduler's address (workbench.core.executor)
+    workers: int | None = field(default=None, compare=False)  # or a LocalCluster of this many worker processes
     progress: bool = field(default=True, compare=False)
 
     @property
@@ -197,6 +198,7 @@ def run_stage(run: Run, name: str, inputs: dict[str, Path], settings: dict[str, 
     run.save()
     _say(run, f"{name}: {'resuming' if resumed else 'running'} (estimate ~{_duration(estimate_s)})")
     started = time.perf_counter()
+    submitted = getattr(run.executor, "submitted", 0)
     if _marker(staging / DONE_FILE) == key:
         result = json.loads((staging / "stage.json").read_text())
     else:
@@ -205,6 +207,8 @@ def run_stage(run: Run, name: str, inputs: dict[str, Path], settings: dict[str, 
         atomic_write_text(staging / DONE_FILE, key)
     _move_into_place(staging, final)
     entry.update(status="done", seconds=round(time.perf_counter() - started, 2), skipped=False, result=result)
+    if run.executor is not None:  # what ran on the dask cluster (workbench.core.executor)
+        entry["dask_tasks"] = run.executor.submitted - submitted
     run.save()
     return entry
 

@@ -1,7 +1,8 @@
 """``workbench verify DATASET --scene SCENE --out RUN``: photos to report in one resumable run (workbench.verify)::
 
     workbench verify DATASET --scene SCENE --out RUN [--preset draft|paper] [--spp N] [--photo NAME]...
-                     [--seed N] [--board COLSxROWS] [--square-mm S] [--scheduler ADDRESS] [--force] [--quiet]
+                     [--seed N] [--board COLSxROWS] [--square-mm S] [--scheduler ADDRESS | --workers N]
+                     [--force] [--quiet]
 
 The run itself, its stages and their folders: workbench/verify.py.
 """
@@ -46,7 +47,12 @@ def add_parser(commands: argparse._SubParsersAction) -> None:
                         help="a `workbench study` folder: its accuracy-versus-time figures go into each report and the "
                              "run's index (repeatable)")
     verify.add_argument("--scheduler", metavar="ADDRESS",
-                        help="build table chunks and render passes on this dask.distributed scheduler (default: in this process)")
+                        help="run the table chunks, each photo's calibration, the scene fit, the render passes and each "
+                             "photo's report as tasks on "
+                             "this dask.distributed scheduler (workers see the dataset, RUN and the cache at the same paths; "
+                             "default: in this process)")
+    verify.add_argument("--workers", type=count_argument(1), metavar="N",
+                        help="the same on a local dask cluster of N worker processes (default: none, in this process)")
     verify.add_argument("--force", action="store_true", help="replace another run (or write beside other files) in RUN")
     verify.add_argument("--quiet", action="store_true", help="no progress bars")
     add_cache_option(verify)
@@ -56,7 +62,7 @@ def run(args: argparse.Namespace) -> int:
     from workbench.verify import VerifySettings, format_summary, verify  # deferred: pulls in every library (start-up time)
 
     settings = VerifySettings(preset=args.preset, spp=args.spp, seed=args.seed, photos=tuple(args.photo),
-                              board=args.board, square_mm=args.square_mm, scheduler=args.scheduler,
+                              board=args.board, square_mm=args.square_mm, scheduler=args.scheduler, workers=args.workers,
                               studies=tuple(str(Path(d).resolve()) for d in args.study),
                               progress=not args.quiet)
     record = verify(args.dataset, args.scene, args.out, settings, force=args.force)
