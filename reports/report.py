@@ -54,7 +54,7 @@ import numpy as np
 from calibration.decode import is_raw
 from calibration.vignetting import relative_illumination, vignetting_record, vignetting_summary
 from renderer.scene import load_scene
-from reports import fringes, image_tiles, images, metrics, page, polar
+from reports import fringes, image_tiles, images, lens_maps, metrics, page, polar
 from reports.camera_draws import CAMERA_STD_KEYS, draw_cameras
 from reports.camera_file import FittedCamera, check_scene, read_camera, read_response
 from reports.exposure_merge import merge_highlights
@@ -573,10 +573,10 @@ def _page(report, inputs: Inputs, tiles, exposure, maps, limits, masks, cd, pair
     sections.append(("efficiency tables (their own truncation error)", tables_html(report["tables"])))
     sections += study_sections
     title = f"report: {report['scene']} - {Path(report['photo']).name} vs {Path(report['render']).name}"
-    errors, notes = report["problems"], report["messages"]
-    verdict = (verdict_html(report["verdict"]) if "verdict" in report else "") + summary_block(report)
+    verdict = ((verdict_html(report["verdict"]) if "verdict" in report else "")
+               + summary_block(report, lens_maps.figure_html(inputs.calibration, masks.get("cd"))))
     return page.render_page(title=title, pyramid=tiles, exposure_ev=float(np.log2(exposure)), maps=map_entries,
-                            sections=sections, notes=notes, errors=errors, verdict=verdict,
+                            sections=sections, notes=report["messages"], errors=report["problems"], verdict=verdict,
                             overlay=_overlay(cd, width, height), overlay_legend=OVERLAY_LEGEND)
 
 

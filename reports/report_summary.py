@@ -46,9 +46,10 @@ ERROR_TIPS = {"relative error median": "median over the region of |photo / rende
               "pixels": "pixels of the region in the image"}
 
 
-def summary_block(report: dict[str, Any]) -> str:
+def summary_block(report: dict[str, Any], lens_figure: str = "") -> str:
     """The page's first block after the verdict: the fringe offsets against the prediction's
-    camera uncertainty, the fitted camera with its standard deviations, the worst region."""
+    camera uncertainty, the fitted camera with its standard deviations, the worst region; then
+    ``lens_figure`` (reports.lens_maps.figure_html: the lens row's maps), where given."""
     fo = report["fringe_offset_px"]
     spread = report["cd"].get("prediction_uncertainty")
     cal = report["calibration"]
@@ -77,7 +78,7 @@ def summary_block(report: dict[str, Any]) -> str:
         rows["regions at the calibrated exposure"] = (
             f"{len(compared) - len(flagged)} of {len(compared)} consistent (|z| <= "
             f"{fmt(report['region_test']['z_consistent'], 2)})" + ("; not: " + ", ".join(flagged) if flagged else ""))
-    return "<section id='summary'>" + page.key_values(rows, tips=SUMMARY_TIPS) + "</section>"
+    return "<section id='summary'>" + page.key_values(rows, tips=SUMMARY_TIPS) + lens_figure + "</section>"
 
 
 def _lens_row(cal: dict[str, Any]) -> str:
