@@ -30,9 +30,11 @@ Distortion terms: OpenCV's flags bound them; the command's ``--no-tangential`` h
 at 0 (CALIB_ZERO_TANGENT_DIST) and ``--fit-k3`` lets k3 be fitted, so a calibration can use the
 same model as another tool's (BoofCV's "radial 2, tangential false" is k1, k2 alone). Within that
 bound the terms are chosen by held-out views (calibration.lens_choice.choose_terms; ``terms="all"``
-fits every term the flags free, as OpenCV does): intrinsics.json ``model_choice.terms`` gives the
-candidates, their scores and the chosen set; the fit, its standard deviations (0 for a held
-term), the outlier rule and the uncertainty maps are the chosen set's.
+fits every term the flags free, as OpenCV does; a set whose cross-validation diff flags it as too
+poor for the data gives way to the first richer set that is not, ``_fit_accepted_terms``):
+intrinsics.json ``model_choice.terms`` gives the candidates, their scores and the chosen set; the
+fit, its standard deviations (0 for a held term), the outlier rule and the uncertainty maps are
+the chosen set's.
 """
 
 from __future__ import annotations
