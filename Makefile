@@ -1,6 +1,8 @@
 # One command per job; each installs what is missing first.
 #   make demo    install, then run the main job on the built-in defaults: a synthetic dataset, verify, the report
-#   make verify DATASET=folder SCENE=scene [RUN=out/verify]   photos to report in one resumable run
+#   make verify DATASET=folder SCENE=scene [RUN=out/verify] [SCHEDULER=tcp://host:8786 | WORKERS=N] photos to report in one
+#                resumable run; with SCHEDULER, its tasks (tables, each photo's calibration, the fit, render passes,
+#                reports) run on that dask.distributed cluster
 #   make paper   verify with the paper's settings (paper tables, the targeted render, the paper's 978 x 734 frame)
 #   make check   lint (ruff), types (mypy), configured in pyproject.toml, and the layering (tests/check_layering.py)
 #   make test    the whole test suite (about 10 minutes on 2 cores; `make test-fast` skips the slow marker)
@@ -41,12 +43,15 @@ demo: install
 
 # verify: any dataset folder (photos/, and optionally brackets/ and calibration/) against a scene.
 # Stages already finished in RUN with the same inputs are skipped; a killed run resumes.
+# SCHEDULER: the address of a running dask scheduler (docs/architecture.md, "verify on a cluster").
 SCENE ?= cornell_cd
 RUN ?= out/verify
 VERIFY_ARGS ?=
+SCHEDULER ?=
+WORKERS ?=
 verify: install
-	@test -n "$(DATASET)" || { echo "usage: make verify DATASET=folder [SCENE=$(SCENE)] [RUN=$(RUN)] [VERIFY_ARGS='--spp 64 ...']"; exit 2; }
-	$(BIN)/workbench verify $(DATASET) --scene $(SCENE) --out $(RUN) $(VERIFY_ARGS)
+	@test -n "$(DATASET)" || { echo "usage: make verify DATASET=folder [SCENE=$(SCENE)] [RUN=$(RUN)] [SCHEDULER=tcp://host:8786] [VERIFY_ARGS='--spp 64 ...']"; exit 2; }
+	$(BIN)/workbench verify $(DATASET) --scene $(SCENE) --out $(RUN) $(if $(SCHEDULER),--scheduler $(SCHEDULER)) $(if $(WORKERS),--workers $(WORKERS)) $(VERIFY_ARGS)
 
 # paper: the paper's settings (DESIGN.md; Lange et al. 2021, Fig. 4): paper-preset tables (31 wavelengths, 2 deg
 # steps), a targeted render (the frame capped at 2045 spp), at the photos' size. Without DATASET, the full
@@ -85,11 +90,13 @@ bench: install
 	$(BIN)/python -m benchmarks.bench_fit
 	$(BIN)/python -m benchmarks.bench_render
 	$(BIN)/python -m benchmarks.bench_corners
+	$(BIN)/python -m benchmarks.bench_lens_terms
 	$(BIN)/python -m benchmarks.bench_calibration
 	$(BIN)/python -m benchmarks.bench_report
 	$(BIN)/python -m benchmarks.bench_large_photo
 	$(BIN)/python -m benchmarks.bench_plan
 	$(BIN)/python -m benchmarks.bench_scene_fit --rerender
+	$(BIN)/python -m benchmarks.bench_verify --work out/bench/verify
 	$(BIN)/python -m benchmarks.bench_truncation_cost
 	$(BIN)/python -m benchmarks.bench_realisations --work out/bench/realisations
 	$(BIN)/python -m benchmarks.bench_realisations --work out/bench/realisations --study-seeds 0,1,2,3,4,5,6,7,8,9

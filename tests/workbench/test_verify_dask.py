@@ -27,6 +27,10 @@ from tests.workbench.test_verify import (
 from workbench.core.executor import DaskExecutor
 from workbench.verify import VerifySettings, verify
 
+# `make test-heavy`: with its local run about 11 minutes under load, too long for `make test`, which keeps
+# tests/workbench/test_verify.py's quicker --scheduler check of the render stage.
+pytestmark = pytest.mark.heavy
+
 PHOTO = "view0.dng"  # render and report the first photo only (calibration fits both: two pose tasks)
 WORKERS = 2
 # The scene fit on the workers against the local one: the same inputs and code, but a dask worker runs numpy
@@ -42,7 +46,7 @@ def local_run(dataset: Path, tmp_path_factory: pytest.TempPathFactory) -> tuple[
     return out, record
 
 
-@pytest.mark.slow  # about 20 s: the intrinsics and two pose fits on the cluster
+# about 20 s: the intrinsics and two pose fits on the cluster
 def test_the_calibration_on_two_workers_equals_the_local_one(local_run: tuple[Path, dict], dataset: Path,  # noqa: F811
                                                              tmp_path: Path) -> None:
     """Tolerances: tests/workbench/test_verify.py's for a resumed calibration (1e-3 deg, 1e-2 mm,
@@ -59,7 +63,7 @@ def test_the_calibration_on_two_workers_equals_the_local_one(local_run: tuple[Pa
     assert ours["vignetting"]["applied"] == local["vignetting"]["applied"]
 
 
-@pytest.mark.slow  # about 40 s: the fit and the targeted render of one photo on the cluster, and its report
+# about 40 s: the fit and the targeted render of one photo on the cluster, and its report
 def test_the_fit_and_the_targeted_render_on_two_workers_equal_the_local_run(local_run: tuple[Path, dict],
                                                                             dataset: Path,  # noqa: F811
                                                                             tmp_path: Path) -> None:
