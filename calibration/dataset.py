@@ -311,6 +311,7 @@ def _record(dataset, scene, spec, files, intrinsics, response, results, settings
         "response": _response_summary(response),
         "intrinsics": {"source": intrinsics["source"], "model": intrinsics.get("model", "pinhole"),
                        "model_choice": (intrinsics.get("model_choice") or {}).get("why"), "rms_px": intrinsics.get("rms_px"),
+                       "distortion_terms": ((intrinsics.get("model_choice") or {}).get("terms") or {}).get("chosen"),
                        **lens_uncertainty_summary(intrinsics, spec, results),
                        "views": intrinsics.get("views"), "flags": intrinsics.get("flags")} if intrinsics
         else {"source": f"fitted on {next(iter(results))} (no board views in calibration/)"},

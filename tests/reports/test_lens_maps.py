@@ -120,6 +120,8 @@ def test_a_verify_style_report_page_holds_the_maps(tmp_path_factory, tmp_path: P
     assert "lens model and its uncertainty" in summary and "<figure id='lens-maps'>" in summary
     assert "grid values" in summary and "the CD outlined in white" in summary   # calibrate DATASET writes no PNGs
     assert calibration["intrinsics"]["cross_validation"]["diff_median_px"] > 0
+    # the chosen distortion terms reach the digest (the draft boards' real tangential terms: k1, k2, p1, p2)
+    assert calibration["intrinsics"]["distortion_terms"][:2] == ["k1", "k2"], calibration["intrinsics"]
     assert _figure_image(summary).width > 1.8 * _figure_image(summary).height   # both maps drawn
     with chromium_page(report / "report.html", {"width": 1400, "height": 1000}) as (view, errors, requests):
         shown = view.evaluate("document.querySelector('#summary #lens-maps img').naturalWidth")
