@@ -57,8 +57,9 @@ verify: install
 # steps), a targeted render (the frame capped at 2045 spp), at the photos' size. Without DATASET, the full
 # synthetic dataset of SCENE at the paper's 978 x 734 frame is made first (out/paper/dataset, about 15 minutes;
 # once); the run goes to out/paper/run.
-# Each photo's targeted render (the CD's edges to 0.1 px) took 7.6 minutes on a loaded 2-core machine; the fixed
-# VERIFY_ARGS='--spp 2045' about half an hour (VERIFY_ARGS='--photo view0.dng' renders one).
+# Each photo's targeted render (the CD's edges to 0.1 px) took 102 s on a quiet 2-core machine, one photo's whole
+# verify about 3.5 minutes with the tables cached (more when the fit re-renders); the fixed VERIFY_ARGS='--spp 2045'
+# about half an hour (VERIFY_ARGS='--photo view0.dng' renders one).
 PAPER_DATASET ?= out/paper/dataset
 paper: install
 	@if [ -z "$(DATASET)" ] && [ ! -f $(PAPER_DATASET)/truth.json ]; then \
