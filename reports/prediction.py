@@ -76,7 +76,7 @@ from rcwa.structure import load_structure
 from renderer.camera import CameraModel
 from renderer.camera_coverage import visible_range
 from renderer.placement import frame_to
-from renderer.planner import hits_light, incident_directions, plane_hits, source_rays
+from renderer.planner import hits_light, plane_hits
 from renderer.scene import CD_TOP_THICKNESS_M, SPECTRAL_RANGE_NM, CDSpec, SceneSpec
 from renderer.spectra import camera_sensitivities, light_spectrum
 from reports.prediction_efficiency import Efficiency, fresnel_transmission, scene_efficiency
@@ -298,31 +298,47 @@ class _Light:
 
     lit: np.ndarray  # (N,) bool
     emission: np.ndarray  # (N,) the emission profile cos^n at the angle the ray leaves the light
-    sin_air: np.ndarray  # (N,) |k_inc| / k0 of the incident wave (its sin theta in air)
-    phi_deg: np.ndarray  # (N,) the incident wave's azimuth about the grating vector
+    k: np.ndarray  # (N, 2) the incident wave's tangential wave vector over k0 in the radial frame
+
+    def direction(self, rows: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The incident wave's sin theta in air (|k|) and azimuth about the grating vector (degrees) at ``rows``."""
+        k = self.k[rows]
+        return np.hypot(k[:, 0], k[:, 1]), np.degrees(np.arctan2(k[:, 1], k[:, 0]))
 
 
 def _light_hits(spec: SceneSpec, cd: CDGeometry, points: np.ndarray, axis: np.ndarray, ey: np.ndarray,
                 omega_t: np.ndarray, m: int, lam: np.ndarray, top_index: float) -> _Light:
     """For order m at wavelengths ``lam`` (one per row): which points receive the light, the
-    emission-profile weight there, and the incident wave's direction (for its efficiency)."""
-    theta, phi, ok = incident_directions(omega_t, m, 0, lam, (cd.period_um,), 1.0, 1.0)  # type: ignore[arg-type]
-    sin_air = np.sin(np.radians(theta))
-    out = _Light(np.zeros(len(points), bool), np.zeros(len(points)), sin_air, phi)
-    idx = np.flatnonzero(ok)
-    if not len(idx):
+    emission-profile weight there, and the incident wave's tangential wave vector (for its efficiency).
+
+    The incident wave's tangential wave vector over k0, k = (kx, ky) in the radial frame
+    (renderer.planner.incident_directions in air), gives the light's direction without
+    angles: -(kx x_hat + ky y_hat) + sqrt(1 - |k|^2) z_hat (renderer.planner.source_rays,
+    which takes theta = arcsin |k| and phi = atan2(ky, kx): the same vector to round-off, at a
+    fraction of the cost on the fit's millions of pairs)."""
+    k = omega_t.copy()
+    k[:, 0] -= ORDER_SIGN * m * lam / (1000.0 * cd.period_um)
+    s2 = k[:, 0] ** 2 + k[:, 1] ** 2
+    out = _Light(np.zeros(len(points), bool), np.zeros(len(points)), k)
+    ok = s2 < 1.0
+    if not ok.any():
         return out
-    source = source_rays(theta[idx], phi[idx], axis[idx], ey[idx], cd.normal, above=True)  # in air, toward the light
-    start = points[idx]
+    every = bool(ok.all())  # the candidate pairs are pre-selected toward the light: usually all propagate
+    kx, ky, s2_ok = (k[:, 0], k[:, 1], s2) if every else (k[ok, 0], k[ok, 1], s2[ok])
+    ax, ay, start = (axis, ey, points) if every else (axis[ok], ey[ok], points[ok])
+    tangential = -(kx[:, None] * ax + ky[:, None] * ay)  # in air, toward the light
+    source = tangential + np.sqrt(1.0 - s2_ok)[:, None] * cd.normal[None]
     if cd.top_thickness_m > 0:  # the back-traced ray climbs through the top before it leaves into air
-        tangential = source - (source @ cd.normal)[:, None] * cd.normal[None]
-        sin_in = sin_air[idx] / top_index
-        cos_in = np.sqrt(1.0 - sin_in**2)
-        along = np.where(sin_air[idx] > 0, sin_in / np.maximum(sin_air[idx], 1e-300), 0.0)
-        start = start + cd.top_thickness_m * (tangential * (along / cos_in)[:, None] + cd.normal[None])
+        sin2_in = s2_ok / top_index**2
+        # the tangential step per unit climb is tan(theta_in) along the tangential direction: |t| / (n cos theta_in)
+        start = start + cd.top_thickness_m * (tangential / (top_index * np.sqrt(1.0 - sin2_in))[:, None]
+                                              + cd.normal[None])
     hit = hits_light(start, source, spec)
-    out.lit[idx] = hit
-    out.emission[idx] = np.where(hit, np.maximum(source[:, 1], 0.0) ** (spec.light.cos_power or 0.0), 0.0)
+    emission = np.where(hit, np.maximum(source[:, 1], 0.0) ** (spec.light.cos_power or 0.0), 0.0)
+    if every:
+        out.lit, out.emission = hit, emission
+    else:
+        out.lit[ok], out.emission[ok] = hit, emission
     return out
 
 
@@ -416,9 +432,10 @@ def _lit_events(spec: SceneSpec, cd: CDGeometry, origin: np.ndarray, rays: np.nd
             lit = light.lit
             factor = np.ones(int(lit.sum()))
             if efficiency is not None:
-                factor = efficiency(m, lam[wl[lit]], light.sin_air[lit], light.phi_deg[lit]) * camera_in[ray[lit]]
+                sin_air, phi_deg = light.direction(lit)
+                factor = efficiency(m, lam[wl[lit]], sin_air, phi_deg) * camera_in[ray[lit]]
                 if cd.top_thickness_m > 0:
-                    factor *= fresnel_transmission(np.sqrt(1.0 - light.sin_air[lit] ** 2), float(index))
+                    factor *= fresnel_transmission(np.sqrt(1.0 - sin_air**2), float(index))
             yield _Events(i, hits.rows[ray[lit]], lam_index[wl[lit]], light.emission[lit], factor)
 
 
