@@ -304,7 +304,8 @@ def _record(dataset, scene, spec, files, intrinsics, response, results, settings
                    "world_to_camera": {name: r.camera.world_to_camera.tolist() for name, r in results.items()}},
         "std": intrinsic_std | {"fov_x_deg": first.std["fov_x_deg"],
                                 "poses": {name: {k: r.std[k] for k in ("rotation_deg", "rotation_total_deg",
-                                                                       "camera_center_m")} for name, r in results.items()},
+                                                                       "camera_center_m", "covariance") if k in r.std}
+                                          for name, r in results.items()},
                                 "exposure_scale": {name: r.exposure_scale_std for name, r in results.items()}},
         "exposure_scale": scales, "exposure_time_s": {name: r.exposure_time_s for name, r in results.items()},
         "exposure_scale_per_second": per_second, "light_power_scale": 1.0, "photometry": PHOTOMETRY_NOTE,

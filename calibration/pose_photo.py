@@ -23,7 +23,7 @@ from calibration.pose_fit import (
     fine_fit,
 )
 from calibration.pose_render_check import render_check_stage
-from calibration.pose_uncertainty import covariance, derived_std, fov_x_deg, fov_y_deg, per_feature_residuals
+from calibration.pose_uncertainty import covariance, covariance_parts, derived_std, fov_x_deg, fov_y_deg, per_feature_residuals
 from calibration.scene_model import SceneModel
 from calibration.vignetting import WallTiles
 from renderer.camera import CameraModel
@@ -119,9 +119,9 @@ def _fit_photo(photo: Photo, model: SceneModel, start: CameraModel, unknowns: Un
         timings["render_check_s"] = time.perf_counter() - tick
     _advance(bar)
     repeats = restarts(image, model, camera, unknowns, settings) if unknowns.intrinsics else None
-    cov, stats = covariance(match, unknowns, camera, intrinsics_std)
+    cov, stats, cross = covariance_parts(match, unknowns, camera, intrinsics_std)
     residuals = stats | {"per_feature": per_feature_residuals(match, unknowns, camera)}
-    std = derived_std(camera, unknowns, cov, intrinsics_std, repeats)
+    std = derived_std(camera, unknowns, cov, intrinsics_std, repeats, cross)
     fringes = None
     if renderer is not None and scale is not None and settings.cd_fringes:
         tick = time.perf_counter()

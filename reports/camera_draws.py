@@ -43,16 +43,3 @@ def moved_camera(camera: CameraModel, intrinsics: list[float], rotation_deg: np.
     pose[:3, :3], pose[:3, 3] = turn @ pose[:3, :3], turn @ pose[:3, 3]
     pose[:3, 3] += np.asarray(translation_m, float)
     return dataclasses.replace(camera, world_to_camera=pose, **changes)
-
-
-def unit_moves(key: str, step: float) -> list[tuple[list[float], np.ndarray, np.ndarray]]:
-    """The moves of one standard-deviation key by ``step`` along each of its components (one
-    for fx, fy, cx, cy; three axes for rotation_deg and translation_m), as moved_camera's arguments."""
-    zero = np.zeros(3)
-    if key in ("fx", "fy", "cx", "cy"):
-        intrinsics = [step if k == key else 0.0 for k in ("fx", "fy", "cx", "cy")]
-        return [(intrinsics, zero, zero)]
-    axes = [np.eye(3)[i] * step for i in range(3)]
-    if key == "rotation_deg":
-        return [([0.0] * 4, a, zero) for a in axes]
-    return [([0.0] * 4, zero, a) for a in axes]

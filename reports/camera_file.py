@@ -8,8 +8,8 @@ coefficients, and ``xi`` is the omnidir model's), optionally a
 ``scene`` (the scene's name or file it was made for) and ``camera_std`` (standard
 deviations of fx, fy, cx, cy, dist, and ``rotation_deg``/``translation_m``) when the
 calibration estimated them; calibration.json's own ``std`` (calibration.dataset) is read
-too. The pose is the one listed for the photo's file name, or
-the only one listed.
+too, with each pose's joint ``covariance`` of rotation, centre and intrinsics. The pose is
+the one listed for the photo's file name, or the only one listed.
 """
 
 from __future__ import annotations
@@ -111,7 +111,7 @@ def read_camera(path: str | Path, photo_name: str) -> FittedCamera:
     over_cd = (intrinsics.get("projection_uncertainty_cd_px") or {}).get(key)
     if isinstance(over_cd, dict):
         digest["projection_uncertainty_cd_px"] = over_cd  # this photo's CD (calibration.dataset)
-    return FittedCamera(model, source, key, str(scene) if scene is not None else None, _camera_std(data, block, key),
+    return FittedCamera(model, source, key, str(scene) if scene is not None else None, _camera_std(data, block, key, source),
                         digest)
 
 
@@ -132,11 +132,12 @@ def _lens(block: dict, source: str) -> tuple[str, tuple[float, ...], float]:
     return name, tuple(_number(d, "camera.dist", source) for d in dist), xi
 
 
-def _camera_std(data: dict, block: dict, key: str) -> dict[str, Any]:
+def _camera_std(data: dict, block: dict, key: str, source: str) -> dict[str, Any]:
     """The camera's standard deviations for the photo ``key``: ``camera_std`` (or the camera block's
     ``std``) as given, else calibration.json's top-level ``std`` (intrinsics, and per pose
     ``rotation_deg`` and ``camera_center_m`` per axis, whose RMS over the axes is the per-axis
-    std reports.camera_draws takes)."""
+    std reports.camera_draws takes, and the pose's joint ``covariance`` with the intrinsics
+    where the calibration wrote it: calibration.pose_uncertainty.derived_std)."""
     given = data.get("camera_std") or block.get("std")
     if isinstance(given, dict):
         return given
@@ -149,7 +150,20 @@ def _camera_std(data: dict, block: dict, key: str) -> dict[str, Any]:
         values = pose.get(field_name) if isinstance(pose, dict) else None
         if isinstance(values, list) and values and all(_is_number(v) for v in values):
             out[name] = math.sqrt(sum(float(v) ** 2 for v in values) / len(values))
+    joint = pose.get("covariance") if isinstance(pose, dict) else None
+    if isinstance(joint, dict):
+        out["covariance"] = _pose_covariance(joint, source)
     return out
+
+
+def _pose_covariance(joint: dict, source: str) -> dict[str, Any]:
+    """calibration.json's per-photo ``covariance`` (calibration.pose_uncertainty.POSE_READOUTS), checked."""
+    names, matrix = joint.get("parameters"), np.asarray(joint.get("matrix", []), float)
+    if (not isinstance(names, list) or matrix.shape != (len(names), len(names)) or not np.all(np.isfinite(matrix))
+            or not np.allclose(matrix, matrix.T, rtol=1e-6, atol=1e-18)):
+        raise UserInputError("is not a symmetric matrix named by its parameters", file=source,
+                             field="std.poses.covariance", expected="{parameters: [names], matrix: [[...]] (square)}")
+    return {"parameters": [str(n) for n in names], "matrix": matrix}
 
 
 def _is_number(value: Any) -> bool:
