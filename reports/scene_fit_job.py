@@ -22,9 +22,11 @@ import numpy as np
 
 from calibration.dataset import dataset_files
 from calibration.decode import is_raw
+from renderer.render import variance_path
 from renderer.scene import load_scene
 from reports import fringes
 from reports.camera_file import check_scene, read_camera
+from reports.images import read_linear
 from reports.prediction import PREDICTION_STEP_NM
 from reports.report import read_merged_photo
 from reports.scene_fit import FitSettings, SceneFitResult, fit_scene
@@ -48,6 +50,7 @@ class FitInputs:
     supersample: int = FIT_SUPERSAMPLE
     step_nm: float = PREDICTION_STEP_NM
     settings: FitSettings = dataclasses.field(default_factory=FitSettings)
+    renders: Path | None = None  # NAME.exr per photo: the scene file through its calibrated camera (scene_fit_bias)
 
 
 def load_views(inputs: FitInputs, spec) -> list[View]:
@@ -67,11 +70,46 @@ def load_views(inputs: FitInputs, spec) -> list[View]:
         photo, _ = read_merged_photo(path, inputs.calibration, tuple(files["brackets"]), False, [])
         correlation = fringes.MOSAIC_CORRELATION_PX if is_raw(path) else fringes.NOISE_CORRELATION_PX
         views.append(View(path.name, fitted.model, photo, view_grids(spec, fitted.model), fitted.std or {}, correlation,
-                          photo_rim_points(photo, fitted.model, spec)))
+                          photo_rim_points(photo, fitted.model, spec), *_render(inputs.renders, path, photo)))
     return views
 
 
-def _record(inputs: FitInputs, spec, table, result: SceneFitResult, judged: dict, views: list[View],
+def _render(folder: Path | None, photo_path: Path, photo) -> tuple[np.ndarray | None, np.ndarray | None]:
+    """The photo's render of the scene file (``folder``/NAME.exr) and its variance between passes
+    (NAME.variance.exr, where the render wrote one), or Nones without a folder."""
+    if folder is None:
+        return None, None
+    path = folder / f"{photo_path.stem}.exr"
+    if not path.is_file():
+        raise UserInputError("no render of this photo's scene", file=path, field="--renders",
+                             expected=f"{photo_path.stem}.exr, as `workbench render` writes it for the photo's "
+                                      "calibrated scene (calibration's scenes/NAME.toml)")
+    rgb = read_linear(path, "--renders")
+    if rgb.shape[:2] != photo.rgb.shape[:2]:
+        raise UserInputError("the render's size differs from the photo's", file=path, field="--renders",
+                             expected=f"{photo.rgb.shape[1]} x {photo.rgb.shape[0]}", got=f"{rgb.shape[1]} x {rgb.shape[0]}")
+    variance = variance_path(path)
+    return rgb, read_linear(variance, "--renders") if variance.is_file() else None
+
+
+def bias_record(model: EdgeModel, views: list[View], renders: Path | None) -> dict[str, Any]:
+    """scene_fit.json's ``bias_correction``: per photo, what its render measured (reports.scene_fit_bias)."""
+    if renders is None:
+        return {"renders": None, "why": "no renders given: the forward model's offsets are not corrected"}
+    out: dict[str, Any] = {"renders": str(renders)}
+    for view, bias, note in zip(views, model.view_biases(), model.bias_notes, strict=True):
+        out[view.name] = dict(note)
+        if bias is not None:
+            edges = np.array(list(bias.edges.values()))
+            out[view.name] |= {"band_edge_keys": len(edges),
+                               "band_offset_median_px": float(np.median(edges)) if len(edges) else None,
+                               "rim_points": len(bias.rim_offsets),
+                               "rim_offset_median_px": float(np.median(bias.rim_offsets)) if len(bias.rim_offsets)
+                               else None}
+    return out
+
+
+def _record(inputs: FitInputs, spec, table, model: EdgeModel, result: SceneFitResult, judged: dict, views: list[View],
             seconds: dict[str, float]) -> dict[str, Any]:
     labels = table.labels()
     return {
@@ -82,9 +120,10 @@ def _record(inputs: FitInputs, spec, table, result: SceneFitResult, judged: dict
                                                           "of renderer.fit_parameters.DEFAULT_FREE are fitted"}),
         "components": labels, "values": result.values.tolist(), "nominal_values": result.nominal.tolist(),
         "std_jacobian": result.std_jacobian.tolist(), "std_bootstrap": result.std_bootstrap.tolist(),
+        "bias_correction": bias_record(model, views, inputs.renders),
         "correlations": np.round(result.correlations, 4).tolist(),
         "residuals_before_px": judged["residuals_before_px"], "residuals_after_px": judged["residuals_after_px"],
-        "edge_noise_px": result.sigma_px, "verdict": judged,
+        "noise_px": result.noise_px, "verdict": judged,
         "settings": {"supersample": inputs.supersample, "step_nm": inputs.step_nm,
                      **dataclasses.asdict(inputs.settings)},
         "rounds": result.log, "evaluations": result.evaluations,
@@ -115,6 +154,6 @@ def run_fit(inputs: FitInputs) -> dict[str, Any]:
                        f"{spec.name} with the scene fit's values (workbench fit; verdict: {judged['verdict']})")
     seconds = {"load": loaded - started, "fit": fitted - loaded, "total": time.perf_counter() - started,
                "forward_model": model.seconds, "evaluations": model.evaluations}
-    record = _record(inputs, spec, table, result, judged, views, seconds)
+    record = _record(inputs, spec, table, model, result, judged, views, seconds)
     atomic_write_text(inputs.out / "scene_fit.json", json.dumps(record, indent=2) + "\n")
     return record

@@ -7,7 +7,8 @@ synth was given, which may differ from the nominal ``--scene``) is fitted again 
   (``RESOLUTIONS``);
 * over the share of the photos' band edges used (``EDGE_FRACTIONS``, at the default
   resolution);
-* over the number of photos (the first photo alone, then all).
+* over the number of photos (the first photo alone, then all);
+* with ``--renders``: without the forward model's offsets measured on them (reports.scene_fit_bias).
 
 Each fit's errors against the truth scene: the period's (relative), the tilt's (the angle
 between the fitted and the true normal, degrees), the light centre's (mm), with the fit's
@@ -61,34 +62,39 @@ def fit_errors(record: dict[str, Any], truth: dict[str, Any]) -> dict[str, Any]:
     return out
 
 
-def _runs(photos: list[str]) -> list[tuple[str, dict[str, Any]]]:
+def _runs(photos: list[str], renders: Path | None) -> list[tuple[str, dict[str, Any]]]:
     """(swept setting, FitInputs changes) for every fit of the study."""
     runs: list[tuple[str, dict[str, Any]]] = [("resolution", {"supersample": s, "step_nm": step}) for s, step in RESOLUTIONS]
     runs += [("edges", {"edge_fraction": f}) for f in EDGE_FRACTIONS]
     if len(photos) > 1:
         runs.append(("photos", {"photos": (photos[0],)}))
+    if renders is not None:
+        runs.append(("bias", {"renders": None}))  # the same fit without the forward model's measured offsets
     return runs
 
 
 def run_fit_study(dataset: Path, scene: str, calibration: Path, truth_scene: str, out: Path,
-                  progress: bool = True) -> dict[str, Any]:
+                  progress: bool = True, renders: Path | None = None) -> dict[str, Any]:
     """Every fit of the study (module docstring); returns study_fit.json's content."""
     started = time.perf_counter()
     truth = truth_values(truth_scene)
     photos = sorted(p.name for p in (dataset / "photos").iterdir() if p.is_file())
     rows = []
-    for i, (sweep, change) in enumerate(_runs(photos)):
+    runs = _runs(photos, renders)
+    for i, (sweep, change) in enumerate(runs):
         settings = FitSettings(edge_fraction=change.get("edge_fraction", 1.0))
         inputs = FitInputs(dataset, scene, calibration, out / f"fit{i:02d}", change.get("photos", ()),
-                           change.get("supersample", 1), change.get("step_nm", 5.0), settings)
+                           change.get("supersample", 1), change.get("step_nm", 5.0), settings,
+                           change.get("renders", renders))
         record = run_fit(inputs)
         row = {"sweep": sweep, "supersample": inputs.supersample, "step_nm": inputs.step_nm,
                "edge_fraction": settings.edge_fraction, "photos": len(record["photos"]),
+               "render_offsets": inputs.renders is not None,
                "edges": record["verdict"]["residuals_after_px"]["count"], "seconds": record["timings"]["total"],
                "verdict": record["verdict"]["verdict"], **fit_errors(record, truth)}
         rows.append(row)
         if progress:
-            print(f"study fit {i + 1}/{len(_runs(photos))}: {sweep} {change}: {row['seconds']:.0f} s, "
+            print(f"study fit {i + 1}/{len(runs)}: {sweep} {change}: {row['seconds']:.0f} s, "
                   + ", ".join(f"{k} {v:.4g}" for k, v in row.items() if k.endswith(("_rel", "_deg", "_mm"))))
     data = {"dataset": str(dataset), "scene": scene, "truth_scene": truth_scene, "truth": truth, "rows": rows,
             "versions": versions("numpy", "scipy", "nlopt"), "timings": {"total_s": time.perf_counter() - started}}

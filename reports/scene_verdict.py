@@ -42,9 +42,10 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
+from scipy.spatial.transform import Rotation
 from scipy.stats import chi2
 
-from reports.camera_draws import CAMERA_STD_KEYS, moved_camera, unit_moves
+from reports.camera_draws import CAMERA_STD_KEYS, moved_camera
 from reports.scene_fit import SceneFitResult, cauchy_weights, group_scales
 from reports.scene_fit_model import EdgeModel, ObservedEdges
 
@@ -54,56 +55,110 @@ REMOVED_MEDIAN_PX = 0.5  # the prediction-vs-photo median of unperturbed test da
 LISTED_RESIDUALS = 10
 CAMERA_FIT_ROUNDS = 5  # reweighting rounds of the camera-only fit
 CAMERA_STEP_STD = 2.0  # the camera's central differences, in its standard deviations
+COVARIANCE_RANK_TOL = 1e-10  # principal directions of a camera covariance below this share of the largest are left out
+INDEPENDENT_COMPONENTS = {"rotation_deg": ("rotation_x_deg", "rotation_y_deg", "rotation_z_deg"),
+                          "translation_m": ("translation_x_m", "translation_y_m", "translation_z_m")}
 
 
 @dataclass
 class CameraEffect:
-    """How the residuals move with the camera: per column, one camera parameter of one view moved
-    by one standard deviation of its calibration (px per std), with the key it belongs to."""
+    """How the residuals move with the camera. Per column, one move of one view's camera: a
+    standard deviation of one parameter (independent standard deviations), or of one principal
+    direction of the calibration's joint covariance (calibration.pose_uncertainty:
+    ``covariance``); the columns' sum of outer products is the residuals' covariance."""
 
-    columns: np.ndarray  # (residuals, moves)
-    keys: list[str]
-    views: list[int]
+    columns: np.ndarray  # (residuals, moves) px
+    moves: np.ndarray  # (parameters, moves): each move of each (view, parameter), in that parameter's std
+    parameters: list[tuple[int, str]]  # (view, key) per row of ``moves``; key: CAMERA_STD_KEYS' family
 
-    def covariance(self, key: str | None = None) -> np.ndarray:
-        """The residuals' covariance (px^2) from the camera's uncertainty, or from one key's."""
-        A = self.columns if key is None else self.columns[:, [k == key for k in self.keys]]
-        return A @ A.T
+    def covariance(self) -> np.ndarray:
+        """The residuals' covariance (px^2) from the camera's uncertainty."""
+        return self.columns @ self.columns.T
 
 
 def camera_effect(model: EdgeModel, values: np.ndarray, observed: ObservedEdges) -> CameraEffect | None:
-    """The residuals' response to each camera parameter (CAMERA_STD_KEYS, each of its components:
-    reports.camera_draws.unit_moves) per std, one view at a time, by central differences over
-    +-``CAMERA_STEP_STD`` std (linearised: exact where the residuals are linear in the camera over
-    that range). The model's edges move in ~0.05 px steps, which a difference over one std adds
-    to every column as noise: forward differences of one std made the unperturbed fits' stds too
-    wide (normalised errors RMS 0.38 over seeds 0-5, against 0.49 with these). None when no
-    view's calibration gives a std."""
-    columns, keys, views = [], [], []
+    """The residuals' response to the camera's uncertainty, one view at a time, by central
+    differences over +-``CAMERA_STEP_STD`` std (linearised: exact where the residuals are linear
+    in the camera over that range) along each move of ``view_moves``. The model's edges move in
+    ~0.05 px steps, which a difference over one std adds to every column as noise: forward
+    differences of one std made the unperturbed fits' stds too wide (normalised errors RMS 0.38
+    over seeds 0-5, against 0.49 with these). None when no view's calibration gives a std."""
+    columns: list[np.ndarray] = []
+    moves: list[tuple[int, np.ndarray]] = []
+    parameters: list[tuple[int, str]] = []
     for v, view in enumerate(model.views):
-        stds = {k: float(view.camera_std[k]) for k in CAMERA_STD_KEYS
-                if isinstance(view.camera_std.get(k), (int, float)) and view.camera_std[k] > 0}
         share, rows = observed.of_view(v)
-        if not stds or not len(rows):
+        planned = view_moves(view.camera_std)
+        if planned is None or not len(rows):
             continue
-        for key, std in stds.items():
-            plus, minus = unit_moves(key, CAMERA_STEP_STD * std), unit_moves(key, -CAMERA_STEP_STD * std)
-            for up, down in zip(plus, minus, strict=True):
-                column = np.zeros(len(observed))
-                column[rows] = (_moved_residuals(model, view, up, values, share)
-                                - _moved_residuals(model, view, down, values, share)) / (2 * CAMERA_STEP_STD)
-                columns.append(column)
-                keys.append(key)
-                views.append(v)
-    return CameraEffect(np.stack(columns, axis=1), keys, views) if columns else None
+        names, readout_moves, std = planned
+        first = len(parameters)
+        parameters.extend((v, _family(name)) for name in names)
+        calls = [(values, share, [dataclasses.replace(view, camera=moved_by_readout(view.camera, names,
+                                                                                     sign * CAMERA_STEP_STD * delta))])
+                 for delta in readout_moves for sign in (1, -1)]
+        residuals = model.residuals_many(calls)
+        for k, delta in enumerate(readout_moves):
+            column = np.zeros(len(observed))
+            column[rows] = (residuals[2 * k] - residuals[2 * k + 1]) / (2 * CAMERA_STEP_STD)
+            columns.append(column)
+            moves.append((first, delta / std))
+    if not columns:
+        return None
+    M = np.zeros((len(parameters), len(columns)))
+    for j, (first, move) in enumerate(moves):
+        M[first:first + len(move), j] = move
+    return CameraEffect(np.stack(columns, axis=1), M, parameters)
 
 
-def _moved_residuals(model: EdgeModel, view, move: tuple, values: np.ndarray, share: ObservedEdges) -> np.ndarray:
-    """One view's residuals with its camera moved (moved_camera's arguments), counted in ``model``."""
-    moved = model.with_views([dataclasses.replace(view, camera=moved_camera(view.camera, *move))])
-    r = moved.residuals(values, share)
-    model.evaluations, model.seconds = model.evaluations + moved.evaluations, model.seconds + moved.seconds
-    return r
+def view_moves(camera_std: dict) -> tuple[list[str], list[np.ndarray], np.ndarray] | None:
+    """(readout names, the moves of one std each, the readouts' stds) for one view's calibration:
+    with its joint ``covariance`` (names of calibration.pose_uncertainty.POSE_READOUTS), the
+    principal directions sqrt(lambda_k) u_k of that covariance (their
+    outer products sum to it, correlations kept: forward propagation [Hartley 2004, Sec. 5.2.6]);
+    without, one move per standard deviation key
+    (CAMERA_STD_KEYS, each of its components), as if independent. None without either."""
+    joint = camera_std.get("covariance")
+    if isinstance(joint, dict):
+        matrix = np.asarray(joint["matrix"], float)
+        lam, U = np.linalg.eigh(matrix)
+        keep = lam > COVARIANCE_RANK_TOL * max(float(lam.max()), 1e-300)
+        std = np.sqrt(np.maximum(np.diag(matrix), 1e-300))
+        return list(joint["parameters"]), [U[:, k] * np.sqrt(lam[k]) for k in np.flatnonzero(keep)], std
+    names: list[str] = []
+    stds: list[float] = []
+    for key in CAMERA_STD_KEYS:
+        value = camera_std.get(key)
+        if isinstance(value, (int, float)) and value > 0:
+            components = INDEPENDENT_COMPONENTS.get(key, (key,))
+            names.extend(components)
+            stds.extend([float(value)] * len(components))
+    if not names:
+        return None
+    std = np.array(stds)
+    return names, [np.eye(len(names))[i] * std[i] for i in range(len(names))], std
+
+
+def _family(name: str) -> str:
+    """The standard-deviation key a readout belongs to (rotation_x_deg -> rotation_deg)."""
+    if name.startswith("rotation"):
+        return "rotation_deg"
+    if name.startswith(("center", "translation")):
+        return "translation_m"
+    return name
+
+
+def moved_by_readout(camera, names: list[str], delta: np.ndarray):
+    """``camera`` moved by ``delta`` of the readouts ``names`` (calibration.pose_uncertainty.readout:
+    a turn about the camera's axes, deg; the centre, m, or a shift along the camera's axes,
+    ``translation_*_m``; fx, fy, cx, cy, px), through reports.camera_draws.moved_camera."""
+    d = dict(zip(names, np.asarray(delta, float), strict=True))
+    turn_deg = np.array([d.get(f"rotation_{a}_deg", 0.0) for a in "xyz"])
+    turn = Rotation.from_rotvec(np.radians(turn_deg)).as_matrix()
+    centre = np.array([d.get(f"center_{a}_m", 0.0) for a in "xyz"])
+    shift = np.array([d.get(f"translation_{a}_m", 0.0) for a in "xyz"])
+    shift = shift - turn @ camera.world_to_camera[:3, :3] @ centre  # C' = C + dC: t' = turn t - R' dC
+    return moved_camera(camera, [d.get(k, 0.0) for k in ("fx", "fy", "cx", "cy")], turn_deg, shift)
 
 
 def camera_only_fit(result: SceneFitResult, rounds: int = CAMERA_FIT_ROUNDS) -> dict[str, Any] | None:
@@ -126,7 +181,7 @@ def camera_only_fit(result: SceneFitResult, rounds: int = CAMERA_FIT_ROUNDS) -> 
         c = np.linalg.solve(A.T @ (precision[:, None] * A) + np.eye(A.shape[1]), A.T @ (precision * r0))
         after = r0 - A @ c
     moved: dict[str, float] = {}
-    for key, value in zip(effect.keys, c, strict=True):
+    for (_, key), value in zip(effect.parameters, effect.moves @ c, strict=True):  # each parameter's move, in its std
         moved[key] = max(moved.get(key, 0.0), abs(float(value)))
     statistic = float(c @ c)
     return {"median_px": float(np.median(np.abs(after[:result.observed.edge_count]))), "statistic": statistic,
@@ -208,9 +263,8 @@ def verdict(result: SceneFitResult, labels: list[str], names: list[str], views: 
         "test": {"method": "Wald test of the fitted move from the scene file's values, with the fit's covariance "
                            "(noise only, then with the camera's uncertainty: the sandwich covariance); chi-square "
                            "with one degree of freedom per fitted component",
-                 "alpha": ALPHA, "edge_noise_px": result.sigma_px, "edges": edges,
+                 "alpha": ALPHA, "noise_px": result.noise_px, "edges": edges,
                  "rim_points": len(result.residuals_fitted) - edges,
-                 "rim_noise_px": float(result.sigma[edges]) if len(result.sigma) > edges else None,
                  "noise_only": test_noise.to_json(),
                  "noise_and_camera": None if test_camera is None else test_camera.to_json(),
                  "likelihood_ratio": likelihood_ratio(result.residuals_nominal, result.residuals_fitted, noise,

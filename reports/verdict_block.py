@@ -37,6 +37,12 @@ def _offset_text(s: dict | None) -> str:
     return f"median {s['median']:.2f} px, p95 {s['p95']:.2f} px ({s['count']} edges)"
 
 
+def _noise_text(test: dict[str, Any]) -> str:
+    """The measured noise per group: ``noise_px`` {group: px}, or an older record's band-edge ``edge_noise_px``."""
+    noise = test.get("noise_px") or {"band edges": test.get("edge_noise_px", float("nan"))}
+    return ", ".join(f"{name} {value:.2f} px" for name, value in noise.items())
+
+
 def verdict_html(verdict: dict[str, Any]) -> str:
     """The block's HTML (every text escaped or built by reports.page)."""
     kind = verdict["verdict"]
@@ -53,7 +59,7 @@ def verdict_html(verdict: dict[str, Any]) -> str:
             "photo vs render, scene file": _offset_text(verdict.get("fringe_offset_px_nominal_scene")),
             "photo vs render, fitted scene": _offset_text(verdict.get("fringe_offset_px_fitted_scene")),
             "test": f"Wald statistic {noise['statistic']:.1f} on {noise['dof']} dof, p = {noise['p_value']:.2g} "
-                    f"(edge noise {test['edge_noise_px']:.2f} px, measured; alpha {test['alpha']:g})",
+                    f"(noise {_noise_text(test)}, measured; alpha {test['alpha']:g})",
             "with the camera's uncertainty": "-" if camera is None else
             f"Wald statistic {camera['statistic']:.1f}, p = {camera['p_value']:.2g}"}
     camera_fit = verdict.get("camera_fit")

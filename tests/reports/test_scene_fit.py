@@ -37,7 +37,7 @@ PERIOD_BAR = 0.003  # relative: the issue's bar for a fitted period
 NOISE = 0.01  # of the lit fraction (about 1 % of a band's brightness, a draft render's noise)
 
 
-def _photo(spec, period: float, seed: int) -> Photo:
+def forward_model_photo(spec, period: float, seed: int) -> Photo:
     camera = spec.camera.model
     geometry = dataclasses.replace(cd_geometry(spec), period_um=period)
     pred = predict(spec, camera, geometry=geometry, supersample=FIT_SUPERSAMPLE)
@@ -49,7 +49,8 @@ def _photo(spec, period: float, seed: int) -> Photo:
 def _fit(period: float, seed: int):
     base = load_scene("cornell_cd")
     spec = dataclasses.replace(base, fit=parse_fit_table({"cd[0].structure.period": {}}, base.cds, base.light))
-    view = View("prediction", spec.camera.model, _photo(spec, period, seed), view_grids(spec, spec.camera.model), {})
+    camera = spec.camera.model
+    view = View("prediction", camera, forward_model_photo(spec, period, seed), view_grids(spec, camera), {})
     model = EdgeModel(spec, spec.fit, [view])
     result = fit_scene(model, FitSettings(rounds=2))
     return result, verdict(result, spec.fit.labels(), ["cd[0].structure.period"], ["prediction"])
@@ -150,7 +151,7 @@ def _fit_with_a_turned_camera(rotation_std_deg: float):
     spec = dataclasses.replace(base, fit=parse_fit_table({"cd[0].structure.period": {}}, base.cds, base.light))
     calibrated = spec.camera.model
     true = moved_camera(calibrated, [0.0] * 4, np.array([0.0, CAMERA_TURN_DEG, 0.0]), np.zeros(3))
-    photo = _photo(dataclasses.replace(spec, camera=dataclasses.replace(spec.camera, model=true)), 1.6, 3)
+    photo = forward_model_photo(dataclasses.replace(spec, camera=dataclasses.replace(spec.camera, model=true)), 1.6, 3)
     view = View("prediction", calibrated, photo, view_grids(spec, calibrated), {"rotation_deg": rotation_std_deg})
     model = EdgeModel(spec, spec.fit, [view])
     result = fit_scene(model, FitSettings(rounds=2), lambda x, observed: camera_effect(model, x, observed))

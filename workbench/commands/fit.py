@@ -30,6 +30,11 @@ def add_parser(commands: argparse._SubParsersAction) -> None:
     parser.add_argument("--out", required=True, metavar="DIR", help="the fit's folder")
     parser.add_argument("--photo", action="append", default=[], metavar="NAME",
                         help="fit to this photo of DATASET/photos only (repeatable; default: all)")
+    parser.add_argument("--renders", default=None, metavar="DIR",
+                        help="renders of the scene file through each photo's calibrated camera (DIR/NAME.exr, as "
+                             "`workbench render` writes them for calibration's scenes/NAME.toml, and verify's render "
+                             "stage): the forward model's own offsets (band edges, the CD's rim) are measured on them "
+                             "and taken off the photos' (default: none, not corrected)")
     parser.add_argument("--supersample", type=positive_number(int), default=None, metavar="N",
                         help="sub-rays per pixel axis of the forward model (default: 1)")
     parser.add_argument("--step-nm", type=positive_number(float), default=None, metavar="NM",
@@ -43,7 +48,8 @@ def run(args: argparse.Namespace) -> int:
     out = Path(args.out)
     if out.exists() and not out.is_dir():
         raise UserInputError("is a file, not a folder", field="--out", expected="a folder for the fit", got=args.out)
-    inputs = FitInputs(Path(args.dataset), args.scene, Path(args.calibration), out, tuple(args.photo))
+    inputs = FitInputs(Path(args.dataset), args.scene, Path(args.calibration), out, tuple(args.photo),
+                       renders=Path(args.renders) if args.renders else None)
     if args.supersample is not None:
         inputs.supersample = args.supersample
     if args.step_nm is not None:

@@ -59,6 +59,9 @@ def _add_fit(studies: argparse._SubParsersAction) -> None:
     p.add_argument("--calibration", required=True, metavar="calibration.json", help="the photos' cameras")
     p.add_argument("--truth-scene", required=True, metavar="SCENE", help="the scene the photos were made from")
     p.add_argument("--out", required=True, metavar="DIR", help="folder for the JSON, CSV, figures and each fit")
+    p.add_argument("--renders", default=None, metavar="DIR",
+                   help="renders of each photo's calibrated scene (as `workbench fit --renders`): every fit takes the "
+                        "forward model's offsets off, and one more fit without them (default: none)")
     p.add_argument("--quiet", action="store_true", help="no progress lines")
 
 
@@ -168,7 +171,7 @@ def run_fit(args: argparse.Namespace) -> int:
     from reports.scene_fit_study import run_fit_study  # deferred: pulls in scipy, cv2 and nlopt (start-up time)
 
     data = run_fit_study(Path(args.dataset), args.scene, Path(args.calibration), args.truth_scene, Path(args.out),
-                         progress=not args.quiet)
+                         progress=not args.quiet, renders=Path(args.renders) if args.renders else None)
     print(f"wrote {args.out}/study_fit.json, study_fit.csv and study_fit.png/.svg in {data['timings']['total_s']:.0f} s")
     return 0
 
