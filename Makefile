@@ -96,7 +96,7 @@ bench: install
 	$(BIN)/python -m benchmarks.bench_report
 	$(BIN)/python -m benchmarks.bench_large_photo
 	$(BIN)/python -m benchmarks.bench_plan
-	$(BIN)/python -m benchmarks.bench_scene_fit --rerender
+	$(BIN)/python -m benchmarks.bench_scene_fit --seeds 6
 	$(BIN)/python -m benchmarks.bench_verify --work out/bench/verify
 	$(BIN)/python -m benchmarks.bench_truncation_cost
 	$(BIN)/python -m benchmarks.bench_realisations --work out/bench/realisations

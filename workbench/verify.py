@@ -1,6 +1,6 @@
 """``workbench verify DATASET --scene SCENE --out RUN``: photos to report in one resumable run.
 
-Six stages, in order, each with its own folder in RUN:
+Seven stages, in order, each with its own folder in RUN:
 
 =============  =====================================================================  ==========================
 stage          what it does                                                           inputs hashed
@@ -8,14 +8,17 @@ stage          what it does                                                     
 plan           renderer.planner on the run's scene: tables, orders, directions, cost  RUN/scene.toml
 tables         the scene's efficiency tables, built (or resumed) in the user's cache  RUN/scene.toml
 calibration    calibration.dataset on DATASET's photos/, brackets/, calibration/      those files, RUN/scene.toml
-fit            reports.scene_fit_job: the scene's [fit] parameters from the photos'    photos, brackets,
-               band edges, and the verdict (fit/scene_fit.json, fitted_scene.toml;    calibration,
-               with the verdict ``model``, fit/scenes/NAME.toml: each photo's         RUN/scene.toml
-               calibrated scene with the fitted values; fit/not_fitted.txt says why
-               when there is nothing to fit or too few band edges)
 render         every photo's calibrated scene (calibration/scenes/NAME.toml),          the scenes
-               rendered; with the verdict ``model`` its fitted scene too
-               (render/NAME_fitted.exr: the re-render that confirms the fit)
+               rendered (render/NAME.exr)
+fit            reports.scene_fit_job: the scene's [fit] parameters from the photos'    photos, brackets,
+               band edges, the forward model's own offsets measured on the renders    calibration, renders,
+               (reports.scene_fit_bias), and the verdict (fit/scene_fit.json,         RUN/scene.toml
+               fitted_scene.toml; with the verdict ``model``, fit/scenes/NAME.toml:
+               each photo's calibrated scene with the fitted values;
+               fit/not_fitted.txt says why when there is nothing to fit or too few
+               band edges)
+rerender       with the verdict ``model``, each photo's fitted scene rendered          the fitted scenes
+               (rerender/NAME.exr: the re-render that confirms the fit); else nothing
 report         reports.report: each photo against its render, its clipped highlights  photos, renders, brackets,
                filled from the bracket frames that show its view, the fit's verdict   calibration, the fit
                first on the page; after a re-render, report/NAME/ compares the
@@ -112,7 +115,6 @@ SECONDS_RENDER_LOAD = 2.5  # building the Mitsuba scene, per photo
 SECONDS_TARGET_CD = 30.0  # the targeted render's CD crop (renderer.render_target) and its region masks, per photo
 SECONDS_PER_REPORT = 6.0  # one photo's report (masks, fringes, error maps, page)
 SECONDS_FIT = 50.0  # the scene fit of a two-photo draft dataset (benchmarks/bench_scene_fit.py)
-FITTED_SUFFIX = "_fitted"  # render/NAME_fitted.exr: the fitted scene's re-render
 NOT_FITTED = "not_fitted.txt"  # in RUN/fit when the scene has nothing to fit or the photos too few edges (why)
 
 
@@ -270,9 +272,11 @@ def _stage_calibration(run: Run) -> dict:
 def _stage_fit(run: Run) -> dict:
     calibration = run.root / "calibration" / "calibration.json"
     brackets = _bracket_frames(run.dataset)
+    renders = run.root / "render"
     inputs = ({f"photos/{p.name}": p for p in run.photos} | {f"brackets/{p.name}": p for p in brackets}
               | {"calibration.json": calibration, "scene.toml": run.scene}
-              | {f"scenes/{p.name}": run.root / "calibration" / "scenes" / f"{p.stem}.toml" for p in run.photos})
+              | {f"scenes/{p.name}": run.root / "calibration" / "scenes" / f"{p.stem}.toml" for p in run.photos}
+              | {f"render/{p.stem}.exr": renders / f"{p.stem}.exr" for p in run.photos})
 
     def work(folder: Path) -> dict[str, Any]:
         spec = load_scene(run.scene)
@@ -281,7 +285,7 @@ def _stage_fit(run: Run) -> dict:
             return {"verdict": None, "rerender": False, "reason": "nothing to fit"}
         try:
             record = _fit(run, FitInputs(run.dataset, str(run.scene), calibration, folder,
-                                         tuple(p.name for p in run.photos)))
+                                         tuple(p.name for p in run.photos), renders=renders))
         except UserInputError as error:  # the photos do not constrain the scene (too few band edges): say so, go on
             atomic_write_text(folder / NOT_FITTED, error.reason + "\n")
             return {"verdict": None, "rerender": False, "reason": error.reason}
@@ -319,16 +323,21 @@ def _fit_task(inputs: FitInputs) -> dict[str, Any]:
         return run_fit(inputs)
 
 
-def _render_scenes(run: Run) -> dict[str, Path]:
-    """{output stem: scene file}: each photo's calibrated scene, and its fitted one after the verdict ``model``."""
-    scenes = {p.stem: run.root / "calibration" / "scenes" / f"{p.stem}.toml" for p in run.photos}
-    if run.record["stages"].get("fit", {}).get("result", {}).get("rerender"):
-        scenes |= {f"{p.stem}{FITTED_SUFFIX}": run.root / "fit" / "scenes" / f"{p.stem}.toml" for p in run.photos}
-    return scenes
-
-
 def _stage_render(run: Run) -> dict:
-    scenes = _render_scenes(run)
+    """Each photo's calibrated scene (the scene file through its fitted camera)."""
+    return _render_stage(run, "render", {p.stem: run.root / "calibration" / "scenes" / f"{p.stem}.toml"
+                                         for p in run.photos})
+
+
+def _stage_rerender(run: Run) -> dict:
+    """Each photo's fitted scene after the verdict ``model`` (the re-render that confirms the fit); none otherwise."""
+    fitted = run.record["stages"].get("fit", {}).get("result", {}).get("rerender")
+    return _render_stage(run, "rerender", {p.stem: run.root / "fit" / "scenes" / f"{p.stem}.toml" for p in run.photos}
+                         if fitted else {})
+
+
+def _render_stage(run: Run, stage: str, scenes: dict[str, Path]) -> dict:
+    """Render ``scenes`` ({output stem: scene file}) into RUN/``stage``/STEM.exr at the run's settings."""
     s = run.settings
     settings = {"preset": s.preset, "spp": s.render_spp, "target": s.render_target, "seed": s.seed,
                 "integrator": s.integrator, "mode": s.mode, "resolution": list(run.size)}
@@ -342,12 +351,12 @@ def _stage_render(run: Run) -> dict:
             info = render(scene, folder / f"{name}.exr", preset=s.preset, spp=None if s.render_target else s.render_spp,
                           resolution=run.size, integrator=s.integrator, mode=s.mode, seed=s.seed, progress=s.progress,
                           executor=run.executor, force=True, target=s.render_target)  # the staging folder is the run's
-            _point_sidecar_at(folder / f"{name}.json", run.root / "render")
+            _point_sidecar_at(folder / f"{name}.json", run.root / stage)
             renders[name] = {"exr": f"{name}.exr", "seconds": info["seconds_total"],
                              "served": info.get("served", False), "resumed_passes": info.get("resumed_passes", 0)}
         return {"renders": renders}
 
-    return run_stage(run, "render", {f"scenes/{k}.toml": p for k, p in scenes.items()}, settings, estimate, work,
+    return run_stage(run, stage, {f"scenes/{k}.toml": p for k, p in scenes.items()}, settings, estimate, work,
                      lambda folder: all((folder / f"{n}.exr").is_file() for n in scenes))
 
 
@@ -369,13 +378,15 @@ def _bracket_frames(dataset: Path) -> tuple[Path, ...]:
 
 
 def _stage_report(run: Run) -> dict:
-    scenes = _render_scenes(run)
-    renders = {stem: run.root / "render" / f"{stem}.exr" for stem in scenes}
+    renders = {p.stem: run.root / "render" / f"{p.stem}.exr" for p in run.photos}
+    refitted = run.record["stages"].get("rerender", {}).get("result", {}).get("renders") or {}
+    fitted = {stem: run.root / "rerender" / f"{stem}.exr" for stem in refitted}
     calibration = run.root / "calibration" / "calibration.json"
     fitted_record = run.root / "fit" / "scene_fit.json"
     scene_fit = fitted_record if fitted_record.is_file() else None  # none: nothing to fit, or too few edges
     brackets = _bracket_frames(run.dataset)
     inputs = ({f"photos/{p.name}": p for p in run.photos} | {f"render/{k}.exr": p for k, p in renders.items()}
+              | {f"rerender/{k}.exr": p for k, p in fitted.items()}
               | {f"brackets/{p.name}": p for p in brackets} | {"calibration.json": calibration, "scene.toml": run.scene}
               | ({"scene_fit.json": scene_fit} if scene_fit is not None else {})
               | {f"studies/{k}/{f.name}": f for k, folder in enumerate(run.settings.study_folders)
@@ -384,9 +395,8 @@ def _stage_report(run: Run) -> dict:
     common = _ReportCommon(calibration, brackets, scene_fit, run.settings.study_folders)
 
     def photo_args(photo: Path, folder: Path) -> tuple:
-        fitted = renders.get(f"{photo.stem}{FITTED_SUFFIX}")
-        return (common, photo, renders[photo.stem], run.scene, fitted, run.root / "fit" / "fitted_scene.toml",
-                folder / photo.stem)
+        return (common, photo, renders[photo.stem], run.scene, fitted.get(photo.stem),
+                run.root / "fit" / "fitted_scene.toml", folder / photo.stem)
 
     def work(folder: Path) -> dict[str, Any]:
         if run.executor is None:
@@ -395,7 +405,7 @@ def _stage_report(run: Run) -> dict:
         futures = {photo.name: run.executor.submit(_report_photo, *photo_args(photo, folder)) for photo in run.photos}
         return {"reports": {name: future.result() for name, future in futures.items()}}
 
-    return run_stage(run, "report", inputs, {}, SECONDS_PER_REPORT * len(renders), work,
+    return run_stage(run, "report", inputs, {}, SECONDS_PER_REPORT * (len(renders) + len(fitted)), work,
                      lambda folder: all((folder / p.stem / "report.html").is_file() for p in run.photos))
 
 
@@ -470,8 +480,9 @@ def _verify_locked(root: Path, dataset: Path, scene: str | Path, spec: SceneSpec
         plan = _stage_plan(run)
         _stage_tables(run, plan)
         _stage_calibration(run)
-        _stage_fit(run)
         _stage_render(run)
+        _stage_fit(run)
+        _stage_rerender(run)
         _stage_report(run)
     except BaseException as exc:
         run.record.update(status="failed", error=f"{type(exc).__name__}: {exc}")

@@ -31,7 +31,7 @@ from workbench.core.version import __version__ as workbench_version
 from workbench.core.version import versions
 
 RUN_FORMAT = "workbench-verify"
-STAGES = ("plan", "tables", "calibration", "fit", "render", "report")
+STAGES = ("plan", "tables", "calibration", "render", "fit", "rerender", "report")
 # spp: the fixed render's samples (``--spp`` sets them), and the targeted render's frame cap; target: the render's
 # default mode (renderer.render_target: each region sampled to what the report measures there)
 PRESETS: dict[str, dict[str, Any]] = {"draft": {"tables": "draft", "spp": 256, "target": "report"},
