@@ -19,6 +19,7 @@ name                                components                  unit
 ==================================  ==========================  =========================================
 ``cd[i].structure.period``          the period                  um
 ``cd[i].structure.layers[j].thickness``  the layer's thickness  um (read from the structure; see below)
+``cd[i].structure.layers[j].shapes[k].width``  the stripe's width  um, about the stripe's centre (the groove's width)
 ``cd[i].center``                    x, y, z                     m
 ``cd[i].normal``                    tilt toward e1, toward e2   deg (e1, e2: the CD's frame, placement.frame_to)
 ``light.center``                    x, z                        m (y is the ceiling's)
@@ -42,15 +43,18 @@ from typing import Any
 
 import numpy as np
 
+from rcwa.shapes import Stripe
 from rcwa.structure import load_structure
 from workbench.core.errors import UserInputError
 
 DEFAULT_FREE = ("cd[0].structure.period", "cd[0].normal", "light.center")
 HELD = {"light.power_w": "one photo's brightness fixes only exposure x light power; calibration fits that product "
                          "(its photometric scale), so the power is held at the scene file's value"}
-DEFAULT_WITHIN = {"structure.period": ("relative", 0.10), "thickness": ("relative", 0.3), "center": ("absolute", 0.03),
+DEFAULT_WITHIN = {"structure.period": ("relative", 0.10), "thickness": ("relative", 0.3), "width": ("relative", 0.3),
+                  "center": ("absolute", 0.03),
                   "normal": ("absolute", 10.0), "light.center": ("absolute", 0.15), "light.size": ("relative", 0.6)}
-_CD_NAME = re.compile(r"^cd\[(\d+)\]\.(center|normal|rotation_deg|structure\.period|structure\.layers\[(\d+)\]\.thickness)$")
+_CD_NAME = re.compile(r"^cd\[(\d+)\]\.(center|normal|rotation_deg|structure\.period"
+                      r"|structure\.layers\[(\d+)\]\.(?:thickness|shapes\[(\d+)\]\.width))$")
 _OPTIONS = {"bounds", "within", "within_deg", "prior_std"}
 
 
@@ -59,7 +63,7 @@ class FitParameter:
     """One free field of the scene, in fit coordinates (module docstring)."""
 
     name: str
-    kind: str  # "period", "thickness", "center", "normal", "light.center", "light.size"
+    kind: str  # "period", "thickness", "width", "center", "normal", "light.center", "light.size"
     cd_index: int | None
     components: tuple[str, ...]
     unit: str
@@ -67,7 +71,8 @@ class FitParameter:
     lower: tuple[float, ...]
     upper: tuple[float, ...]
     prior_std: tuple[float, ...] | None = None
-    layer: int | None = None  # the structure's layer (thickness)
+    layer: int | None = None  # the structure's layer (thickness, width)
+    shape: int | None = None  # the layer's stripe (width)
 
     @property
     def size(self) -> int:
@@ -145,8 +150,9 @@ def _parameter(name: str, options: dict, cds: tuple, light: Any) -> FitParameter
     match = _CD_NAME.match(name)
     if not match:
         raise UserInputError("names no field the scene fit can vary", field=where,
-                             expected="cd[i].structure.period, cd[i].structure.layers[j].thickness, cd[i].center, "
-                                      "cd[i].normal, light.center, light.size or light.power_w")
+                             expected="cd[i].structure.period, cd[i].structure.layers[j].thickness, "
+                                      "cd[i].structure.layers[j].shapes[k].width, cd[i].center, cd[i].normal, "
+                                      "light.center, light.size or light.power_w")
     index = int(match.group(1))
     if index >= len(cds):
         raise UserInputError(f"the scene has {len(cds)} CD(s): no cd[{index}]", field=where)
@@ -171,8 +177,20 @@ def _parameter(name: str, options: dict, cds: tuple, light: Any) -> FitParameter
     if layer >= len(structure.layers):
         raise UserInputError(f"the CD's structure has {len(structure.layers)} layer(s): no layers[{layer}]", field=where,
                              got=cd.structure)
-    return _with_options(FitParameter(name, "thickness", index, ("value",), "um",
-                                      (float(structure.layers[layer].thickness),), (), (), layer=layer), options)
+    if match.group(4) is None:
+        return _with_options(FitParameter(name, "thickness", index, ("value",), "um",
+                                          (float(structure.layers[layer].thickness),), (), (), layer=layer), options)
+    shape, shapes = int(match.group(4)), structure.layers[layer].shapes
+    stripe = shapes[shape] if shape < len(shapes) else None
+    if not isinstance(stripe, Stripe):
+        raise UserInputError(f"layers[{layer}] of the CD's structure has no stripe shapes[{shape}]", field=where,
+                             got=f"{cd.structure}: {len(shapes)} shape(s)")
+    width = _with_options(FitParameter(name, "width", index, ("value",), "um", (float(stripe.x1 - stripe.x0),), (), (),
+                                       layer=layer, shape=shape), options)
+    if width.upper[0] > structure.period[0]:
+        raise UserInputError("the stripe cannot be wider than the period", field=f"{where}.bounds",
+                             expected=f"at most {structure.period[0]} um", got=list(width.upper))
+    return width
 
 
 def _per_component(value: Any, size: int, where: str) -> tuple[float, ...]:
@@ -205,7 +223,7 @@ def _with_options(p: FitParameter, options: dict) -> FitParameter:
         raise UserInputError("the bounds must contain the scene file's value", field=f"{where}.bounds",
                              expected=f"lo < {list(map(float, nominal))} < hi per component",
                              got=[list(x) for x in zip(lower.tolist(), upper.tolist(), strict=True)])
-    if p.kind in ("period", "thickness", "light.size") and np.any(lower <= 0):
+    if p.kind in ("period", "thickness", "width", "light.size") and np.any(lower <= 0):
         raise UserInputError("must stay positive", field=f"{where}.bounds", got=lower.tolist())
     prior = None
     if "prior_std" in options:

@@ -76,8 +76,9 @@ from reports.scene_fit_model import FIT_THREADS, NOISE_GROUPS, EdgeModel, Observ
 
 MAD_TO_SIGMA = 1.4826
 MIN_SCALE_PX = 0.15  # the robust loss's scale never below this: the prediction's own edges move by ~0.1 px steps
-SCALES = {"period": 0.01, "thickness": 0.005, "center": 0.005, "normal": 0.3, "light.center": 0.01, "light.size": 0.01}
-FD_STEPS = {"period": 0.004, "thickness": 0.004, "center": 0.002, "normal": 0.15, "light.center": 0.005,
+SCALES = {"period": 0.01, "thickness": 0.005, "width": 0.02, "center": 0.005, "normal": 0.3, "light.center": 0.01,
+          "light.size": 0.01}
+FD_STEPS = {"period": 0.004, "thickness": 0.004, "width": 0.01, "center": 0.002, "normal": 0.15, "light.center": 0.005,
             "light.size": 0.005}  # large enough that the edges move by more than their ~0.05 px sampling steps
 BOOTSTRAP_DRAWS = 200
 SCAN_POINTS = {"period": 9}  # per component across its bounds; others: SCAN_POINTS_DEFAULT

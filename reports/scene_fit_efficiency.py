@@ -1,21 +1,25 @@
-"""Efficiencies for a fitted layer thickness (the CD's groove depth): RCWA tables at a few
-thicknesses, read as one efficiency linear in the thickness between neighbouring ones.
+"""Efficiencies for fitted structure fields (the CD's groove depth and width): RCWA tables on a
+grid of their values, read as one efficiency multilinear in them between neighbouring nodes.
 
 The forward model (reports.scene_fit_model) weights every lit (pixel, wavelength) by the
-order's efficiency (reports.prediction_efficiency); a groove depth changes those
-efficiencies, not the directions. Re-solving at every evaluation would cost a table per
-step, so ``THICKNESS_NODES`` tables are built once across the parameter's bounds, each with
-the scene's own table settings (renderer.tables; the user's cache keeps them by content,
-so a second fit reuses them), and the efficiency at a thickness is the linear blend of the
-two nodes around it. The nodes are close enough for that: across the default bounds (+-30 %
-of 0.11 um, rcwa.structures' cd) neighbouring nodes differ in phase depth 4 pi n d / lambda
-by about 0.4 rad at 500 nm. What it costs is recorded (``seconds``: 7 draft tables in about
-10-15 s on 2 cores; the paper preset's about 2 minutes each).
+order's efficiency (reports.prediction_efficiency); a groove's depth (a layer's thickness)
+or width (a stripe's width) changes those efficiencies, not the directions. Re-solving at
+every evaluation would cost a table per step, so tables are built once on a grid across the
+fields' bounds: ``NODES_ONE_FIELD`` values of one field, or ``NODES_TWO_FIELDS`` of each of
+two (their product), each with the scene's own table settings (renderer.tables; the user's
+cache keeps them by content, so a second fit reuses them), and the efficiency at a point is
+the multilinear blend of the 2^d nodes around it. The nodes are close enough for that:
+across the default bounds (+-30 % of 0.11 um, rcwa.structures' cd) neighbouring depth nodes
+differ in phase depth 4 pi n d / lambda by about 0.4 rad at 500 nm; neighbouring width
+nodes (+-30 % of 0.6 um) move the stripe's edges by 0.03 um, 2 % of the 1.6 um period. What it
+costs is recorded (``seconds``: 7 draft tables in about 10-15 s on 2 cores, 25 for depth and
+width together about a minute; the paper preset's about 2 minutes each).
 """
 
 from __future__ import annotations
 
 import dataclasses
+import itertools
 import tempfile
 import time
 import tomllib
@@ -25,51 +29,74 @@ import numpy as np
 import tomli_w
 
 from rcwa.structure import load_structure
+from renderer.fit_apply import structure_data_with
 from renderer.fit_parameters import FitParameter
 from reports.prediction_efficiency import Efficiency, scene_efficiency
 
-THICKNESS_NODES = 7
+NODES_ONE_FIELD = 7
+NODES_TWO_FIELDS = 5
+STRUCTURE_KINDS = ("thickness", "width")  # the fit kinds whose efficiencies these tables give
 
 
 class BlendedEfficiency:
-    """(1 - w) a + w b of two efficiencies (the same call as reports.prediction_efficiency.Efficiency)."""
+    """sum_k w_k eta_k of efficiencies (the same call as reports.prediction_efficiency.Efficiency)."""
 
-    def __init__(self, a: Efficiency, b: Efficiency, w: float):
-        self.a, self.b, self.w = a, b, w
-        self.source = f"{a.source} .. {b.source} (w = {w:.3f})"
+    def __init__(self, parts: list[tuple[float, Efficiency]]):
+        self.parts = [(w, e) for w, e in parts if w > 0.0] or parts[:1]
+        self.source = " + ".join(f"{w:.3f} x {e.source}" for w, e in self.parts)
 
     def __call__(self, m: int, wavelengths_nm: np.ndarray, sin_air: np.ndarray, phi_deg: np.ndarray) -> np.ndarray:
-        return ((1.0 - self.w) * self.a(m, wavelengths_nm, sin_air, phi_deg)
-                + self.w * self.b(m, wavelengths_nm, sin_air, phi_deg))
+        out = np.zeros(len(wavelengths_nm))
+        for w, e in self.parts:
+            out = out + w * e(m, wavelengths_nm, sin_air, phi_deg)
+        return out
 
 
-def _structure_with_thickness(reference: str, layer: int, thickness: float, folder: Path) -> Path:
-    data = tomllib.loads(load_structure(reference).text)
-    data["layers"][layer]["thickness"] = float(thickness)
-    data["name"] = f"{data.get('name', 'structure')}_d{thickness:.5f}"
+def field_name(p: FitParameter) -> str:
+    """The structure field a parameter fits (renderer.fit_apply.structure_data_with's keys)."""
+    return f"layers[{p.layer or 0}].thickness" if p.kind == "thickness" else f"layers[{p.layer}].shapes[{p.shape}].width"
+
+
+def _structure_with(reference: str, changes: dict[str, float], folder: Path, tag: str) -> Path:
+    data = structure_data_with(tomllib.loads(load_structure(reference).text), changes)
+    data["name"] = f"{data.get('name', 'structure')}_{tag}"
     path = folder / f"{data['name']}.toml"
     path.write_text(tomli_w.dumps(data))
     return path
 
 
-class ThicknessEfficiencies:
-    """The CD's efficiencies at ``THICKNESS_NODES`` thicknesses of one layer across ``parameter``'s bounds."""
+class StructureEfficiencies:
+    """The CD's efficiencies on a grid of one or two structure fields across ``parameters``' bounds."""
 
-    def __init__(self, spec, parameter: FitParameter, nodes: int = THICKNESS_NODES):
+    def __init__(self, spec, parameters: list[FitParameter]):
         started = time.perf_counter()
-        index, layer = parameter.cd_index or 0, parameter.layer or 0
-        self.values = np.linspace(parameter.lower[0], parameter.upper[0], nodes)
+        if not 1 <= len(parameters) <= 2:
+            raise ValueError("one or two structure fields")
+        self.fields = [field_name(p) for p in parameters]
+        nodes = NODES_ONE_FIELD if len(parameters) == 1 else NODES_TWO_FIELDS
+        self.axes = [np.linspace(p.lower[0], p.upper[0], nodes) for p in parameters]
+        index = parameters[0].cd_index or 0
         cd = spec.cds[index]
-        self.efficiencies = []
+        self.efficiencies: dict[tuple[int, ...], Efficiency] = {}
         with tempfile.TemporaryDirectory() as tmp:  # the copies only name the tables, which the cache keeps
-            for t in self.values:
-                path = _structure_with_thickness(cd.structure, layer, t, Path(tmp))
+            for at in itertools.product(*(range(len(a)) for a in self.axes)):
+                changes = {f: float(a[i]) for f, a, i in zip(self.fields, self.axes, at, strict=True)}
+                tag = "_".join(f"{chr(ord('a') + k)}{v:.5f}" for k, v in enumerate(changes.values()))
+                path = _structure_with(cd.structure, changes, Path(tmp), tag)
                 cds = list(spec.cds)
                 cds[index] = dataclasses.replace(cd, structure=str(path))
-                self.efficiencies.append(scene_efficiency(dataclasses.replace(spec, cds=tuple(cds)), index))
+                self.efficiencies[at] = scene_efficiency(dataclasses.replace(spec, cds=tuple(cds)), index)
         self.seconds = time.perf_counter() - started
 
-    def at(self, thickness: float) -> BlendedEfficiency:
-        i = int(np.clip(np.searchsorted(self.values, thickness) - 1, 0, len(self.values) - 2))
-        w = float(np.clip((thickness - self.values[i]) / (self.values[i + 1] - self.values[i]), 0.0, 1.0))
-        return BlendedEfficiency(self.efficiencies[i], self.efficiencies[i + 1], w)
+    def at(self, values: dict[str, float]) -> BlendedEfficiency:
+        """The efficiency at the fields' ``values`` ({field: um}), multilinear between the nodes."""
+        cells = []
+        for field, axis in zip(self.fields, self.axes, strict=True):
+            i = int(np.clip(np.searchsorted(axis, values[field]) - 1, 0, len(axis) - 2))
+            w = float(np.clip((values[field] - axis[i]) / (axis[i + 1] - axis[i]), 0.0, 1.0))
+            cells.append(((i, 1.0 - w), (i + 1, w)))
+        parts = []
+        for corner in itertools.product(*cells):
+            weight = float(np.prod([w for _, w in corner]))
+            parts.append((weight, self.efficiencies[tuple(i for i, _ in corner)]))
+        return BlendedEfficiency(parts)

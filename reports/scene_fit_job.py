@@ -139,6 +139,9 @@ def run_fit(inputs: FitInputs) -> dict[str, Any]:
     if table is None or not table.free:
         raise UserInputError("the scene has nothing to fit (no CD, or a [fit] table with no free parameter)",
                              file=spec.source, field="fit")
+    if inputs.renders is not None and not inputs.renders.is_dir():
+        raise UserInputError("no such folder", field="--renders", got=str(inputs.renders),
+                             expected="a folder of NAME.exr renders, one per photo")
     views = load_views(inputs, spec)
     loaded = time.perf_counter()
     model = EdgeModel(spec, table, views, supersample=inputs.supersample, step_nm=inputs.step_nm)

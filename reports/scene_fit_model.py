@@ -12,8 +12,8 @@ The photo's edges are found with the windows of a prediction (fringes.find_edges
 measures them once per round with the round's starting values (ObservedEdges), and they
 stay fixed while the optimiser moves the prediction.
 
-A fitted layer thickness (the groove depth) reads its efficiencies from tables built at a
-few thicknesses (reports.scene_fit_efficiency). Approximation, stated: otherwise the
+A fitted layer thickness or stripe width (the groove's depth and width) reads its efficiencies
+from tables built on a grid of their values (reports.scene_fit_efficiency). Approximation, stated: otherwise the
 efficiency table is the scene file's (its period and depth);
 a fitted period moves the orders' directions exactly (the grating equation) but their
 efficiencies are read at the table's period, a change of eta by a few per cent for a
@@ -42,7 +42,7 @@ from reports.images import Photo
 from reports.prediction import PREDICTION_STEP_NM, Prediction, cd_geometry, predict
 from reports.prediction_efficiency import Efficiency, scene_efficiency
 from reports.scene_fit_bias import ViewBias, band_offsets, render_photo, rim_offsets, usable_render
-from reports.scene_fit_efficiency import BlendedEfficiency, ThicknessEfficiencies
+from reports.scene_fit_efficiency import STRUCTURE_KINDS, BlendedEfficiency, StructureEfficiencies
 from workbench.core.errors import UserInputError
 
 FIT_SUPERSAMPLE = 1  # sub-rays per pixel axis in the fit's predictions (the report's is 2)
@@ -229,11 +229,11 @@ class EdgeModel:
         self.spec, self.table, self.views = spec, table, views
         self.supersample, self.step_nm = supersample, step_nm
         self.efficiency = efficiency if efficiency is not None else scene_efficiency(spec)
-        thickness = [p for p in table.free if p.kind == "thickness"]
-        if len(thickness) > 1 or any(p.cd_index != 0 for p in thickness):
-            raise UserInputError("the scene fit varies one layer thickness, of cd[0]", file=spec.source, field="fit",
-                                 got=[p.name for p in thickness])
-        self.thickness = ThicknessEfficiencies(spec, thickness[0]) if thickness else None
+        fields = [p for p in table.free if p.kind in STRUCTURE_KINDS]
+        if len(fields) > 2 or any(p.cd_index != 0 for p in fields):
+            raise UserInputError("the scene fit varies at most two structure fields (a layer's thickness, a stripe's "
+                                 "width), of cd[0]", file=spec.source, field="fit", got=[p.name for p in fields])
+        self.structure = StructureEfficiencies(spec, fields) if fields else None
         self.evaluations = 0
         self.seconds = 0.0
         self._bias: list[ViewBias | None] | None = None  # measured at the first observed_edges
@@ -275,9 +275,8 @@ class EdgeModel:
         if period is not None:
             cd = dataclasses.replace(cd, period_um=period)
         efficiency: Efficiency | BlendedEfficiency = self.efficiency
-        if self.thickness is not None:
-            changes = applied.structure_changes.get(0, {})
-            efficiency = self.thickness.at(next(v for k, v in changes.items() if k.endswith(".thickness")))
+        if self.structure is not None:
+            efficiency = self.structure.at(applied.structure_changes.get(0, {}))
         out: list[Prediction | None] = []
         for view in self.views:
             try:

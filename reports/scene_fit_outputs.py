@@ -8,7 +8,7 @@ components, FitTable.labels order), ``residuals_before_px`` and ``residuals_afte
 fitted values), ``verdict`` (reports.scene_verdict), ``held``, settings, versions, timings.
 
 fitted_scene.toml: the scene file with the fitted values in place (a scene any command
-accepts). A fitted structure field (the period, a layer's thickness) changes the structure
+accepts). A fitted structure field (the period, a layer's thickness, a stripe's width) changes the structure
 file the scene names: a copy with the fitted values is written beside it
 (``cd0_structure.toml``; its material CSV files named by absolute paths) and the scene
 points to it by a relative path. Other paths the scene resolved are made absolute
@@ -27,14 +27,14 @@ import tomli_w
 
 from calibration.fitted_scene import absolute_reference
 from rcwa.structure import BUILTIN_STRUCTURES, load_structure
-from renderer.fit_apply import apply_values, tilt_angle_deg
+from renderer.fit_apply import apply_values, structure_data_with, tilt_angle_deg
 from renderer.fit_parameters import FitParameter, FitTable
 from workbench.core.files import atomic_write_text
 
 
 def _file_value(p: FitParameter, spec, values: np.ndarray) -> list[float] | float:
     """The parameter's value as the scene file writes it, for fit-coordinate ``values``."""
-    if p.kind in ("period", "thickness"):
+    if p.kind in ("period", "thickness", "width"):
         return float(values[0])
     if p.kind == "center":
         return [float(v) for v in values]
@@ -75,18 +75,13 @@ def _material_specs(data: dict) -> list[dict]:
 
 
 def _structure_copy(reference: str, changes: dict[str, float], path: Path) -> str:
-    """A copy of the structure file ``reference`` with ``changes`` ("period", "layers[j].thickness") at ``path``."""
+    """A copy of the structure file ``reference`` with ``changes`` (renderer.fit_apply.structure_data_with) at ``path``."""
     structure = load_structure(reference)
     data = tomllib.loads(structure.text)
     if reference not in BUILTIN_STRUCTURES:  # a material CSV named relative to the structure file: absolute in the copy
         for spec in _material_specs(data):
             spec["file"] = os.path.abspath(Path(reference).parent / spec["file"])
-    for field, value in changes.items():
-        if field == "period":
-            data["period"] = [value]
-        else:
-            j = int(field[len("layers["):field.index("]")])
-            data["layers"][j]["thickness"] = value
+    structure_data_with(data, changes)
     data["name"] = f"{data.get('name', 'structure')}_fitted"
     atomic_write_text(path, "# the structure with the scene fit's values (workbench fit)\n" + tomli_w.dumps(data))
     return str(path.resolve())

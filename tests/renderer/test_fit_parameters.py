@@ -162,6 +162,12 @@ BAD = {
                            "must be positive"),
     # an option value that is not a table
     "not a table": ('"light.center" = 0.1', "fit.light.center", "must be a table of options"),
+    # a shape the CD's layer does not have (cd.toml's pits layer holds one stripe)
+    "no shapes[2]": ('"cd[0].structure.layers[0].shapes[2].width" = {}', "fit.cd[0].structure.layers[0].shapes[2].width",
+                     "no stripe shapes[2]"),
+    # a stripe cannot be wider than the 1.6 um period
+    "width over the period": ('"cd[0].structure.layers[0].shapes[0].width" = { bounds = [0.4, 1.8] }',
+                              "fit.cd[0].structure.layers[0].shapes[0].width.bounds", "wider than the period"),
 }
 
 
@@ -311,3 +317,23 @@ def test_cli_fit_with_a_bad_fit_field_exits_2_with_one_line(tmp_path, capsys):
     assert lines[0].startswith("error: ") and str(scene) in lines[0] and "field 'fit.cd[3].center'" in lines[0]
     assert "Traceback" not in captured.err
     assert not (tmp_path / "fit").exists()  # nothing written for a refused scene
+
+
+def test_a_groove_width_is_fitted_about_the_stripes_centre(tmp_path):
+    """``cd[0].structure.layers[0].shapes[0].width``: the pits' stripe (x = [0.5, 1.1] in cd.toml,
+    0.6 um wide) with the default +-30 %; a fitted width goes into the structure copy about the
+    stripe's centre (0.8 um), the period and depth unchanged."""
+    source = _scene_file(tmp_path, '"cd[0].structure.layers[0].shapes[0].width" = {}\n')
+    spec = load_scene(source)
+    (width,) = _fit(spec).free
+    assert width.kind == "width" and (width.layer, width.shape) == (0, 0)
+    assert width.nominal == pytest.approx((0.6,), abs=EXACT)
+    assert (width.lower, width.upper) == (pytest.approx((0.42,)), pytest.approx((0.78,)))
+    out = tmp_path / "out"
+    out.mkdir()
+    fitted = load_scene(write_fitted_scene(spec, _fit(spec), np.array([0.66]), out, "a test"))
+    stripe = load_structure(fitted.cds[0].structure).layers[0].shapes[0]
+    assert (stripe.x0, stripe.x1) == (pytest.approx(0.47, abs=EXACT), pytest.approx(1.13, abs=EXACT))
+    original = load_structure(spec.cds[0].structure)
+    assert load_structure(fitted.cds[0].structure).period == original.period
+    assert load_structure(fitted.cds[0].structure).layers[0].thickness == original.layers[0].thickness

@@ -169,6 +169,8 @@ CASES: list[tuple[str, list[str], str]] = [
                                        "{root}/c.json", "--out", "{root}/f2"], "not identifiable"),
     ("fit-dataset-without-photos", ["fit", "{a_folder}", "--scene", "cornell_cd", "--calibration", "{root}/c.json",
                                     "--out", "{root}/f3"], "photos"),
+    ("fit-renders-not-a-folder", ["fit", "{a_folder}", "--scene", "cornell_cd", "--calibration", "{root}/c.json",
+                                  "--out", "{root}/f", "--renders", "{root}/nosuch"], "field '--renders'"),
     ("fit-zero-supersample", ["fit", "{a_folder}", "--scene", "cornell_cd", "--calibration", "{root}/c.json",
                               "--out", "{root}/f4", "--supersample", "0"], "--supersample"),
     ("study-fit-bad-truth-scene", ["study", "fit", "{a_folder}", "--scene", "cornell_cd", "--calibration",
