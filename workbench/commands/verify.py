@@ -22,10 +22,11 @@ def add_parser(commands: argparse._SubParsersAction) -> None:
         "verify", help="photos to report in one resumable run: plan, tables, calibration, render, fit, report",
         description="Runs plan -> tables -> calibration -> render (every photo with its fitted camera, at the photo's "
                     "size) -> fit (the scene fit and its verdict; the renders measure the forward model's own offsets) "
-                    "-> rerender (the fitted scene, after the verdict model) -> report into RUN, one folder per stage. Each stage's inputs (file bytes, settings, version) "
-                    "are hashed: a re-run skips finished stages, a killed run resumes where it stopped. RUN/run.json "
-                    "records settings, versions, timings and keys; the summary gives each report's path, the fringe "
-                    "offsets (median, p95) and the calibration residuals. truth.json is never read (see `score`).")
+                    "-> rerender (the fitted scene, after the verdict model) -> report into RUN, one folder per stage. "
+                    "Each stage's inputs (file bytes, settings, version) are hashed: a re-run skips finished stages, "
+                    "a killed run resumes where it stopped. RUN/run.json records settings, versions, timings and "
+                    "keys; the summary gives each report's path, the fringe offsets (median, p95) and the calibration "
+                    "residuals. truth.json is never read (see `score`).")
     verify.add_argument("dataset", metavar="DATASET", help="a folder with photos/ (and optionally brackets/, calibration/)")
     verify.add_argument("--scene", required=True, metavar="SCENE",
                         help="the scene the photos show: a built-in scene name or a TOML file")
