@@ -142,17 +142,19 @@ EFFICIENCY_CACHE_SIZE = 4
 _efficiencies: dict[tuple[str, str], Efficiency] = {}
 
 
-def scene_efficiency(spec: SceneSpec, index: int = 0) -> Efficiency:
+def scene_efficiency(spec: SceneSpec, index: int = 0, nodes=None) -> Efficiency:
     """The efficiencies of the scene's CD ``index``: the table renderer.tables serves for it
-    (the scene's named table, or the cache's, built there when missing). Read (and
-    checksummed, about 1-2 s) once per process and request, however many cameras are predicted:
-    the report's uncertainty band predicts several."""
+    (the scene's named table, or the cache's, built there when missing; planned with ``nodes``,
+    an rcwa.table.NodePlan, where given: renderer.tables.table_plan). Read (and checksummed,
+    about 1-2 s) once per process and request, however many cameras are predicted: the
+    report's uncertainty band predicts several."""
     cd = spec.cds[index]
     where = f"cd[{index}]"
-    plan = table_plan(cd, where, spec.source)
+    plan = table_plan(cd, where, spec.source, nodes)
     key = (str(plan.path), plan.key)
     if key not in _efficiencies:
-        path = element_table(cd, camera_sensitivities(spec.camera.sensitivities), where, spec.source, progress=False)
+        path = element_table(cd, camera_sensitivities(spec.camera.sensitivities), where, spec.source, nodes=nodes,
+                             progress=False)
         while len(_efficiencies) >= EFFICIENCY_CACHE_SIZE:
             _efficiencies.pop(next(iter(_efficiencies)))
         _efficiencies[key] = table_efficiency(path)

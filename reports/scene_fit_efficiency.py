@@ -11,9 +11,13 @@ cache keeps them by content, so a second fit reuses them), and the efficiency at
 the multilinear blend of the 2^d nodes around it. The nodes are close enough for that:
 across the default bounds (+-30 % of 0.11 um, rcwa.structures' cd) neighbouring depth nodes
 differ in phase depth 4 pi n d / lambda by about 0.4 rad at 500 nm; neighbouring width
-nodes (+-30 % of 0.6 um) move the stripe's edges by 0.03 um, 2 % of the 1.6 um period. What it
-costs is recorded (``seconds``: 7 draft tables in about 10-15 s on 2 cores, 25 for depth and
-width together about a minute; the paper preset's about 2 minutes each).
+nodes (+-30 % of 0.6 um) move the stripe's edges by 0.03 um, 2 % of the 1.6 um period. Each
+table is planned for the fit's cameras (fit_nodes: the nodes they read, grown by
+``NODE_MARGIN``, solved with all the table's orders, the others with the kept orders only):
+61 % of a paper table's nodes for cornell_cd's camera, 85 % of a draft table's (whose grid is
+coarse: no saving there). What it costs is recorded (``seconds``: 7 draft tables in 10.8 s on
+2 cores, 25 for depth and width together about 40 s; the paper preset's about 2 minutes each
+whole).
 """
 
 from __future__ import annotations
@@ -29,13 +33,16 @@ import numpy as np
 import tomli_w
 
 from rcwa.structure import load_structure
+from rcwa.table.settings import NodePlan
 from renderer.fit_apply import structure_data_with
 from renderer.fit_parameters import FitParameter
+from renderer.planner import planned_nodes
 from reports.prediction_efficiency import Efficiency, scene_efficiency
 
 NODES_ONE_FIELD = 7
 NODES_TWO_FIELDS = 5
 STRUCTURE_KINDS = ("thickness", "width")  # the fit kinds whose efficiencies these tables give
+NODE_MARGIN = 2  # grid nodes added about each camera's planned nodes (fit_nodes)
 
 
 class BlendedEfficiency:
@@ -65,18 +72,38 @@ def _structure_with(reference: str, changes: dict[str, float], folder: Path, tag
     return path
 
 
-class StructureEfficiencies:
-    """The CD's efficiencies on a grid of one or two structure fields across ``parameters``' bounds."""
+def fit_nodes(spec, cameras: list, index: int = 0) -> NodePlan | None:
+    """The table nodes the fit's cameras read of CD ``index`` (renderer.planner.planned_nodes for
+    each camera, grown by ``NODE_MARGIN`` grid nodes, so the fit's moves of the CD and the light
+    stay on solved nodes; their union): the depth's and width's tables solve only those with all
+    their orders [the planner's node mask], the others with the kept orders. None without cameras."""
+    masks, fill = [], None
+    for camera in cameras:
+        nodes = planned_nodes(dataclasses.replace(spec, camera=dataclasses.replace(spec.camera, model=camera)),
+                              NODE_MARGIN).get(f"cd[{index}]")
+        if nodes is not None:
+            masks.append(nodes.mask)
+            fill = nodes.fill_orders
+    if not masks or fill is None:
+        return None
+    return NodePlan(np.logical_or.reduce(masks), fill)
 
-    def __init__(self, spec, parameters: list[FitParameter]):
+
+class StructureEfficiencies:
+    """The CD's efficiencies on a grid of one or two structure fields across ``parameters``' bounds,
+    planned for ``cameras`` (fit_nodes; whole tables without)."""
+
+    def __init__(self, spec, parameters: list[FitParameter], cameras: list | None = None):
         started = time.perf_counter()
         if not 1 <= len(parameters) <= 2:
             raise ValueError("one or two structure fields")
         self.fields = [field_name(p) for p in parameters]
-        nodes = NODES_ONE_FIELD if len(parameters) == 1 else NODES_TWO_FIELDS
-        self.axes = [np.linspace(p.lower[0], p.upper[0], nodes) for p in parameters]
+        count = NODES_ONE_FIELD if len(parameters) == 1 else NODES_TWO_FIELDS
+        self.axes = [np.linspace(p.lower[0], p.upper[0], count) for p in parameters]
         index = parameters[0].cd_index or 0
         cd = spec.cds[index]
+        nodes = fit_nodes(spec, cameras or [], index)
+        self.planned_share = None if nodes is None else float(nodes.mask.mean())
         self.efficiencies: dict[tuple[int, ...], Efficiency] = {}
         with tempfile.TemporaryDirectory() as tmp:  # the copies only name the tables, which the cache keeps
             for at in itertools.product(*(range(len(a)) for a in self.axes)):
@@ -85,7 +112,7 @@ class StructureEfficiencies:
                 path = _structure_with(cd.structure, changes, Path(tmp), tag)
                 cds = list(spec.cds)
                 cds[index] = dataclasses.replace(cd, structure=str(path))
-                self.efficiencies[at] = scene_efficiency(dataclasses.replace(spec, cds=tuple(cds)), index)
+                self.efficiencies[at] = scene_efficiency(dataclasses.replace(spec, cds=tuple(cds)), index, nodes)
         self.seconds = time.perf_counter() - started
 
     def at(self, values: dict[str, float]) -> BlendedEfficiency:

@@ -233,7 +233,7 @@ class EdgeModel:
         if len(fields) > 2 or any(p.cd_index != 0 for p in fields):
             raise UserInputError("the scene fit varies at most two structure fields (a layer's thickness, a stripe's "
                                  "width), of cd[0]", file=spec.source, field="fit", got=[p.name for p in fields])
-        self.structure = StructureEfficiencies(spec, fields) if fields else None
+        self.structure = StructureEfficiencies(spec, fields, [v.camera for v in views]) if fields else None
         self.evaluations = 0
         self.seconds = 0.0
         self._bias: list[ViewBias | None] | None = None  # measured at the first observed_edges
