@@ -74,25 +74,30 @@ def test_the_file_period_is_consistent() -> None:
     assert abs(float(result.values[0]) - 1.6) < 3 * float(result.std[0])
 
 
+def _fit_a_structure_field(name: str, field: str, truth: float):
+    """A forward-model photo with the structure field ``field`` (scene_fit_efficiency.field_name) at
+    ``truth``, 1 % noise, fitted with ``name`` free in [fit]: the fit's result."""
+    from reports.scene_fit_efficiency import StructureEfficiencies
+
+    base = load_scene("cornell_cd")
+    spec = dataclasses.replace(base, fit=parse_fit_table({name: {}}, base.cds, base.light))
+    tables = StructureEfficiencies(spec, list(spec.fit.free))
+    pred = predict(spec, spec.camera.model, supersample=FIT_SUPERSAMPLE,
+                   efficiency=tables.at({field: truth}))  # type: ignore[arg-type]
+    rgb = pred.total().transpose(1, 2, 0) + 0.05 * pred.full(pred.on_cd)[..., None]
+    rgb = rgb + np.random.default_rng(2).normal(0.0, NOISE, rgb.shape)
+    photo = Photo(np.asarray(rgb, np.float32), np.zeros(rgb.shape[:2], bool), "prediction", "linear")
+    view = View("prediction", spec.camera.model, photo, view_grids(spec, spec.camera.model), {})
+    return fit_scene(EdgeModel(spec, spec.fit, [view]), FitSettings())
+
+
 @pytest.mark.slow
 def test_a_deeper_groove_is_found_through_the_efficiencies() -> None:
     """The groove depth moves no direction, only the orders' efficiencies (reports.scene_fit_efficiency:
     tables at 7 depths, blended linearly): a photo predicted at 0.125 um (the file's 0.11 um, +14 %)
     with 1 % noise must be fitted within 0.003 um (about a tenth of the node spacing, 0.011 um;
     measured 0.1247 um, std 0.0004)."""
-    from reports.scene_fit_efficiency import StructureEfficiencies
-
-    base = load_scene("cornell_cd")
-    spec = dataclasses.replace(base, fit=parse_fit_table({"cd[0].structure.layers[0].thickness": {}}, base.cds,
-                                                         base.light))
-    depths = StructureEfficiencies(spec, list(spec.fit.free))
-    pred = predict(spec, spec.camera.model, supersample=FIT_SUPERSAMPLE,
-                   efficiency=depths.at({"layers[0].thickness": 0.125}))  # type: ignore[arg-type]
-    rgb = pred.total().transpose(1, 2, 0) + 0.05 * pred.full(pred.on_cd)[..., None]
-    rgb = rgb + np.random.default_rng(2).normal(0.0, NOISE, rgb.shape)
-    photo = Photo(np.asarray(rgb, np.float32), np.zeros(rgb.shape[:2], bool), "prediction", "linear")
-    view = View("prediction", spec.camera.model, photo, view_grids(spec, spec.camera.model), {})
-    result = fit_scene(EdgeModel(spec, spec.fit, [view]), FitSettings())
+    result = _fit_a_structure_field("cd[0].structure.layers[0].thickness", "layers[0].thickness", 0.125)
     assert abs(float(result.values[0]) - 0.125) < 0.003, (result.values, result.std)
 
 
@@ -104,19 +109,7 @@ def test_a_wider_groove_is_found_through_the_efficiencies() -> None:
     the fit must move from the file's 0.6 um toward the truth, state a std under
     ``WIDTH_STD_BAR_UM`` and hold the truth within ``WIDTH_SIGMAS`` of it (seeded noise: only
     round-off moves the draw)."""
-    from reports.scene_fit_efficiency import StructureEfficiencies
-
-    base = load_scene("cornell_cd")
-    spec = dataclasses.replace(base, fit=parse_fit_table({"cd[0].structure.layers[0].shapes[0].width": {}}, base.cds,
-                                                         base.light))
-    widths = StructureEfficiencies(spec, list(spec.fit.free))
-    pred = predict(spec, spec.camera.model, supersample=FIT_SUPERSAMPLE,
-                   efficiency=widths.at({"layers[0].shapes[0].width": 0.66}))  # type: ignore[arg-type]
-    rgb = pred.total().transpose(1, 2, 0) + 0.05 * pred.full(pred.on_cd)[..., None]
-    rgb = rgb + np.random.default_rng(2).normal(0.0, NOISE, rgb.shape)
-    photo = Photo(np.asarray(rgb, np.float32), np.zeros(rgb.shape[:2], bool), "prediction", "linear")
-    view = View("prediction", spec.camera.model, photo, view_grids(spec, spec.camera.model), {})
-    result = fit_scene(EdgeModel(spec, spec.fit, [view]), FitSettings())
+    result = _fit_a_structure_field("cd[0].structure.layers[0].shapes[0].width", "layers[0].shapes[0].width", 0.66)
     error = abs(float(result.values[0]) - 0.66)
     assert error < 0.06 and float(result.std[0]) < WIDTH_STD_BAR_UM, (result.values, result.std)
     assert error < WIDTH_SIGMAS * float(result.std[0]), (result.values, result.std)
