@@ -16,7 +16,7 @@ table is planned for the fit's cameras (fit_nodes: the nodes they read, grown by
 ``NODE_MARGIN``, solved with all the table's orders, the others with the kept orders only):
 61 % of a paper table's nodes for cornell_cd's camera, 85 % of a draft table's (whose grid is
 coarse: no saving there). What it costs is recorded (``seconds``: 7 draft tables in 10.8 s on
-2 cores, 25 for depth and width together about 40 s; the paper preset's about 2 minutes each
+2 cores, 25 for depth and width together 46 s while another job shared the cores; the paper preset's about 2 minutes each
 whole).
 """
 
