@@ -4,13 +4,15 @@
 gold2d accuracy-versus-time curve up to ``--max-orders`` (default 25, about a minute cold).
 ``--gold2d-table`` prints the converged-value table of docs/gold2d_convergence.md
 (rcwa.gold2d_converged: every truncation it lists, an hour or more on 2 cores when the
-raw-solve cache is cold, seconds when warm) and the reciprocity checks; ``--solve-cache
+raw-solve cache is cold, seconds when warm) and the reciprocity checks; ``--asr-table``
+the same for adaptive spatial resolution (rcwa.asr, about 20 minutes cold); ``--solve-cache
 FILE`` names the cache (default: rcwa.solve_cache.default_cache_path).
 """
 
 from __future__ import annotations
 
 import argparse
+from collections.abc import Callable
 
 from rcwa import gold2d_converged as g2
 from rcwa.convergence import (
@@ -97,10 +99,26 @@ def gold2d_markdown(cache: SolveCache) -> str:
                      + _cost_lines(values))
 
 
-def published_literal(cache: SolveCache) -> str:
+def asr_markdown(cache: SolveCache) -> str:
+    """Adaptive spatial resolution's converged values and reciprocity (docs/gold2d_convergence.md)."""
+    lines = ["| nm | theta | pol | quantity | asr | value at N = 35 | s / solve at 35 |", "|---|---|---|---|---|---|---|"]
+    for v in g2.asr_table(cache):
+        pol = "s = p" if v.theta_deg == 0 else v.pol
+        lines.append(f"| {v.wavelength_nm:g} | {v.theta_deg:g} | {pol} | {v.quantity} | {_cell(v)} "
+                     f"| {v.values[-1]:.4f} | {v.seconds[-1]:.1f} |")
+    lines += ["", "| nm | pol | side | forward | backward | difference | within the bars | difference at 35 |",
+              "|---|---|---|---|---|---|---|---|"]
+    for c in g2.reciprocity(cache, orders=g2.ASR_ORDERS, rules=(g2.ASR_RULE,)):
+        lines.append(f"| {c.wavelength_nm:g} | {c.pol} | {c.side} | {c.forward.value:.5f} ± {c.forward.error:.5f} "
+                     f"| {c.backward.value:.5f} ± {c.backward.error:.5f} | {c.difference:.5f} | "
+                     f"{'yes' if c.within_errors else 'no'} | {abs(c.forward.last_value - c.backward.last_value):.5f} |")
+    return "\n".join(lines)
+
+
+def published_literal(cache: SolveCache, table: Callable = g2.converged_table) -> str:
     """The converged values as the Python dict tests/rcwa/test_gold2d_convergence.py holds them to."""
     rows = [f"    ({v.wavelength_nm!r}, {v.theta_deg!r}, {v.pol!r}, {v.quantity!r}, {v.rule!r}): "
-            f"({v.limit.value:.6f}, {v.limit.error:.6f})," for v in g2.converged_table(cache)]
+            f"({v.limit.value:.6f}, {v.limit.error:.6f})," for v in table(cache)]
     return "PUBLISHED = {\n" + "\n".join(rows) + "\n}"
 
 
@@ -111,10 +129,17 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--solve-cache", default=None, help="the raw-solve cache (JSON)")
     parser.add_argument("--published-literal", action="store_true",
                         help="print the converged values as the heavy test's PUBLISHED dict")
+    parser.add_argument("--asr-table", action="store_true",
+                        help="print adaptive spatial resolution's converged values and reciprocity (about 20 minutes cold)")
+    parser.add_argument("--asr-literal", action="store_true", help="print them as the heavy test's PUBLISHED_ASR dict")
     args = parser.parse_args(argv)
     cache = g2.open_cache(args.solve_cache)
     if args.gold2d_table or args.published_literal:
         print(gold2d_markdown(cache) if args.gold2d_table else published_literal(cache))
+        return
+    if args.asr_table or args.asr_literal:
+        print(asr_markdown(cache) if args.asr_table else published_literal(cache, g2.asr_table).replace(
+            "PUBLISHED =", "PUBLISHED_ASR ="))
         return
     points = lamellar_tm_study()
     _print(points, "Metallic lamellar grating, TM, Littrow order (reference: Li rule, 801 harmonics)")

@@ -25,7 +25,7 @@ import numpy as np
 
 import rcwa
 from rcwa.extrapolation import Extrapolation, extrapolate
-from rcwa.solve_cache import Direction, RawSolve, SolveCache
+from rcwa.solve_cache import ASR_RULE, Direction, RawSolve, SolveCache
 from rcwa.structure import Structure
 from rcwa.table.settings import settings_for
 
@@ -91,6 +91,7 @@ def gold2d_study(orders=GOLD2D_ORDERS, rules=("li", "nv", "laurent")) -> list[Co
 CURVE_QUANTITIES = ("T_total", "T00", "R_total")
 CURVE_POLARIZATIONS = ("s", "p")
 MAX_CACHED_ORDERS = 101  # reference_orders looks this far for cached higher truncations
+ASR_MAX_ORDERS = 35  # rcwa.asr's dense 2 N^2 eigenproblem: 33 s at 35 x 35, ~10 min at 51 x 51
 MIN_CURVE_ORDERS = 23  # 9..23: four truncations in each parity class of (N - 1) / 2, the fewest extrapolate takes
 
 
@@ -99,7 +100,8 @@ class CurveConfig:
     """The accuracy-versus-time curve of a 2D cell (``accuracy_versus_time``)."""
 
     directions: tuple[Direction, ...] = (Direction(550.0, 0.0), Direction(550.0, 30.0))
-    rules: tuple[str, ...] = ("li", "nv")
+    # asr: Li's rule in adaptive spatial resolution's stretched coordinates (rcwa.asr; cells of rectangles only)
+    rules: tuple[str, ...] = ("li", "nv", "asr")
     min_orders: int = 9
     max_orders: int = 25
     # A table's solves mostly see no mirror: its cost per node is timed at a general direction, up to
@@ -109,8 +111,10 @@ class CurveConfig:
     tail: int = 6
     preset: str = "paper"
 
-    def orders(self) -> tuple[int, ...]:
-        return tuple(range(self.min_orders, self.max_orders + 1, 2))
+    def orders(self, rule: str | None = None) -> tuple[int, ...]:
+        """The curve's truncations (for ``asr``, a dense solver without mirror sectors, up to ASR_MAX_ORDERS)."""
+        top = min(self.max_orders, ASR_MAX_ORDERS) if rule == ASR_RULE else self.max_orders
+        return tuple(range(self.min_orders, top + 1, 2))
 
 
 def _values(raw: RawSolve) -> dict[str, float]:
@@ -127,7 +131,7 @@ def reference_orders(cache: SolveCache, direction: Direction, rule: str, cfg: Cu
     """cfg.orders() and every higher odd truncation the cache already holds for ``direction`` and ``rule``
     (a converged-value run's, rcwa.gold2d_converged): the limit is extrapolated from all of them."""
     higher = (n for n in range(cfg.max_orders + 2, MAX_CACHED_ORDERS + 1, 2) if cache.get(direction, n, rule) is not None)
-    return cfg.orders() + tuple(higher)
+    return cfg.orders(rule) + tuple(higher)
 
 
 def references(cache: SolveCache, cfg: CurveConfig, bar: Any = None) -> dict[str, dict[str, Extrapolation]]:
@@ -163,12 +167,12 @@ def general_solve_seconds(cache: SolveCache, cfg: CurveConfig, rule: str) -> dic
     """Seconds of one solve at cfg.timing_direction per truncation, and whether it was estimated (a power law
     in N fitted to the timed truncations, log-log least squares) rather than timed."""
     timed = {n: float(cache.solve(cfg.timing_direction, n, rule, warm=True).warm_seconds)  # type: ignore[arg-type]
-             for n in cfg.orders() if n <= cfg.max_timed_orders}
+             for n in cfg.orders(rule) if n <= cfg.max_timed_orders}
     out = {n: (t, False) for n, t in timed.items()}
     if len(timed) >= 2:
         n_t, t_t = np.array(list(timed)), np.array(list(timed.values()))
         slope, offset = np.polyfit(np.log(n_t[-3:]), np.log(t_t[-3:]), 1)
-        out.update({n: (float(np.exp(offset + slope * np.log(n))), True) for n in cfg.orders() if n not in timed})
+        out.update({n: (float(np.exp(offset + slope * np.log(n))), True) for n in cfg.orders(rule) if n not in timed})
     return out
 
 
@@ -186,7 +190,7 @@ def accuracy_versus_time(structure: Structure, cache: SolveCache, cfg: CurveConf
     rows = []
     for rule in cfg.rules:
         table = general_solve_seconds(cache, cfg, rule)
-        for n in cfg.orders():
+        for n in cfg.orders(rule):
             errors: dict[str, float] = {}
             seconds = []
             for d in cfg.directions:

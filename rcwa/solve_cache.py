@@ -21,6 +21,8 @@ from typing import Any
 import numpy as np
 
 import rcwa
+from rcwa.asr import DEFAULT_ETA as ASR_ETA
+from rcwa.asr import solve_asr
 from rcwa.solver import prepare
 from rcwa.structure import Structure
 from rcwa.symmetry import has_diagonal_mirror
@@ -29,6 +31,9 @@ from workbench.core.files import atomic_write_text
 from workbench.core.version import __version__
 
 CACHE_FORMAT = 1
+# The factorization rules' names (rcwa.factorization) and this one: Li's rule in the stretched
+# coordinates of adaptive spatial resolution (rcwa.asr, at its DEFAULT_ETA).
+ASR_RULE = "asr"
 CACHE_ENVIRONMENT = "RCWA_CONVERGENCE_CACHE"  # a folder: where convergence studies keep their raw solves
 _CLEAR_REFS = Path("/proc/self/clear_refs")
 _STATUS = Path("/proc/self/status")
@@ -120,6 +125,8 @@ def solve_raw(structure: Structure, direction: Direction, orders: int, rule: str
     (n, m), so p's efficiencies are s's with the orders swapped (half the cost; checked
     against a p solve by tests/rcwa/test_extrapolation_convergence.py).
     """
+    if rule == ASR_RULE:
+        return _solve_raw_asr(structure, direction, orders)
     mirrored = direction.theta_deg == 0.0 and has_diagonal_mirror(structure)
     reset = _reset_peak_rss()
     start = time.perf_counter()
@@ -142,6 +149,22 @@ def solve_raw(structure: Structure, direction: Direction, orders: int, rule: str
                     table, end - start, peak, end - warm_start if warm else None)
 
 
+def _solve_raw_asr(structure: Structure, direction: Direction, orders: int) -> RawSolve:
+    """solve_raw for ``ASR_RULE`` (rcwa.asr, both polarizations in one dense solve; nothing to
+    prebuild, so its warm_seconds are its seconds)."""
+    reset = _reset_peak_rss()
+    start = time.perf_counter()
+    result = solve_asr(structure, direction.wavelength_nm, direction.theta_deg, direction.phi_deg, orders, ASR_ETA)
+    seconds = time.perf_counter() - start
+    peak = _peak_rss_bytes() if reset else None
+    R, T = result.R, result.T
+    kept = np.flatnonzero((R.sum(axis=1) > 0) | (T.sum(axis=1) > 0))
+    table = {(int(result.m[i]), int(result.n[i])): (float(R[i, 0]), float(R[i, 1]), float(T[i, 0]), float(T[i, 1]))
+             for i in kept}
+    return RawSolve((float(R[:, 0].sum()), float(R[:, 1].sum())), (float(T[:, 0].sum()), float(T[:, 1].sum())),
+                    table, seconds, peak, seconds)
+
+
 class SolveCache:
     """The raw solves of one structure in ``path`` (JSON), loaded on creation, written after each new solve."""
 
@@ -159,7 +182,9 @@ class SolveCache:
         return dict(data["entries"])
 
     def _key(self, direction: Direction, orders: int, rule: str) -> str:
-        return f"{self.structure.content_hash}/{direction.key()}/{orders}/{rule}"
+        # ASR's entries carry its stretch, so a changed ASR_ETA never reuses them.
+        named = f"{rule}@eta={ASR_ETA:g}" if rule == ASR_RULE else rule
+        return f"{self.structure.content_hash}/{direction.key()}/{orders}/{named}"
 
     def get(self, direction: Direction, orders: int, rule: str) -> RawSolve | None:
         entry = self._entries.get(self._key(direction, orders, rule))

@@ -22,8 +22,9 @@ tables use the paper's (theta, phi) grid.
 For a 2D cell (``run_convergence_study``) a 1D-style reference at hundreds of harmonics is
 out of reach (N x N harmonics cost ~N^6), so the study is the accuracy-versus-time curve of
 rcwa.convergence.accuracy_versus_time: each truncation's error against the limit
-extrapolated from the truncations themselves (rcwa.extrapolation), for Li's and the
-normal-vector rule, versus seconds per solve and per table; written as
+extrapolated from the truncations themselves (rcwa.extrapolation), for Li's rule, the
+normal-vector rule and, for cells of rectangles, Li's rule with adaptive spatial resolution
+(rcwa.asr, up to rcwa.convergence.ASR_MAX_ORDERS), versus seconds per solve and per table; written as
 accuracy_time.csv, limits.csv, study_rcwa.json and study_rcwa.png/.svg. Its raw solves are
 cached (rcwa.solve_cache), so a rerun with a higher ``max_orders`` solves only the new ones.
 """
@@ -34,7 +35,7 @@ import json
 import math
 import platform
 import time
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, replace
 from pathlib import Path
 from typing import Any
 
@@ -43,7 +44,8 @@ from scipy.interpolate import RegularGridInterpolator
 
 import rcwa
 from rcwa.convergence import CurveConfig, accuracy_versus_time
-from rcwa.solve_cache import SolveCache
+from rcwa.shapes import Rect
+from rcwa.solve_cache import ASR_RULE, SolveCache
 from rcwa.structure import Structure
 from rcwa.sweep import sweep_directions
 from workbench.core.files import atomic_write_csv, atomic_write_text
@@ -227,7 +229,9 @@ def run_convergence_study(structure: Structure, out: str | Path, cfg: CurveConfi
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     start = time.perf_counter()
-    steps = len(cfg.directions) * len(cfg.rules) * len(cfg.orders())
+    if any(not isinstance(shape, Rect) for layer in structure.layers for shape in layer.shapes_2d):
+        cfg = replace(cfg, rules=tuple(r for r in cfg.rules if r != ASR_RULE))  # ASR stretches rectangles only
+    steps = len(cfg.directions) * sum(len(cfg.orders(rule)) for rule in cfg.rules)
     with tqdm(total=steps, desc=f"study {structure.name}", unit="solve", disable=not progress) as bar:
         curve = accuracy_versus_time(structure, cache, cfg, bar)
     data = {"structure": structure.name, "config": asdict(cfg), **curve, "solve_cache": str(cache.path),

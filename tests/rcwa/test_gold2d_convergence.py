@@ -110,14 +110,14 @@ def test_the_2d_study_writes_its_curve(tmp_path):
     data = run_convergence_study(s, tmp_path / "out", cfg, cache, progress=False)
     out = tmp_path / "out"
     rows = list(csv.DictReader(open(out / "accuracy_time.csv")))
-    assert len(rows) == 2 * len(cfg.orders()) and {r["rule"] for r in rows} == {"li", "nv"}
+    assert len(rows) == 3 * len(cfg.orders()) and {r["rule"] for r in rows} == {"li", "nv", "asr"}
     assert json.loads((out / "study_rcwa.json").read_text())["rows"] == json.loads(json.dumps(data["rows"]))
     assert (out / "study_rcwa.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     li = {int(r["orders"]): r for r in rows if r["rule"] == "li"}
     assert float(li[23]["error_T_total"]) < float(li[9]["error_T_total"]) / 3
     assert all((r["table_seconds_estimated"] == "True") == (int(r["orders"]) > 11) for r in rows)
     assert all(float(r["seconds_per_table"]) > float(r["seconds_per_solve"]) for r in rows)
-    assert len(json.loads(cache.path.read_text())["entries"]) == 2 * (len(cfg.orders()) + 2)  # the curve's and the timing's
+    assert len(json.loads(cache.path.read_text())["entries"]) == 3 * (len(cfg.orders()) + 2)  # the curve's and the timing's
 
 
 @pytest.mark.slow

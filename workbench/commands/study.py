@@ -23,9 +23,10 @@ def add_parser(commands: argparse._SubParsersAction) -> None:
     study_rcwa = studies.add_parser(
         "rcwa", help="truncation and interpolation error versus time for tables",
         description="1D structures: truncation and interpolation error versus time, and presets. 2D structures "
-                    "(gold2d): each truncation N x N's error against the limit extrapolated in N, for Li's and the "
-                    "normal-vector rule, versus seconds per solve and per table (accuracy_time.csv, limits.csv, "
-                    "study_rcwa.png/.svg); raw solves are cached, so a rerun with a higher --max-orders solves only "
+                    "(gold2d): each truncation N x N's error against the limit extrapolated in N, for Li's rule, the "
+                    "normal-vector rule and (cells of rectangles) adaptive spatial resolution, versus seconds per "
+                    "solve and per table (accuracy_time.csv, limits.csv, study_rcwa.png/.svg); raw solves are cached, "
+                    "so a rerun with a higher --max-orders solves only "
                     "the new truncations.")
     study_rcwa.add_argument("structure", help=STRUCTURE_HELP)
     study_rcwa.add_argument("--out", required=True, metavar="DIR", help="folder for the JSON, CSV and figures")
