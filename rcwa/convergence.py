@@ -91,7 +91,7 @@ def gold2d_study(orders=GOLD2D_ORDERS, rules=("li", "nv", "laurent")) -> list[Co
 CURVE_QUANTITIES = ("T_total", "T00", "R_total")
 CURVE_POLARIZATIONS = ("s", "p")
 MAX_CACHED_ORDERS = 101  # reference_orders looks this far for cached higher truncations
-ASR_MAX_ORDERS = 35  # rcwa.asr's dense 2 N^2 eigenproblem: 33 s at 35 x 35, ~10 min at 51 x 51
+ASR_MAX_ORDERS = 35  # rcwa.asr's dense 2 N^2 eigenproblem: about a minute at 35 x 35 (loaded 2-core machine)
 MIN_CURVE_ORDERS = 23  # 9..23: four truncations in each parity class of (N - 1) / 2, the fewest extrapolate takes
 
 
