@@ -96,7 +96,8 @@ def _studies(record: dict[str, Any]) -> str:
 def index_html(root: Path, record: dict[str, Any]) -> str:
     """The page's HTML for the run in ``root`` whose run.json content is ``record``."""
     fit_file = root / "fit" / "scene_fit.json"
-    verdict = verdict_html(json.loads(fit_file.read_text())["verdict"]) if fit_file.is_file() else (
+    fitted = json.loads(fit_file.read_text()) if fit_file.is_file() else None
+    verdict = verdict_html(fitted["verdict"] | {"bias_correction": fitted.get("bias_correction")}) if fitted else (
         "<div class='note'>no scene fit in this run (fit/not_fitted.txt says why, where it ran)</div>")
     identity = record.get("identity", {})
     dataset = Path(str(identity.get("dataset", "")))

@@ -16,19 +16,21 @@ tests/reports/test_report_synthetic.py (truth camera, a render of another seed):
     its edges                   62 +- 9.2 (46-77)               at least 5 (the report's own threshold)
     known turn 0.3 deg          0.372 +- 0.029 px (0.31-0.42)   bar 0.5 px at 4.4 SD
     known FOV +0.2 deg          0.268 +- 0.047 px               bar 0.5 px at 5.0 SD
-tests/workbench/test_verify.py (verify at 4 spp, its own calibration; realisations 8-11 with the
-render check's adaptive passes, 0-7 before them: the calibration's errors did not change, over 8
-realisations rotation 0.063 +- 0.015 deg and centre 0.35 +- 0.14 mm with them):
-    verdict                     consistent 10, camera 1, model 1 (the period, 3.9 of its std), with
-                                the profile bootstrap alone; with the band bootstrap added
-                                (reports.scene_fit), consistent on all 12
-    Wald statistic (5 dof)      10.4 on average before (the covariance about half the spread of
-                                its own estimates), 5.1 with both bootstraps (largest 17.6)
-    fitted - file, period       0.0019 +- 0.013 um (0.8 %; the issue's bar for a perturbed period 0.3 %)
-    tilt e1, e2                 -0.023 +- 0.049 deg, -0.030 +- 0.058 deg
-    light x, z                  -0.39 +- 0.93 mm, 0.19 +- 1.1 mm
+tests/workbench/test_verify.py (verify at 4 spp, its own calibration; remeasured after issue 25's
+last fit changes: band edges along circles and radii as separate noise groups, the leverage cap
+and the outlier rule, the joint camera covariance; the 4-spp renders are too noisy for the
+forward model's offsets, so none is taken off, and the report says so):
+    verdict                     consistent 11, model 1 (realisation 6: the period 0.77 % off at 4.4
+                                of its std 0.0028 um; before these changes consistent on all 12)
+    Wald statistic (5 dof)      6.7 +- 6.9 (largest 23.5)
+    fitted - file, period       0.0017 +- 0.0091 um (0.6 %; was 0.0019 +- 0.013)
+    tilt e1, e2                 -0.071 +- 0.118 deg, 0.044 +- 0.139 deg (was 0.049, 0.058: the
+                                noise groups weigh the radius edges, which carry the tilt, by their
+                                measured scatter; one group gives realisation 6 half its tilt move)
+    light x, z                  -1.3 +- 1.9 mm, -0.78 +- 1.7 mm (was 0.93, 1.1)
 tests/calibration/test_pose.py (errors in their reported standard deviations, worst photo):
-    rotation 1.10 +- 0.50, camera centre 0.74 +- 0.42, cx 0.71 +- 0.57, cy 1.51 +- 0.89 (to 3.46)
+    rotation 1.47 +- 0.76, camera centre 0.79 +- 0.44, cx 1.21 +- 1.17 (to 3.48), cy 1.95 +- 0.76 (to 3.47)
+    (the 12 realisations before: 1.10 +- 0.50, 0.74 +- 0.42, 0.71 +- 0.57, 1.51 +- 0.89 to 3.46)
 
 so the bars and the verdict, asserted on one realisation, pass by the luck of the draw (the
 p95 bar fails 1 realisation in 12; the verdict failed 2 in 12 before the band bootstrap, and
@@ -39,7 +41,9 @@ plus K SD, K = 9.41, Student's t predictive bound for one more realisation with 
 of freedom at 1e-6 (the SD itself estimated from 12 draws): about 1e-6 per bound, 12 bounds
 here. Counts keep their thresholds (6.2-17 SD, normal tails < 1e-9: a count is a sum of
 many edges). They still fail a report or a fit gone wrong (a median of pixels, a period
-off by 8 %, a tilt of half a degree).
+off by 6 %, a tilt of 1.4 degrees, a light moved 2 cm); the fit's are looser than before its
+noise groups (a tilt of half a degree), which the perturbed cases of benchmarks/bench_scene_fit
+(with the forward model's offsets measured) check instead.
 """
 
 K = 9.41  # t.isf(1e-6, 11) * sqrt(1 + 1/12)
@@ -53,13 +57,13 @@ KNOWN_ERROR_MEDIAN_PX = {"rotated 0.3 deg": 0.64, "FOV +0.2 deg": 0.71}  # 0.372
 
 # tests/workbench/test_verify.py: |fitted - file value| per component (|mean| + K SD)
 FIT_MOVE = {
-    "cd[0].structure.period:value": 0.124,  # um: 0.0019 + K x 0.0130
-    "cd[0].normal:tilt_e1": 0.49,  # deg: 0.023 + K x 0.0495
-    "cd[0].normal:tilt_e2": 0.58,  # deg: 0.030 + K x 0.0581
-    "light.center:x": 0.0092,  # m: 0.00039 + K x 0.00093
-    "light.center:z": 0.0106,  # m: 0.00019 + K x 0.0011
+    "cd[0].structure.period:value": 0.088,  # um: 0.0017 + K x 0.0091
+    "cd[0].normal:tilt_e1": 1.19,  # deg: 0.071 + K x 0.118
+    "cd[0].normal:tilt_e2": 1.36,  # deg: 0.044 + K x 0.139
+    "light.center:x": 0.019,  # m: 0.0013 + K x 0.0019
+    "light.center:z": 0.0166,  # m: 0.00078 + K x 0.0017
 }
 
-# tests/calibration/test_pose.py: errors in reported standard deviations; cy's, the largest
-# spread, sits 9.6 SD inside (rotation 17.8, centre 22, cx 16)
-STD_FACTOR = 10.0
+# tests/calibration/test_pose.py: errors in reported standard deviations; cx's mean + K SD (12.3)
+# is the largest (rotation 8.6, centre 4.9, cy 9.1)
+STD_FACTOR = 12.5

@@ -98,8 +98,9 @@ def test_the_fit_stage_fits_an_unperturbed_scene_and_states_its_verdict(referenc
     carries the verdict and shows it first on the page.
 
     Not asserted (issue 23): the verdict ``consistent`` itself. Over 12 render realisations of
-    this dataset it was ``consistent`` on 10 with the profile bootstrap alone and on 12 with the
-    band bootstrap (tests/realisation_bounds.py), but its false-alarm rate is the test's alpha
+    this dataset it was ``consistent`` on 11 (``model`` on one: without the forward model's offsets,
+    which 4-spp renders cannot measure, the period's std was a third of its spread there;
+    tests/realisation_bounds.py), but its false-alarm rate is the test's alpha
     (1e-3) plus the file-median rule's (2e-3), above the suite's budget; the benchmark
     (benchmarks/bench_realisations.py) measures it."""
     from renderer.scene import load_scene
@@ -121,8 +122,11 @@ def test_the_fit_stage_fits_an_unperturbed_scene_and_states_its_verdict(referenc
     for photo in ("view0", "view1"):
         report = json.loads((out / "report" / photo / "report.json").read_text())
         assert report["verdict"]["verdict"] == verdict["verdict"]
+        assert report["verdict"]["bias_correction"] == fit["bias_correction"]
         page = (out / "report" / photo / "report.html").read_text()
         assert page.index("<section id='verdict'>") < page.index("<canvas")
+        # the page says the offsets were not taken off, and what that leaves out of the stds
+        assert "view0.dng: not used (" in page and "can be called otherwise" in page
 
 
 @pytest.mark.slow
