@@ -17,7 +17,8 @@
   quantity, docs/gold2d_convergence.md) is within 0.002 of Li's own extrapolated limit
   (0.0753 +- 0.0064, N up to 61) at 17 x 17 with ASR (measured 0.0748) where Li's rule at
   17 x 17 is 0.011 off (0.0645; at 61 x 61 still 0.002).
-* Bad input: a circle, a 1D structure and a stretch outside [0, 1) name the field.
+* Bad input: a circle, a 1D structure and a stretch outside [0, 1) name the field; the 2D
+  study leaves ASR out for a cell with a circle.
 """
 
 import numpy as np
@@ -131,3 +132,27 @@ def test_a_stretch_outside_zero_to_one_is_refused():
     with pytest.raises(UserInputError) as caught:
         solve_asr(Structure.from_toml_string(BLOCK), 550.0, 0.0, 0.0, 5, eta=1.0)
     assert caught.value.field == "eta"
+
+
+def test_the_2d_study_leaves_asr_out_for_a_cell_with_circles(tmp_path, monkeypatch):
+    """rcwa.table_study.run_convergence_study: ASR stretches rectangles only, so a cell with a
+    circle is studied with the other rules (the curve itself is rcwa.convergence's, not run here)."""
+    import rcwa.table_study as table_study
+    from rcwa.convergence import CurveConfig
+    from rcwa.solve_cache import SolveCache
+
+    seen = []
+
+    def capture(structure, cache, cfg, bar):
+        seen.append(cfg.rules)
+        raise RuntimeError("captured")
+
+    monkeypatch.setattr(table_study, "accuracy_versus_time", capture)
+    for text, rules in ((BLOCK, ("li", "nv", "asr")),
+                        (BLOCK.replace("rect = { center = [0.4, 0.55], size = [0.5, 0.35] }",
+                                       "circle = { center = [0.5, 0.5], radius = 0.2 }"), ("li", "nv"))):
+        structure = Structure.from_toml_string(text)
+        with pytest.raises(RuntimeError, match="captured"):
+            cache = SolveCache(tmp_path / "c.json", structure)
+            table_study.run_convergence_study(structure, tmp_path / "out", CurveConfig(), cache, progress=False)
+        assert seen[-1] == rules
