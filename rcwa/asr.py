@@ -100,14 +100,13 @@ class Stretch:
     def centres(self) -> np.ndarray:
         return np.mod(self.starts + 0.5 * self.lengths, self.period)
 
-    def coefficients(self, weight_per_segment: np.ndarray, orders: np.ndarray) -> np.ndarray:
-        """Fourier coefficients over u of ``c_l f'(u)`` on each segment l (``c_l`` given), summed:
-        ``(1 / period) sum_l c_l int_l f'(u) e^{-i 2 pi k u / period} du`` for ``k`` in ``orders``."""
+    def segment_coefficients(self, orders: np.ndarray) -> np.ndarray:
+        """Row l: the Fourier coefficients over u of ``f'(u)`` on segment l alone,
+        ``(1 / period) int_l f'(u) e^{-i 2 pi k u / period} du`` for ``k`` in ``orders``; a profile
+        ``c_l f'(u)`` has ``c @ rows``."""
         q = 2 * math.pi * orders / self.period
-        total = np.zeros(orders.size, dtype=complex)
-        for c, u, w, d in zip(weight_per_segment, self.u, self.w, self.dxdu, strict=True):
-            total += c * (np.exp(-1j * np.outer(q, u)) @ (w * d))
-        return total / self.period
+        return np.array([np.exp(-1j * np.outer(q, u)) @ (w * d) for u, w, d in zip(self.u, self.w, self.dxdu, strict=True)]
+                        ) / self.period
 
     def rayleigh(self, k_physical: np.ndarray, covariant: bool) -> np.ndarray:
         """``A[p, m]``: harmonic p (over u) of the physical wave ``e^{i k_m x}``, times ``f'`` if
@@ -165,14 +164,21 @@ class _Axes:
     jn: np.ndarray
     size_x: int
     size_y: int
+    cx: np.ndarray  # sx.segment_coefficients over -2Mx..2Mx, computed once for every layer
+    cy: np.ndarray
+
+    @classmethod
+    def of(cls, sx: Stretch, sy: Stretch, im: np.ndarray, jn: np.ndarray, size_x: int, size_y: int) -> _Axes:
+        mx, my = size_x // 2, size_y // 2
+        return cls(sx, sy, im, jn, size_x, size_y, sx.segment_coefficients(np.arange(-2 * mx, 2 * mx + 1)),
+                   sy.segment_coefficients(np.arange(-2 * my, 2 * my + 1)))
 
     def toeplitz_x(self, per_segment: np.ndarray) -> np.ndarray:
-        mx = self.size_x // 2
-        return _toeplitz(self.sx.coefficients(per_segment, np.arange(-2 * mx, 2 * mx + 1)), self.size_x)
+        """``[[c_l f' 1_l]]`` summed over the x segments l (``per_segment`` = c)."""
+        return _toeplitz(per_segment @ self.cx, self.size_x)
 
     def toeplitz_y(self, per_segment: np.ndarray) -> np.ndarray:
-        my = self.size_y // 2
-        return _toeplitz(self.sy.coefficients(per_segment, np.arange(-2 * my, 2 * my + 1)), self.size_y)
+        return _toeplitz(per_segment @ self.cy, self.size_y)
 
 
 def _layer_matrices(eps: np.ndarray, axes: _Axes):
@@ -234,7 +240,7 @@ def solve_asr(structure: Structure, wavelength_nm: float, theta_deg: float, phi_
     edges = [[e for layer in layers for s in layer.shapes_2d for e in s.edges_along(a)] for a in (0, 1)]
     sx = Stretch.between(structure.period[0], edges[0], eta, 2 * M)
     sy = Stretch.between(structure.period[1], edges[1], eta, 2 * M)
-    axes = _Axes(sx, sy, h.m + M, h.n + M, orders, orders)
+    axes = _Axes.of(sx, sy, h.m + M, h.n + M, orders, orders)
     # The half-spaces' plane waves in the stretched harmonics (physical wave numbers per um).
     kxs = k0 * kx0 + ORDER_SIGN * 2 * math.pi / structure.period[0] * np.arange(-M, M + 1)
     kys = k0 * ky0 + ORDER_SIGN * 2 * math.pi / structure.period[1] * np.arange(-M, M + 1)

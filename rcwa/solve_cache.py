@@ -143,10 +143,17 @@ def solve_raw(structure: Structure, direction: Direction, orders: int, rule: str
     if mirrored:
         swap = np.lexsort((m, n))  # harmonic (n, m) for each (m, n) of the solver's order (m-major)
         R[:, 1], T[:, 1] = R[swap, 0], T[swap, 0]
+    return _raw_solve(m, n, R, T, end - start, peak, end - warm_start if warm else None)
+
+
+def _raw_solve(m: np.ndarray, n: np.ndarray, R: np.ndarray, T: np.ndarray, seconds: float, peak: int | None,
+               warm_seconds: float | None) -> RawSolve:
+    """A RawSolve from every harmonic's (m, n) and R, T per polarization (columns s, p): totals,
+    and the orders that carry power on either side."""
     kept = np.flatnonzero((R.sum(axis=1) > 0) | (T.sum(axis=1) > 0))
     table = {(int(m[i]), int(n[i])): (float(R[i, 0]), float(R[i, 1]), float(T[i, 0]), float(T[i, 1])) for i in kept}
     return RawSolve((float(R[:, 0].sum()), float(R[:, 1].sum())), (float(T[:, 0].sum()), float(T[:, 1].sum())),
-                    table, end - start, peak, end - warm_start if warm else None)
+                    table, seconds, peak, warm_seconds)
 
 
 def _solve_raw_asr(structure: Structure, direction: Direction, orders: int) -> RawSolve:
@@ -157,12 +164,7 @@ def _solve_raw_asr(structure: Structure, direction: Direction, orders: int) -> R
     result = solve_asr(structure, direction.wavelength_nm, direction.theta_deg, direction.phi_deg, orders, ASR_ETA)
     seconds = time.perf_counter() - start
     peak = _peak_rss_bytes() if reset else None
-    R, T = result.R, result.T
-    kept = np.flatnonzero((R.sum(axis=1) > 0) | (T.sum(axis=1) > 0))
-    table = {(int(result.m[i]), int(result.n[i])): (float(R[i, 0]), float(R[i, 1]), float(T[i, 0]), float(T[i, 1]))
-             for i in kept}
-    return RawSolve((float(R[:, 0].sum()), float(R[:, 1].sum())), (float(T[:, 0].sum()), float(T[:, 1].sum())),
-                    table, seconds, peak, seconds)
+    return _raw_solve(result.m, result.n, result.R, result.T, seconds, peak, seconds)
 
 
 class SolveCache:
