@@ -5,7 +5,8 @@ gold2d accuracy-versus-time curve up to ``--max-orders`` (default 25, about a mi
 ``--gold2d-table`` prints the converged-value table of docs/gold2d_convergence.md
 (rcwa.gold2d_converged: every truncation it lists, an hour or more on 2 cores when the
 raw-solve cache is cold, seconds when warm) and the reciprocity checks; ``--asr-table``
-the same for adaptive spatial resolution (rcwa.asr, about 20 minutes cold); ``--solve-cache
+the same for adaptive spatial resolution (rcwa.asr: Li's rule, about 20 minutes cold, and the NV
+rule at normal incidence, about 10 more); ``--solve-cache
 FILE`` names the cache (default: rcwa.solve_cache.default_cache_path).
 """
 
@@ -100,12 +101,19 @@ def gold2d_markdown(cache: SolveCache) -> str:
 
 
 def asr_markdown(cache: SolveCache) -> str:
-    """Adaptive spatial resolution's converged values and reciprocity (docs/gold2d_convergence.md)."""
-    lines = ["| nm | theta | pol | quantity | asr | value at N = 35 | s / solve at 35 |", "|---|---|---|---|---|---|---|"]
+    """Adaptive spatial resolution's converged values with Li's rule, the NV rule's beside them where
+    published (g2.ASR_NV_DIRECTIONS), and reciprocity (docs/gold2d_convergence.md)."""
+    nv = {(w.wavelength_nm, w.theta_deg, w.pol, w.quantity): w
+          for w in g2.asr_table(cache, rule=g2.ASR_NV_RULE, only=g2.ASR_NV_DIRECTIONS)}
+    lines = ["| nm | theta | pol | quantity | asr (li) | asr_nv | li - nv | value at N = 35 (li / nv) "
+             "| s / solve at 35 (li / nv) |", "|---|---|---|---|---|---|---|---|---|"]
     for v in g2.asr_table(cache):
         pol = "s = p" if v.theta_deg == 0 else v.pol
-        lines.append(f"| {v.wavelength_nm:g} | {v.theta_deg:g} | {pol} | {v.quantity} | {_cell(v)} "
-                     f"| {v.values[-1]:.4f} | {v.seconds[-1]:.1f} |")
+        w = nv.get((v.wavelength_nm, v.theta_deg, v.pol, v.quantity))
+        cells = ("-", "-", "-", "-") if w is None else (
+            _cell(w), f"{v.limit.value - w.limit.value:+.4f}", f"{w.values[-1]:.4f}", f"{w.seconds[-1]:.1f}")
+        lines.append(f"| {v.wavelength_nm:g} | {v.theta_deg:g} | {pol} | {v.quantity} | {_cell(v)} | {cells[0]} "
+                     f"| {cells[1]} | {v.values[-1]:.4f} / {cells[2]} | {v.seconds[-1]:.1f} / {cells[3]} |")
     lines += ["", "| nm | pol | side | forward | backward | difference | within the bars | difference at 35 |",
               "|---|---|---|---|---|---|---|---|"]
     for c in g2.reciprocity(cache, orders=g2.ASR_ORDERS, rules=(g2.ASR_RULE,)):
@@ -113,6 +121,11 @@ def asr_markdown(cache: SolveCache) -> str:
                      f"| {c.backward.value:.5f} ± {c.backward.error:.5f} | {c.difference:.5f} | "
                      f"{'yes' if c.within_errors else 'no'} | {abs(c.forward.last_value - c.backward.last_value):.5f} |")
     return "\n".join(lines)
+
+
+def both_asr_tables(cache: SolveCache) -> list[g2.ConvergedValue]:
+    """Li's rule in stretched coordinates everywhere and the NV rule's where published."""
+    return g2.asr_table(cache) + g2.asr_table(cache, rule=g2.ASR_NV_RULE, only=g2.ASR_NV_DIRECTIONS)
 
 
 def published_literal(cache: SolveCache, table: Callable = g2.converged_table) -> str:
@@ -138,7 +151,7 @@ def main(argv: list[str] | None = None) -> None:
         print(gold2d_markdown(cache) if args.gold2d_table else published_literal(cache))
         return
     if args.asr_table or args.asr_literal:
-        print(asr_markdown(cache) if args.asr_table else published_literal(cache, g2.asr_table).replace(
+        print(asr_markdown(cache) if args.asr_table else published_literal(cache, both_asr_tables).replace(
             "PUBLISHED =", "PUBLISHED_ASR ="))
         return
     points = lamellar_tm_study()

@@ -29,10 +29,14 @@ rewritten in the stretched coordinates, as [Granet 1999] does for the lamellar c
 Layers are joined bottom-up by the enhanced transmittance matrix [Moharam 1995b], which
 multiplies no growing exponential.
 
-This is a dense numpy solver for convergence studies (``rule = "asr"`` in
+The in-plane permittivity can instead be factorized by the normal-vector method
+(``rule="nv"``, _nv_in_plane): its physical relation written in the stretched coordinates,
+as adaptive coordinates carry any factorization rule [Essig 2010].
+
+This is a dense numpy solver for convergence studies (``rule = "asr"`` and ``"asr_nv"`` in
 rcwa.solve_cache): it uses no mirror sector and is not part of the tables' core.
-Its ``eta = 0`` is Li's rule exactly (tests/rcwa/test_asr.py: the core's efficiencies
-to 1e-10).
+Its ``eta = 0`` is Li's rule, or the NV rule, exactly (tests/rcwa/test_asr.py: the core's
+efficiencies to 1e-10).
 """
 
 from __future__ import annotations
@@ -43,12 +47,14 @@ from dataclasses import dataclass
 import numpy as np
 import shapely
 
+from rcwa.factorization import NV_GRID, _convolution, normal_products_at, nv_corrections, nv_delta
 from rcwa.shapes import Rect
 from rcwa.solver import _harmonics, _permittivity_lookup, incident_tangential_k
 from rcwa.structure import Structure
 from workbench.core.conventions import ORDER_SIGN
 from workbench.core.errors import UserInputError
 
+ASR_RULES = ("li", "nv")  # the in-plane factorizations solve_asr offers
 DEFAULT_ETA = 0.9  # the stretch's strength: near an edge one u step covers 1 - eta of an x step
 KZ_FLOOR = 1e-8  # |kz| of a layer mode below this is moved to it (coinciding up- and down-going modes)
 
@@ -76,6 +82,7 @@ class Stretch:
     w: list[np.ndarray]
     x: list[np.ndarray]
     dxdu: list[np.ndarray]
+    eta: float
 
     @classmethod
     def between(cls, period: float, edges: list[float], eta: float, max_order: int) -> Stretch:
@@ -95,7 +102,15 @@ class Stretch:
             ws.append(0.5 * length * weights)
             xs.append(a + s - eta * length / (2 * math.pi) * np.sin(2 * math.pi * s / length))
             ds.append(1.0 - eta * np.cos(2 * math.pi * s / length))
-        return cls(period, cuts, lengths, us, ws, xs, ds)
+        return cls(period, cuts, lengths, us, ws, xs, ds, eta)
+
+    def map(self, u: np.ndarray) -> np.ndarray:
+        """``x = f(u)`` at any ``u`` in [0, period) (the stretch of the segment each u lies in)."""
+        segment = (np.searchsorted(self.starts, u, side="right") - 1) % self.starts.size
+        s = np.mod(u - self.starts[segment], self.period)
+        length = self.lengths[segment]
+        return np.mod(self.starts[segment] + s - self.eta * length / (2 * math.pi) * np.sin(2 * math.pi * s / length),
+                      self.period)
 
     def centres(self) -> np.ndarray:
         return np.mod(self.starts + 0.5 * self.lengths, self.period)
@@ -197,12 +212,43 @@ def _layer_matrices(eps: np.ndarray, axes: _Axes):
     return exx, eyy, np.linalg.inv(ezz), kr(Fi, G), kr(F, Gi), kr(Fi, Gi)
 
 
-def _layer_modes(eps: np.ndarray, axes: _Axes, kx: np.ndarray, ky: np.ndarray):
-    """W, V and kz of a layer (modes.hpp's conventions: psi = W e^{-+ i kz z}, phi = -+ V ...)."""
+def _nv_in_plane(layer, period, eps_of, h, axes: _Axes) -> tuple[np.ndarray, ...]:
+    """Exx, Exy, Eyx, Eyy by the normal-vector method [Schuster 2007] in the stretched
+    coordinates. The physical relation ``D = (E - Delta [[n n^T]]) E`` (rcwa.factorization.nv_rule)
+    is taken over unchanged, its factorization being about which functions jump, which a
+    change of coordinates keeps: with ``E_x = E_u / f'``, ``E_y = E_v / g'`` and ``D^u = g' D_x``,
+    ``D^v = f' D_y`` [Ward 1996], Exx = [[g']] (E - Delta [[nx^2]]) [[f']]^-1, Exy = -[[g']] Delta
+    [[nx ny]] [[g']]^-1, and y alike. ``[[eps]]`` and ``[[1/eps]]`` over (u, v) are those over (x, y):
+    every edge stays on its coordinate line. The normal field is the physical one,
+    ``n(f(u), g(v))``, sampled on the uniform (u, v) grid."""
+    cell = (period[0], period[1])
+    mx, my = axes.size_x // 2, axes.size_y // 2
+    E, delta = nv_delta(layer, cell, eps_of, h)
+    centres = (np.arange(NV_GRID) + 0.5) / NV_GRID
+    products = normal_products_at(layer, cell, axes.sx.map(centres * cell[0]), axes.sy.map(centres * cell[1]),
+                                  2 * mx, 2 * my)
+    nxx, nxy, nyy = (_convolution(c, 2 * mx, 2 * my, h) for c in products)
+    dxx, dxy, dyy = nv_corrections(delta, nxx, nxy, nyy)
+    kr = lambda a, b: _kron(a, b, axes.im, axes.jn)  # noqa: E731
+    F, G = axes.toeplitz_x(np.ones(axes.sx.starts.size)), axes.toeplitz_y(np.ones(axes.sy.starts.size))
+    ix, iy = np.eye(axes.size_x), np.eye(axes.size_y)
+    g_, f_ = kr(ix, G), kr(F, iy)
+    fi, gi = kr(np.linalg.inv(F), iy), kr(ix, np.linalg.inv(G))
+    return g_ @ (E - dxx) @ fi, -g_ @ dxy @ gi, -f_ @ dxy @ fi, f_ @ (E - dyy) @ gi
+
+
+def _layer_modes(eps: np.ndarray, axes: _Axes, kx: np.ndarray, ky: np.ndarray,
+                 in_plane: tuple[np.ndarray, ...] | None = None):
+    """W, V and kz of a layer (modes.hpp's conventions: psi = W e^{-+ i kz z}, phi = -+ V ...);
+    ``in_plane``: Exx, Exy, Eyx, Eyy of another rule in place of Li's (_nv_in_plane)."""
     exx, eyy, Z, mxx, myy, mzz_inv = _layer_matrices(eps, axes)
+    exy = eyx = np.zeros_like(exx)
+    if in_plane is not None:
+        exx, exy, eyx, eyy = in_plane
     kxc, kyc, kxr, kyr = kx[:, None], ky[:, None], kx[None, :], ky[None, :]
     P = np.block([[kxc * Z * kyr, myy - kxc * Z * kxr], [kyc * Z * kyr - mxx, -kyc * Z * kxr]])
-    Q = np.block([[-kxc * mzz_inv * kyr, kxc * mzz_inv * kxr - eyy], [exx - kyc * mzz_inv * kyr, kyc * mzz_inv * kxr]])
+    Q = np.block([[-kxc * mzz_inv * kyr - eyx, kxc * mzz_inv * kxr - eyy],
+                  [exx - kyc * mzz_inv * kyr, kyc * mzz_inv * kxr + exy]])
     kz2, W = np.linalg.eig(P @ Q)
     kz = np.sqrt(kz2.astype(complex))
     kz = np.where(kz.imag < 0, -kz, kz)
@@ -222,11 +268,15 @@ def _outgoing_kz(eps: complex, kx: np.ndarray, ky: np.ndarray) -> np.ndarray:
 
 
 def solve_asr(structure: Structure, wavelength_nm: float, theta_deg: float, phi_deg: float, orders: int,
-              eta: float = DEFAULT_ETA) -> AsrSolve:
-    """Every order's R and T for s and p at ``orders x orders`` harmonics (module docstring)."""
+              eta: float = DEFAULT_ETA, rule: str = "li") -> AsrSolve:
+    """Every order's R and T for s and p at ``orders x orders`` harmonics (module docstring);
+    ``rule``: the in-plane permittivity's factorization, ``li`` or ``nv`` (_nv_in_plane)."""
     _check_rectangles(structure)
     if not 0.0 <= eta < 1.0:
         raise UserInputError("the stretch's strength must be in [0, 1)", field="eta", expected="0 <= eta < 1", got=eta)
+    if rule not in ASR_RULES:
+        raise UserInputError("unknown factorization rule for adaptive spatial resolution", field="factorization",
+                             expected=f"one of {ASR_RULES}", got=rule)
     wl_um = wavelength_nm / 1000.0
     k0 = 2 * math.pi / wl_um
     eps_of = _permittivity_lookup(structure, float(wavelength_nm))
@@ -254,7 +304,8 @@ def solve_asr(structure: Structure, wavelength_nm: float, theta_deg: float, phi_
     down: list[np.ndarray] = []  # per layer, bottom first: a layer's transmitted amplitudes from its own
     for layer in reversed(layers):
         eps = _cell_permittivity(layer, structure.period, eps_of, sx.centres(), sy.centres())
-        W, V, kz = _layer_modes(eps, axes, kx, ky)
+        in_plane = _nv_in_plane(layer, structure.period, eps_of, h, axes) if rule == "nv" and layer.shapes_2d else None
+        W, V, kz = _layer_modes(eps, axes, kx, ky, in_plane)
         X = np.exp(1j * kz * k0 * layer.thickness)
         Wf, Vg = np.linalg.solve(W, f), np.linalg.solve(V, g)
         A, B = 0.5 * (Wf - Vg), 0.5 * (Wf + Vg)

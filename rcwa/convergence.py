@@ -25,7 +25,7 @@ import numpy as np
 
 import rcwa
 from rcwa.extrapolation import Extrapolation, extrapolate
-from rcwa.solve_cache import ASR_RULE, Direction, RawSolve, SolveCache
+from rcwa.solve_cache import ASR_RULES, Direction, RawSolve, SolveCache
 from rcwa.structure import Structure
 from rcwa.table.settings import settings_for
 
@@ -100,8 +100,9 @@ class CurveConfig:
     """The accuracy-versus-time curve of a 2D cell (``accuracy_versus_time``)."""
 
     directions: tuple[Direction, ...] = (Direction(550.0, 0.0), Direction(550.0, 30.0))
-    # asr: Li's rule in adaptive spatial resolution's stretched coordinates (rcwa.asr; cells of rectangles only)
-    rules: tuple[str, ...] = ("li", "nv", "asr")
+    # asr, asr_nv: Li's and the NV rule in adaptive spatial resolution's stretched coordinates (rcwa.asr;
+    # cells of rectangles only)
+    rules: tuple[str, ...] = ("li", "nv", "asr", "asr_nv")
     min_orders: int = 9
     max_orders: int = 25
     # A table's solves mostly see no mirror: its cost per node is timed at a general direction, up to
@@ -112,8 +113,8 @@ class CurveConfig:
     preset: str = "paper"
 
     def orders(self, rule: str | None = None) -> tuple[int, ...]:
-        """The curve's truncations (for ``asr``, a dense solver without mirror sectors, up to ASR_MAX_ORDERS)."""
-        top = min(self.max_orders, ASR_MAX_ORDERS) if rule == ASR_RULE else self.max_orders
+        """The curve's truncations (for the ASR rules, a dense solver without mirror sectors, up to ASR_MAX_ORDERS)."""
+        top = min(self.max_orders, ASR_MAX_ORDERS) if rule in ASR_RULES else self.max_orders
         return tuple(range(self.min_orders, top + 1, 2))
 
 

@@ -93,18 +93,27 @@ def nv_rule(layer: Layer, period: tuple[float, ...], eps_of: Callable, h: Harmon
     if len(period) == 1:
         return _inverse_rule_1d(layer, period[0], eps_of, h.m)
     cell = (period[0], period[1])
+    mx, my = _max_orders(h)
+    E, delta = nv_delta(layer, cell, eps_of, h)
+    nxx, nxy, nyy = (_convolution(c, 2 * mx, 2 * my, h) for c in _normal_products(layer, cell, 2 * mx, 2 * my))
+    dxx, dxy, dyy = nv_corrections(delta, nxx, nxy, nyy)
+    return PermittivityMatrices(E, E - dxx, E - dyy, -dxy, -dxy)
+
+
+def nv_delta(layer: Layer, cell: tuple[float, float], eps_of: Callable, h: HarmonicIndices) -> tuple[np.ndarray, np.ndarray]:
+    """``[[eps]]`` and the normal-vector method's ``Delta = [[eps]] - [[1/eps]]^{-1}`` [Schuster 2007, Eq. 17]."""
     E = _laurent_matrix(layer, cell, eps_of, h)
     mx, my = _max_orders(h)
     gx, gy = _coefficient_orders(mx, my)
     c_inv = cell_coefficients(layer, cell, lambda mat: 1.0 / eps_of(mat), gx, gy)
-    delta = E - np.linalg.inv(_convolution(c_inv, 2 * mx, 2 * my, h))
-    nxx, nxy, nyy = _normal_products(layer, cell, 2 * mx, 2 * my)
-    conv = lambda c: _convolution(c, 2 * mx, 2 * my, h)  # noqa: E731
-    # Symmetrized product: Hermitian for lossless cells, so the truncated problem
-    # conserves energy exactly (Delta [[N]] alone does not; see docs/architecture.md).
-    sym = lambda N: 0.5 * (delta @ N + N @ delta)  # noqa: E731
-    exy = -sym(conv(nxy))
-    return PermittivityMatrices(E, E - sym(conv(nxx)), E - sym(conv(nyy)), exy, exy)
+    return E, E - np.linalg.inv(_convolution(c_inv, 2 * mx, 2 * my, h))
+
+
+def nv_corrections(delta: np.ndarray, nxx: np.ndarray, nxy: np.ndarray, nyy: np.ndarray) -> tuple[np.ndarray, ...]:
+    """``Delta [[n_i n_j]]`` for xx, xy, yy, each product symmetrized, ``(Delta N + N Delta) / 2``:
+    Hermitian for lossless cells, so the truncated problem conserves energy exactly (Delta
+    [[N]] alone does not; see docs/architecture.md)."""
+    return tuple(0.5 * (delta @ N + N @ delta) for N in (nxx, nxy, nyy))
 
 
 def auto_rule(layer: Layer, period: tuple[float, ...], eps_of: Callable, h: HarmonicIndices) -> PermittivityMatrices:
@@ -324,18 +333,24 @@ def _normal_products(layer: Layer, period: tuple[float, float], gx_max: int, gy_
     transformed by FFT. The field depends on the geometry only, not on the wavelength or
     the angles, so it is cached per layer (a sweep computes it once).
     """
-    gx, gy = np.arange(-gx_max, gx_max + 1), np.arange(-gy_max, gy_max + 1)
     lx, ly = period
-    xs = (np.arange(NV_GRID) + 0.5) * lx / NV_GRID
-    ys = (np.arange(NV_GRID) + 0.5) * ly / NV_GRID
+    centres = (np.arange(NV_GRID) + 0.5) / NV_GRID
+    return normal_products_at(layer, period, centres * lx, centres * ly, gx_max, gy_max)
+
+
+def normal_products_at(layer: Layer, period: tuple[float, float], xs: np.ndarray, ys: np.ndarray, gx_max: int,
+                       gy_max: int) -> list[np.ndarray]:
+    """_normal_products' coefficients over the cell's uniform sample grid, the field taken at the
+    points (xs[i], ys[j]) that grid's i-th column and j-th row stand for: the identity for the
+    uniform grid, or the image of a stretched coordinate's grid (rcwa.asr)."""
+    gx, gy = np.arange(-gx_max, gx_max + 1), np.arange(-gy_max, gy_max + 1)
     X, Y = np.meshgrid(xs, ys, indexing="ij")
-    points = np.stack([X.ravel(), Y.ravel()], axis=1)
-    fields = _normal_tensor(layer, period, points)
-    phase = np.exp(-1j * np.pi * (gx[:, None] / NV_GRID + gy[None, :] / NV_GRID))
+    fields = _normal_tensor(layer, period, np.stack([X.ravel(), Y.ravel()], axis=1))
+    phase = np.exp(-1j * np.pi * (gx[:, None] / xs.size + gy[None, :] / ys.size))
     out = []
     for f in fields:
-        spectrum = np.fft.fft2(f.reshape(NV_GRID, NV_GRID)) / NV_GRID**2
-        out.append(spectrum[np.ix_(gx % NV_GRID, gy % NV_GRID)] * phase)
+        spectrum = np.fft.fft2(f.reshape(xs.size, ys.size)) / f.size
+        out.append(spectrum[np.ix_(gx % xs.size, gy % ys.size)] * phase)
     return out
 
 

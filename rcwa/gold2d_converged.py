@@ -46,8 +46,12 @@ HIGH_ORDERS = {(550.0, 0.0): tuple(range(37, 63, 2)), (450.0, 0.0): tuple(range(
 TAIL = 6  # truncations per parity class in the primary fit
 # Adaptive spatial resolution (rcwa.asr; issue 29, item 2): a dense solver without mirror sectors, so
 # its truncations stop at 35 x 35 (51-89 s a solve, both polarizations, on a loaded 2-core machine).
-ASR_RULE = "asr"
+# Both rules in the stretched coordinates: Li's (ASR_RULE) and the normal-vector rule's (ASR_NV_RULE).
+ASR_RULE, ASR_NV_RULE = "asr", "asr_nv"
 ASR_ORDERS = DENSE_ORDERS
+# The NV rule in stretched coordinates is published where it settles a question: at 550 nm, normal
+# incidence, the issue's bar; at 650 nm, normal incidence, where the uniform NV rule drifts away.
+ASR_NV_DIRECTIONS = (Direction(550.0, 0.0), Direction(650.0, 0.0))
 
 
 def open_cache(path: str | Path | None = None) -> SolveCache:
@@ -136,10 +140,12 @@ def converged_table(cache: SolveCache, max_orders: int | None = None) -> list[Co
     return out
 
 
-def asr_table(cache: SolveCache, max_orders: int | None = None) -> list[ConvergedValue]:
-    """converged_table's values for adaptive spatial resolution (ASR_RULE over ASR_ORDERS)."""
+def asr_table(cache: SolveCache, max_orders: int | None = None, rule: str = ASR_RULE,
+              only: Iterable[Direction] | None = None) -> list[ConvergedValue]:
+    """converged_table's values for adaptive spatial resolution (``rule``: ASR_RULE or ASR_NV_RULE, over
+    ASR_ORDERS), for every direction or ``only`` these."""
     orders = tuple(n for n in ASR_ORDERS if max_orders is None or n <= max_orders)
-    return [converge(cache, d, ASR_RULE, orders, pol, name) for d in directions()
+    return [converge(cache, d, rule, orders, pol, name) for d in (directions() if only is None else only)
             for pol in (POLARIZATIONS[:1] if d.theta_deg == 0.0 else POLARIZATIONS) for name in QUANTITIES]
 
 

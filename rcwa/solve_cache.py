@@ -31,9 +31,12 @@ from workbench.core.files import atomic_write_text
 from workbench.core.version import __version__
 
 CACHE_FORMAT = 1
-# The factorization rules' names (rcwa.factorization) and this one: Li's rule in the stretched
-# coordinates of adaptive spatial resolution (rcwa.asr, at its DEFAULT_ETA).
+# The factorization rules' names (rcwa.factorization) and these two: Li's rule and the normal-vector
+# rule in the stretched coordinates of adaptive spatial resolution (rcwa.asr, at its DEFAULT_ETA),
+# each mapped to the in-plane rule solve_asr takes.
 ASR_RULE = "asr"
+ASR_NV_RULE = "asr_nv"
+ASR_RULES = {ASR_RULE: "li", ASR_NV_RULE: "nv"}
 CACHE_ENVIRONMENT = "RCWA_CONVERGENCE_CACHE"  # a folder: where convergence studies keep their raw solves
 _CLEAR_REFS = Path("/proc/self/clear_refs")
 _STATUS = Path("/proc/self/status")
@@ -125,8 +128,8 @@ def solve_raw(structure: Structure, direction: Direction, orders: int, rule: str
     (n, m), so p's efficiencies are s's with the orders swapped (half the cost; checked
     against a p solve by tests/rcwa/test_extrapolation_convergence.py).
     """
-    if rule == ASR_RULE:
-        return _solve_raw_asr(structure, direction, orders)
+    if rule in ASR_RULES:
+        return _solve_raw_asr(structure, direction, orders, ASR_RULES[rule])
     mirrored = direction.theta_deg == 0.0 and has_diagonal_mirror(structure)
     reset = _reset_peak_rss()
     start = time.perf_counter()
@@ -156,12 +159,13 @@ def _raw_solve(m: np.ndarray, n: np.ndarray, R: np.ndarray, T: np.ndarray, secon
                     table, seconds, peak, warm_seconds)
 
 
-def _solve_raw_asr(structure: Structure, direction: Direction, orders: int) -> RawSolve:
-    """solve_raw for ``ASR_RULE`` (rcwa.asr, both polarizations in one dense solve; nothing to
+def _solve_raw_asr(structure: Structure, direction: Direction, orders: int, in_plane_rule: str) -> RawSolve:
+    """solve_raw for the ASR_RULES (rcwa.asr, both polarizations in one dense solve; nothing to
     prebuild, so its warm_seconds are its seconds)."""
     reset = _reset_peak_rss()
     start = time.perf_counter()
-    result = solve_asr(structure, direction.wavelength_nm, direction.theta_deg, direction.phi_deg, orders, ASR_ETA)
+    result = solve_asr(structure, direction.wavelength_nm, direction.theta_deg, direction.phi_deg, orders, ASR_ETA,
+                        in_plane_rule)
     seconds = time.perf_counter() - start
     peak = _peak_rss_bytes() if reset else None
     return _raw_solve(result.m, result.n, result.R, result.T, seconds, peak, seconds)
@@ -185,7 +189,7 @@ class SolveCache:
 
     def _key(self, direction: Direction, orders: int, rule: str) -> str:
         # ASR's entries carry its stretch, so a changed ASR_ETA never reuses them.
-        named = f"{rule}@eta={ASR_ETA:g}" if rule == ASR_RULE else rule
+        named = f"{rule}@eta={ASR_ETA:g}" if rule in ASR_RULES else rule
         return f"{self.structure.content_hash}/{direction.key()}/{orders}/{named}"
 
     def get(self, direction: Direction, orders: int, rule: str) -> RawSolve | None:

@@ -45,7 +45,7 @@ from scipy.interpolate import RegularGridInterpolator
 import rcwa
 from rcwa.convergence import CurveConfig, accuracy_versus_time
 from rcwa.shapes import Rect
-from rcwa.solve_cache import ASR_RULE, SolveCache
+from rcwa.solve_cache import ASR_RULES, SolveCache
 from rcwa.structure import Structure
 from rcwa.sweep import sweep_directions
 from workbench.core.files import atomic_write_csv, atomic_write_text
@@ -230,7 +230,7 @@ def run_convergence_study(structure: Structure, out: str | Path, cfg: CurveConfi
     out.mkdir(parents=True, exist_ok=True)
     start = time.perf_counter()
     if any(not isinstance(shape, Rect) for layer in structure.layers for shape in layer.shapes_2d):
-        cfg = replace(cfg, rules=tuple(r for r in cfg.rules if r != ASR_RULE))  # ASR stretches rectangles only
+        cfg = replace(cfg, rules=tuple(r for r in cfg.rules if r not in ASR_RULES))  # ASR stretches rectangles only
     steps = len(cfg.directions) * sum(len(cfg.orders(rule)) for rule in cfg.rules)
     with tqdm(total=steps, desc=f"study {structure.name}", unit="solve", disable=not progress) as bar:
         curve = accuracy_versus_time(structure, cache, cfg, bar)

@@ -17,8 +17,15 @@
   quantity, docs/gold2d_convergence.md) is within 0.002 of Li's own extrapolated limit
   (0.0753 +- 0.0064, N up to 61) at 17 x 17 with ASR (measured 0.0748) where Li's rule at
   17 x 17 is 0.011 off (0.0645; at 61 x 61 still 0.002).
-* Bad input: a circle, a 1D structure and a stretch outside [0, 1) name the field; the 2D
-  study leaves ASR out for a cell with a circle.
+* The normal-vector rule in the same coordinates (``rule="nv"``): without a stretch it is the
+  core's NV rule order by order (measured 1e-14; bar 1e-10, on the asymmetric cell). With
+  it, gold2d at 650 nm, normal incidence, where the uniform NV rule drifts away from the
+  other formulations (T_total 0.53, 0.45, 0.41 at N = 15, 25, 35 against Li's and ASR's
+  0.614: docs/gold2d_convergence.md), T_total at 17 x 17 is within 0.04 of Li's extrapolated
+  0.6143 (measured 0.585) and T(0,0) within 0.003 of Li's 0.0238 (measured 0.0259), where
+  the uniform rule at 17 is 0.1 and 0.15 off.
+* Bad input: a circle, a 1D structure, a stretch outside [0, 1) and an unknown rule name the
+  field; the 2D study leaves both ASR rules out for a cell with a circle.
 """
 
 import numpy as np
@@ -68,10 +75,12 @@ material = "air"
 shapes = [ { material = 2.0, rect = { center = [0.4, 0.55], size = [0.5, 0.35] } } ]
 """
 LI_LIMIT_T00 = 0.0753  # gold2d, 550 nm, normal incidence: Li's rule extrapolated (docs/gold2d_convergence.md)
+LI_LIMIT_650 = {"T_total": 0.6143, "T00": 0.0238}  # gold2d, 650 nm, normal incidence: the same table
 
 
-def _core(structure: Structure, wl: float, theta: float, phi: float, n: int) -> tuple[np.ndarray, np.ndarray]:
-    solves = [rcwa.solve(structure, wl, theta, phi, (n, n), pol, "li").all_orders for pol in ("s", "p")]
+def _core(structure: Structure, wl: float, theta: float, phi: float, n: int,
+          rule: str = "li") -> tuple[np.ndarray, np.ndarray]:
+    solves = [rcwa.solve(structure, wl, theta, phi, (n, n), pol, rule).all_orders for pol in ("s", "p")]
     R = np.stack([s["R"][:, i] for i, s in enumerate(solves)], axis=1)
     T = np.stack([s["T"][:, i] for i, s in enumerate(solves)], axis=1)
     return R, T
@@ -85,6 +94,27 @@ def test_without_a_stretch_it_is_the_cores_li_rule_order_by_order():
         assert np.max(np.abs(ours.R - R)) < 1e-10
         assert np.max(np.abs(ours.T - T)) < 1e-10
         assert T.sum() > 0.1 and R.sum() > 0.01  # the comparison is not of zeros
+
+
+def test_without_a_stretch_its_nv_rule_is_the_cores_nv_rule_order_by_order():
+    structure = Structure.from_toml_string(ASYMMETRIC)
+    ours = solve_asr(structure, 600.0, 25.0, 35.0, 5, eta=0.0, rule="nv")
+    R, T = _core(structure, 600.0, 25.0, 35.0, 5, rule="nv")
+    assert np.max(np.abs(ours.R - R)) < 1e-10
+    assert np.max(np.abs(ours.T - T)) < 1e-10
+    li = solve_asr(structure, 600.0, 25.0, 35.0, 5, eta=0.0)
+    assert np.max(np.abs(ours.T - li.T)) > 1e-3  # the rule is in use: NV and Li differ at this truncation
+
+
+def test_the_stretch_converges_the_nv_rule_at_650_nm_where_uniform_nv_drifts():
+    gold2d = load_structure("gold2d")
+    zero = lambda result: result.T[(result.m == 0) & (result.n == 0), 0][0]  # noqa: E731
+    stretched = solve_asr(gold2d, 650.0, 0.0, 0.0, 17, rule="nv")
+    uniform = solve_asr(gold2d, 650.0, 0.0, 0.0, 17, eta=0.0, rule="nv")
+    assert abs(stretched.T[:, 0].sum() - LI_LIMIT_650["T_total"]) < 0.04
+    assert abs(zero(stretched) - LI_LIMIT_650["T00"]) < 0.003
+    assert abs(uniform.T[:, 0].sum() - LI_LIMIT_650["T_total"]) > 0.06  # the comparison: uniform NV at 17
+    assert abs(zero(uniform) - LI_LIMIT_650["T00"]) > 0.1
 
 
 def test_a_stretched_uniform_film_converges_to_airys_film():
@@ -128,10 +158,13 @@ def test_cells_it_cannot_stretch_are_refused_naming_the_field(text, field):
     assert caught.value.field == field
 
 
-def test_a_stretch_outside_zero_to_one_is_refused():
+def test_a_stretch_outside_zero_to_one_or_an_unknown_rule_is_refused():
     with pytest.raises(UserInputError) as caught:
         solve_asr(Structure.from_toml_string(BLOCK), 550.0, 0.0, 0.0, 5, eta=1.0)
     assert caught.value.field == "eta"
+    with pytest.raises(UserInputError) as caught:
+        solve_asr(Structure.from_toml_string(BLOCK), 550.0, 0.0, 0.0, 5, rule="laurent")
+    assert caught.value.field == "factorization"
 
 
 def test_the_2d_study_leaves_asr_out_for_a_cell_with_circles(tmp_path, monkeypatch):
@@ -148,7 +181,7 @@ def test_the_2d_study_leaves_asr_out_for_a_cell_with_circles(tmp_path, monkeypat
         raise RuntimeError("captured")
 
     monkeypatch.setattr(table_study, "accuracy_versus_time", capture)
-    for text, rules in ((BLOCK, ("li", "nv", "asr")),
+    for text, rules in ((BLOCK, ("li", "nv", "asr", "asr_nv")),
                         (BLOCK.replace("rect = { center = [0.4, 0.55], size = [0.5, 0.35] }",
                                        "circle = { center = [0.5, 0.5], radius = 0.2 }"), ("li", "nv"))):
         structure = Structure.from_toml_string(text)
