@@ -12,7 +12,14 @@ PYTHON ?= python3
 VENV   := .venv
 BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed
-SOURCES := pyproject.toml CMakeLists.txt $(wildcard rcwa/cpp/*.cpp rcwa/cpp/*.hpp)
+# The editable install maps each module to its file (scikit-build-core's redirect mode): when modules
+# are added, moved or removed, the map must be rebuilt, so the list of modules is a prerequisite too
+# (rewritten only when it changes).
+MODULE_LIST := $(VENV)/.module-list
+$(shell mkdir -p $(VENV) && find rcwa renderer calibration datasets_synthetic reports workbench -name '*.py' \
+  -not -path '*/__pycache__/*' | LC_ALL=C sort > $(MODULE_LIST).new && \
+  { cmp -s $(MODULE_LIST).new $(MODULE_LIST) && rm $(MODULE_LIST).new || mv $(MODULE_LIST).new $(MODULE_LIST); })
+SOURCES := pyproject.toml CMakeLists.txt $(wildcard rcwa/cpp/*.cpp rcwa/cpp/*.hpp) $(MODULE_LIST)
 
 .PHONY: install demo verify paper check test test-fast test-heavy bench clean
 

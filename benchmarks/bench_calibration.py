@@ -8,7 +8,7 @@ within 1 %, response RMS < 1 % over normalised values 0.05-0.95, and in under 2 
 2-core machine the bars were set on: judged as a ratio to the reference workload timed in the
 same run (benchmarks/reference_speed.py), never in a unit test (issue 23).
 
-Beside them, the CD-fringe stage (calibration.photometric, a check by default): the worst
+Beside them, the CD-fringe stage (calibration.pose.fringe_rotation, a check by default): the worst
 photo's rotation error of the edge fit again (``edge_rot_deg``), of the camera turned by
 the rotation the fringes suggest (``fringe_rot_deg``), how many photos' steps the guard
 would accept, and the stage's seconds (included in ``seconds``).
@@ -49,9 +49,9 @@ def errors(result: dict, truth: dict, seconds: float) -> dict:
 
 
 def pose_times(result: dict) -> dict:
-    """The slowest photo's seconds in the pose stage (calibration.pose_photo.fit_photo, all its
+    """The slowest photo's seconds in the pose stage (calibration.pose.stages.fit_photo, all its
     stages), its render check's seconds and the samples per pixel the check's measured noise
-    asked for (calibration.pose_render_check)."""
+    asked for (calibration.pose.render_check)."""
     nan = float("nan")
     total = [v for k, v in (result.get("timings") or {}).items() if k.startswith("pose_")]
     photos = (result.get("photos") or {}).values()
@@ -65,7 +65,7 @@ def fringe_errors(result: dict, truth: dict) -> dict:
     suggests, the number of steps the guard accepts, and the stage's seconds."""
     import numpy as np
 
-    from calibration.pose_study import rotation_error_deg
+    from calibration.pose.study import rotation_error_deg
 
     edge, fringe, accepted, spent = [], [], 0, 0.0
     for name, record in (result.get("cd_fringes") or {}).items():
@@ -85,7 +85,7 @@ def fringe_errors(result: dict, truth: dict) -> dict:
 
 
 def _turned(world_to_camera, delta_deg):
-    """world_to_camera turned about the camera's centre (calibration.photometric.rotated's convention)."""
+    """world_to_camera turned about the camera's centre (calibration.pose.fringe_rotation.rotated's convention)."""
     import cv2
     import numpy as np
 

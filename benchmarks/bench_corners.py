@@ -1,6 +1,6 @@
 """Benchmark: board corners, time per view and accuracy (``make bench``).
 
-Time: calibration.corners.find_board_corners (detection with fallbacks, point-symmetry
+Time: calibration.board.corners.find_board_corners (detection with fallbacks, point-symmetry
 refinement, border check) on OpenCV's 13 real 640 x 480 views of a 9 x 6 board
 (../shared/data/real/chessboard_right), against plain OpenCV on the same views in the
 same run: findChessboardCorners + cornerSubPix (winSize (5, 5), i.e. an 11 x 11 pixel
@@ -21,7 +21,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from calibration.corners import find_board_corners
+from calibration.board.corners import find_board_corners
 from tests.calibration.boards import board_homography, camera_matrix, checkerboard_view, look_at_board, true_corners
 
 PATTERN = (9, 6)

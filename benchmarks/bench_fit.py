@@ -1,6 +1,6 @@
 """Benchmark: time per re-render of the fit preset after a parameter change (``make bench``).
 
-Calibration re-renders hundreds of times (renderer.fit.FitRenderer); this prints the
+Calibration re-renders hundreds of times (renderer.rerender.FitRenderer); this prints the
 set-up time and the median time of a re-render after the pose, focal length, exposure
 and light power changed.
 """
@@ -13,7 +13,7 @@ import time
 
 import numpy as np
 
-from renderer.fit import FIT_RESOLUTION, FIT_SPP, FitRenderer
+from renderer.rerender import FIT_RESOLUTION, FIT_SPP, FitRenderer
 
 
 def main() -> None:

@@ -4,7 +4,7 @@
 the dataset's truth camera at 2 spp (benchmarks.bench_report.render, as synth renders), and
 `workbench report` on view0.dng. Printed against the issue's bars: report.html under 25 MB,
 and in Debian's chromium (Playwright) the first paint, from navigation until every tile of
-the fitted view is decoded and drawn (reports.page's ``reportViewer.settled()``), under 3 s
+the fitted view is decoded and drawn (reports.page.html's ``reportViewer.settled()``), under 3 s
 on the bars' machine, judged as a ratio to the reference workload timed in the same run
 (benchmarks/reference_speed.py); then 1:1 at the centre, time until drawn, and no console
 error or request other than file: and data:. The report's build time is printed too (no bar).

@@ -1,4 +1,4 @@
-"""Benchmark: how often the distortion-term choice (calibration.lens_choice.choose_terms) keeps
+"""Benchmark: how often the distortion-term choice (calibration.intrinsics.lens_choice.choose_terms) keeps
 p1, p2, over seeds of synthetic corners (tests/calibration/lens_views.py: a pinhole of fx 500 px,
 k1 -0.2, k2 0.08, 12 views reaching into the image corners, 0.05 px Gaussian corner noise).
 
@@ -18,8 +18,8 @@ import argparse
 import cv2
 import numpy as np
 
-from calibration.lens_choice import choose_terms
-from calibration.lens_models import fit_model
+from calibration.intrinsics.lens_choice import choose_terms
+from calibration.intrinsics.lens_models import fit_model
 from tests.calibration.lens_views import corner_views
 
 SIZE = (640, 480)

@@ -18,9 +18,9 @@ import tempfile
 import time
 
 from rcwa.table import build_table
-from renderer.planner import plan_scene, planned_nodes
 from renderer.scene import load_scene
 from renderer.tables import table_plan
+from renderer.trace.planner import plan_scene, planned_nodes
 from workbench.core.cache import ENVIRONMENT_VARIABLE
 
 SCENES = ("cornell_cd", "cornell_cd_view2", "grating2d_gold")

@@ -64,7 +64,7 @@ BOUNDS: dict[str, tuple[float, str]] = {
     "known_count": (20, "lower"),
 }
 BARS: dict[str, tuple[float, str]] = {
-    "fit_p_value": (1e-3, "lower"),  # reports.scene_verdict.ALPHA: consistent needs p >= alpha (judged on -log10 p)
+    "fit_p_value": (1e-3, "lower"),  # reports.scene_fit.verdict.ALPHA: consistent needs p >= alpha (judged on -log10 p)
     "fit_file_median_px": (0.5, "upper"),  # REMOVED_MEDIAN_PX: consistent needs the file's edges <= 0.5 px
     "fit_max_abs_sigma": (3.0, "upper"),  # issue 25: every component within 3 std
     "pose_cy_in_std": (4.0, "upper"),  # an honest std: 4 std are rarely crossed

@@ -1,7 +1,7 @@
 """Benchmark: issue 15's report bars over synthetic datasets, and known camera errors (``make bench``).
 
 For each seed: `workbench synth cornell_cd_view2 --seed S` (draft, 640 x 480), a render with
-the dataset's truth camera (renderer.fit, as synth renders; 64 spp, the photo's, and 256
+the dataset's truth camera (renderer.rerender, as synth renders; 64 spp, the photo's, and 256
 spp), and `workbench report` on the darkest bracket of view0 (the CD's orders saturate the
 brighter ones). Printed against issue 15's bars: photo-render band-edge offsets (median
 < 0.5 px, p95 < 1.5 px), the prediction's median offset from each (< 0.5 px), hue-crossing
@@ -14,7 +14,7 @@ its field of view widened by 0.2 deg, measured against the photo; each edge's me
 offset minus the offset between the predictions of the wrong and the right camera
 (median < 0.5 px: issue 15).
 
-The prediction's weighting (``--parts weighting``; reports.prediction): on cornell_cd (seed 0,
+The prediction's weighting (``--parts weighting``; renderer.trace.prediction): on cornell_cd (seed 0,
 the first seed; view0 ev+0 filled from its darker bracket frames, as `workbench report
 --bracket` does) against a render with the truth camera (``--weighting-spp``), band-edge
 offsets of the prediction from the render and from the filled photo, by grid (circles,
@@ -61,7 +61,7 @@ def _spec_and_camera(dataset: Path, camera=None, scene: str = SCENE, photo: str 
 
 
 def render(dataset: Path, spp: int, camera=None, seed: int = 901, scene: str = SCENE, photo: str = PHOTO) -> np.ndarray:
-    from renderer.fit import FitRenderer
+    from renderer.rerender import FitRenderer
 
     spec, camera = _spec_and_camera(dataset, camera, scene, photo)
     fit = FitRenderer(spec, resolution=(camera.width, camera.height), spp=min(spp, 64))
@@ -99,8 +99,10 @@ def report_row(dataset: Path, render_path: Path, out: Path) -> dict:
 def known_error(dataset: Path, wrong) -> dict:
     """Measured (wrong-camera render vs photo, as the report measures it: photometric scale, the
     render through the photo's sensor) against predicted (wrong vs right prediction) offsets."""
-    from reports import fringes, images, polar
-    from reports.prediction import predict
+    from renderer.trace.prediction import predict
+    from reports.compare import images
+    from reports.fringes import band_edges as fringes
+    from reports.fringes import polar
     from reports.report import _sampled_prediction, measure_fringes
 
     spec, truth = _spec_and_camera(dataset)
@@ -133,9 +135,10 @@ def _by_grid(pairs) -> dict[str, list[float]]:
 def weighting_rows(dataset: Path, spp: int) -> list[dict]:
     """The prediction's band edges against the render and the bracket-filled photo, by grid
     kind, for each weighting (module docstring). Offsets are image minus prediction."""
-    from reports import images, polar
-    from reports.exposure_merge import merge_highlights
-    from reports.prediction import predict
+    from renderer.trace.prediction import predict
+    from reports.compare import images
+    from reports.compare.exposure_merge import merge_highlights
+    from reports.fringes import polar
     from reports.report import measure_fringes
 
     spec, camera = _spec_and_camera(dataset, scene=WEIGHTING_SCENE, photo=WEIGHTING_PHOTO)

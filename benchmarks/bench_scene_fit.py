@@ -69,7 +69,7 @@ def _offsets(run: Path, photo: str, nominal: bool) -> dict | None:
 
 
 def run_case(label: str, truth_scene: str, seed: int, work: Path, reference_s: float) -> dict:
-    from reports.scene_fit_study import fit_errors, truth_values
+    from reports.scene_fit.study import fit_errors, truth_values
     from workbench.verify import VerifySettings, verify
 
     folder = dataset(truth_scene, seed, work)

@@ -21,9 +21,9 @@ import sys
 import tempfile
 
 from rcwa.table import build_table, read_table_metadata, truncation_summary
-from renderer.planner import plan_scene
 from renderer.scene import load_scene
 from renderer.tables import table_plan
+from renderer.trace.planner import plan_scene
 from workbench.core.cache import ENVIRONMENT_VARIABLE
 
 SCENES = ("cornell_cd", "grating2d_gold")

@@ -6,13 +6,13 @@ follow as well::
     DATASET/photos/*        photos of the scene (raw: DNG, NEF, CR2, ...; or JPEG/PNG/TIFF)
     DATASET/brackets/*      optional: an exposure bracket (raw files and/or JPEG, PNG, TIFF)
     DATASET/calibration/*   optional: board views, and board.json describing the board
-                            (calibration.board_file; --board COLSxROWS, --square-mm override it)
+                            (calibration.board.board_file; --board COLSxROWS, --square-mm override it)
 
-Steps, in order: the intrinsics from calibration/ (calibration.intrinsics, Zhang's method),
-the response from brackets/ (calibration.response: the curve from the non-raw files, the
+Steps, in order: the intrinsics from calibration/ (calibration.intrinsics.calibrate, Zhang's method),
+the response from brackets/ (calibration.response.calibrate: the curve from the non-raw files, the
 linearity check from the raw ones), then the pose of every photo with the intrinsics held
-fixed (calibration.pose), and the lens's vignetting from the photos' walls against renders
-(calibration.vignetting_stage). Without board views the first photo's fit frees the focal
+fixed (calibration.pose.calibrate), and the lens's vignetting from the photos' walls against renders
+(calibration.intrinsics.vignetting_stage). Without board views the first photo's fit frees the focal
 length, principal point and k1, k2, and the others hold them. Nothing but these three
 folders is read: a dataset's truth.json never is.
 
@@ -25,9 +25,9 @@ DIR gets, each written atomically once everything has succeeded:
   ``light_power_scale`` is held at 1), ``exposure_scale_per_second`` (divided by each
   photo's EXIF exposure time: what is left is the light and the sensor's gain, the same
   for every photo of one scene), ``response`` (``points``: pairs of normalised irradiance
-  and value), residuals, ``cd_fringes`` by photo (calibration.photometric: the CD-fringe
+  and value), residuals, ``cd_fringes`` by photo (calibration.pose.fringe_rotation: the CD-fringe
   photometric residual before and after, the rotation the fringes suggest, whether it
-  was taken and why), ``vignetting`` (calibration.vignetting_stage: the lens's falloff
+  was taken and why), ``vignetting`` (calibration.intrinsics.vignetting_stage: the lens's falloff
   per channel fitted on the walls against renders, its corners with std, whether it is
   applied and why; where it is, ``exposure_scale`` is the exposure on the lens's axis),
   settings, versions and timings;
@@ -47,19 +47,19 @@ from pathlib import Path
 import numpy as np
 from tqdm import tqdm
 
-from calibration.board_file import BoardSpec, resolve_board
-from calibration.fitted_scene import fitted_scene_text
-from calibration.intrinsics import calibrate_board_views
-from calibration.photo import RAW_SUFFIXES, read_photo
-from calibration.photometric import cd_mask
-from calibration.pose_fit import FREE_RADIAL_TERMS, PoseSettings, Unknowns
-from calibration.pose_inputs import fit_renderer, start_camera
-from calibration.pose_outputs import PHOTOMETRY_NOTE, json_default, result_json, versions
-from calibration.pose_photo import PoseResult, check_photo, fit_photo
-from calibration.projection_uncertainty import map_over
-from calibration.response import calibrate_response
-from calibration.scene_model import scene_model
-from calibration.vignetting_stage import vignetting_stage
+from calibration.board.board_file import BoardSpec, resolve_board
+from calibration.intrinsics.calibrate import calibrate_board_views
+from calibration.intrinsics.projection_uncertainty import map_over
+from calibration.intrinsics.vignetting_stage import vignetting_stage
+from calibration.pose.edge_fit import FREE_RADIAL_TERMS, PoseSettings, Unknowns
+from calibration.pose.fringe_rotation import cd_mask
+from calibration.pose.inputs import fit_renderer, start_camera
+from calibration.pose.outputs import PHOTOMETRY_NOTE, json_default, result_json, versions
+from calibration.pose.photo import RAW_SUFFIXES, read_photo
+from calibration.pose.scene_file import fitted_scene_text
+from calibration.pose.scene_model import scene_model
+from calibration.pose.stages import PoseResult, check_photo, fit_photo
+from calibration.response.calibrate import calibrate_response
 from renderer.camera import CameraModel
 from renderer.scene import load_scene
 from workbench.core.errors import UserInputError
@@ -94,7 +94,7 @@ def dataset_files(dataset: str | Path) -> dict[str, list[Path]]:
 
 def dataset_board(files: dict[str, list[Path]], dataset: str | Path, board: tuple[int, int] | None = None,
                   square_mm: float | None = None) -> BoardSpec | None:
-    """The board of the dataset's calibration views (calibration.board_file.resolve_board:
+    """The board of the dataset's calibration views (calibration.board.board_file.resolve_board:
     calibration/board.json, overridden by ``board``/``square_mm``), or None without views."""
     if not files["boards"]:
         return None
@@ -103,7 +103,7 @@ def dataset_board(files: dict[str, list[Path]], dataset: str | Path, board: tupl
 
 def intrinsics_from_boards(boards: list[Path], board: BoardSpec | None, progress: bool,
                            model: str = "auto") -> dict | None:
-    """intrinsics.json's content from the board views (calibration.intrinsics; ``model``: a lens
+    """intrinsics.json's content from the board views (calibration.intrinsics.calibrate; ``model``: a lens
     model of renderer.lens, or ``auto``), or None without views."""
     if not boards or board is None:
         return None
@@ -139,7 +139,7 @@ def calibrate_dataset(dataset: str | Path, scene: str | Path, out: str | Path, *
     the dataset's calibration/board.json; without that file both are needed when there are
     board views (a UserInputError naming the file and the flags, before anything runs).
     ``model``: the board views' lens model (a model of renderer.lens, or ``auto``:
-    calibration.lens_choice picks the simplest that held-out views do not reject).
+    calibration.intrinsics.lens_choice picks the simplest that held-out views do not reject).
     ``executor`` (workbench.core.executor.DaskExecutor): the intrinsics and the response run as two
     tasks and each photo's pose as its own (fit_photos_on); the vignetting, over all photos, here."""
     started = time.perf_counter()
@@ -260,8 +260,8 @@ def fit_photos_on(executor, photos: list[Path], spec, intrinsics: dict | None, r
 
 def lens_uncertainty_summary(intrinsics: dict, spec, results: dict) -> dict:
     """calibration.json's digest of intrinsics.json's projection uncertainty and cross-validation
-    (calibration.projection_uncertainty): the map's std at the centre, corners and median, and over each
-    photo's CD (its top's annulus as calibration.photometric.cd_mask draws it at the fitted camera), the
+    (calibration.intrinsics.projection_uncertainty): the map's std at the centre, corners and median, and over each
+    photo's CD (its top's annulus as calibration.pose.fringe_rotation.cd_mask draws it at the fitted camera), the
     diff's medians."""
     unc, cross = intrinsics.get("projection_uncertainty") or {}, intrinsics.get("cross_validation") or {}
     out: dict = {}

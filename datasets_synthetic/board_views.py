@@ -24,7 +24,7 @@ import numpy as np
 
 from datasets_synthetic.board import BOARD_KEY, Checkerboard, corners_visible, sample_pose
 from datasets_synthetic.sensor import auto_exposure
-from renderer.fit import FitRenderer
+from renderer.rerender import FitRenderer
 from renderer.spectra import irregular, light_spectrum
 
 FLASH_KEY = "calibration_flash"

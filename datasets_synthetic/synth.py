@@ -81,8 +81,8 @@ from datasets_synthetic.board_views import BOARD_INTEGRATOR, FLASH_W_PER_SR, boa
 from datasets_synthetic.dng import DngMetadata, write_dng
 from datasets_synthetic.jpeg import develop, hidden_response, write_jpeg
 from datasets_synthetic.sensor import SensorModel, as_shot_neutral, auto_exposure, checked_vignetting, xyz_to_camera
-from renderer.fit import FitRenderer
 from renderer.render import with_resolution
+from renderer.rerender import FitRenderer
 from renderer.scene import load_scene
 from renderer.spectra import camera_sensitivities, light_spectrum
 from renderer.tables import table_keys

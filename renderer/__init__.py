@@ -13,20 +13,23 @@ Plugins (registered with Mitsuba by ``renderer.mitsuba_scene.register_plugins``)
 
 Scenes and rendering
     scene         scene files (TOML) and their validation; ``scenes/`` holds the built-in ones
-    fit_parameters  a scene's ``[fit]`` table: the scene fit's free parameters
-    fit_apply     a scene with fit values applied (placements, light, structure fields)
+    fit_parameters  a scene's ``[fit]`` table: the scene fit's free parameters (applied by
+                  reports.scene_fit.apply)
     mitsuba_scene a scene spec to a Mitsuba scene dict (shapes, light, sensor)
     spectra       Mitsuba spectra, the light's emission, the camera's sensitivities
     meshes        the box's quads and the CDs' annuli as PLY files in the cache
-    placement     where objects sit in the world (shared with calibration.scene_model)
+    placement     where objects sit in the world (shared with calibration.pose.scene_model)
     tables        which efficiency table serves each CD and grating, built when missing
     camera        the camera model shared with calibration (OpenCV pinhole with distortion)
     response      camera response curves
     camera_coverage  pre-render checks (table coverage of the camera's sensitivities)
-    planner       what a scene needs simulated (the table nodes its camera reads)
+    trace/        the numpy trace, no Mitsuba: ``geometry`` (rays against planes, the box's
+                  walls, the light's rectangle, the grating equation), ``planner`` (what a
+                  scene needs simulated), ``prediction`` and ``efficiency_weights`` (where the
+                  grating equation puts the CD's lit bands, weighted by RCWA efficiencies)
     table_cost    a table's estimated build time on this machine, for the planner
     render        ``workbench render``: passes, resume, EXR, preview, sidecar
-    fit           fast in-place re-renders for calibration (the ``fit`` preset)
+    rerender      fast in-place re-renders for calibration (the ``fit`` preset)
     variant       Mitsuba's variant and the libLLVM it needs
 
 Accuracy

@@ -133,7 +133,7 @@ class CosPowerAreaEmitter(mi.Emitter):
 
     def traverse(self, callback):
         # Same key as Mitsuba's area emitter (``<shape>.emitter.radiance.values``), so
-        # renderer.fit scales either kind of light in place.
+        # renderer.rerender scales either kind of light in place.
         callback.put("radiance", self.radiance, mi.ParamFlags.Differentiable)
 
     def to_string(self):

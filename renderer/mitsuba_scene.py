@@ -3,7 +3,7 @@ gratings with their efficiency tables, the glass objects and the sensor.
 
 The objects' spectra come from renderer.spectra, their meshes from renderer.meshes, their
 placement from renderer.placement and the CDs' and gratings' tables from renderer.tables
-(planned for the scene's camera by renderer.planner when asked). The dict's shapes are
+(planned for the scene's camera by renderer.trace.planner when asked). The dict's shapes are
 added in a fixed order (box quads, light, CDs, gratings, glass, sensor), which fixes the
 render's bytes for a seed.
 """
@@ -17,10 +17,10 @@ import numpy as np
 from rcwa.materials import Material, material_from_spec
 from renderer.meshes import annulus_mesh, quad_mesh
 from renderer.placement import cd_top_center, frame_to, glass_cube_to_world, grating_to_world, light_to_world, transform
-from renderer.planner import planned_nodes
 from renderer.scene import CDSpec, GlassSpec, GratingSpec, SceneSpec, box_scale, cornell_data
 from renderer.spectra import Curves, camera_sensitivities, irregular, light_spectrum
 from renderer.tables import element_table
+from renderer.trace.planner import planned_nodes
 
 
 def register_plugins() -> None:
@@ -50,7 +50,7 @@ def scene_dict(mi, spec: SceneSpec, *, spp: int, integrator: str = "path", mode:
                max_depth: int = 8, plan: bool = False, progress: bool = True) -> tuple[dict, dict]:
     """The Mitsuba scene dict and what was built for it (tables, the pinhole plan).
 
-    ``plan``: tables planned for this scene's camera (renderer.planner): the nodes its
+    ``plan``: tables planned for this scene's camera (renderer.trace.planner): the nodes its
     rays read solved in full, the rest with fewer orders; for a render of one camera.
     Renders of many cameras (calibration's re-renders) use whole tables. ``progress``: a
     bar while a table is built."""

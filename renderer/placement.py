@@ -2,7 +2,7 @@
 
 The one definition of each object's placement, shared by the Mitsuba scene
 (renderer.mitsuba_scene), the planner and calibration's scene model
-(calibration.scene_model), so that what calibration aligns with is what the renderer draws.
+(calibration.pose.scene_model), so that what calibration aligns with is what the renderer draws.
 Mitsuba's shapes are placed from their canonical forms: a ``rectangle`` spans [-1, 1]^2 in
 the xy-plane with normal +z, a ``cube`` spans [-1, 1]^3, the CD's annulus mesh lies in the
 xy-plane (renderer.meshes).

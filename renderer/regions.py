@@ -9,7 +9,7 @@ glass. (Mitsuba's ``aov`` integrator's ``shape_index`` is not the index of
 nearest-neighbour warp; casting the camera's own rays avoids both.)
 
 The report compares photo and render per region and takes its photometric scale from the
-walls (reports.images, reports.region_compare); the targeted render (renderer.render_target)
+walls (reports.compare.images, reports.compare.regions); the targeted render (renderer.render_target)
 samples each region to what the report measures there. Both use these masks.
 """
 

@@ -8,7 +8,7 @@ of the rendered mean from the spread between passes (s^2 / n, s^2 the passes' sa
 variance), through the same warp and exposure (squared). The warp is bilinear at about one
 plan pixel per output pixel (renderer.camera.CameraModel.pinhole_plan), so the warped
 variance is right for sums over regions (each plan pixel's weights add to about 1), which
-is what reports.region_compare uses; for one pixel alone it can overstate up to 4 times. The sidecar records the request's
+is what reports.compare.regions uses; for one pixel alone it can overstate up to 4 times. The sidecar records the request's
 key, the EXR's SHA-256, the settings, versions, timings and the efficiency tables used.
 As with tables, the same request on a finished render is served at once, and a different
 one at the same path needs ``force``.
@@ -129,7 +129,7 @@ def render(scene: str | Path, out: str | Path, *, preset: str = "draft", spp: in
     (the EXR, its PNG preview or JSON sidecar) are replaced only with ``force``; an
     interrupted render of the same request resumes (``info["resumed_passes"]``).
 
-    ``plan`` (the default): the tables are planned for this camera (renderer.planner,
+    ``plan`` (the default): the tables are planned for this camera (renderer.trace.planner,
     renderer.mitsuba_scene.scene_dict); False builds whole tables, for comparison.
     ``target`` ("report"): each region sampled to what the report measures there
     (renderer.render_target), the preset's spp the frame's cap; None: ``spp`` samples everywhere.

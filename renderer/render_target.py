@@ -1,15 +1,15 @@
 """``workbench render --target report``: each region sampled until what the report measures there is good enough.
 
 A fixed render spends its samples evenly, yet the report measures only a few things (issue
-28): the CD's band edges (reports.fringes), the walls' photometric scale (reports.images)
-and, for the page and the per-region test (reports.region_compare), everything at a modest
+28): the CD's band edges (reports.fringes.band_edges), the walls' photometric scale (reports.compare.images)
+and, for the page and the per-region test (reports.compare.regions), everything at a modest
 noise. The targeted render is progressive: passes of ``PASS_SPP`` samples, each its own
 seed, merged by their sample counts; between passes it measures its own noise from the
 spread between them (the variance of the mean, as renderer.render.variance_path) in the
 camera's image, per region (renderer.regions.region_masks, the report's masks), and stops
 each region at its goal:
 
-* everything: ``FLOOR_SPP`` samples (reports.region_compare.TRUSTED_SPP: below it the
+* everything: ``FLOOR_SPP`` samples (reports.compare.regions.TRUSTED_SPP: below it the
   passes' spread misses rare paths and the region test says so), in four passes (3 degrees of
   freedom per pixel for the variance, as renderer.render.MIN_PASSES);
 * the walls: the relative standard deviation of the photometric scale, the median over
@@ -18,9 +18,9 @@ each region at its goal:
   [David 2003], pi sigma^2 / (2 N) for Gaussian noise: with pixel i's relative
   noise s_i, var(scale) / scale^2 = (pi / 2) sum(s_i^2) / N^2;
 * the CD: the band edges' position uncertainty at most ``EDGE_SIGMA_PX`` (0.1 px, a third
-  of the report's edge rule, reports.fringes.EDGE_SIGMA_MAX_PX). A level crossing at an
+  of the report's edge rule, reports.fringes.band_edges.EDGE_SIGMA_MAX_PX). A level crossing at an
   edge of gradient dI/dx in noise sigma_I is located to sigma_x = sigma_I / |dI/dx|
-  [Kakarala 1992]; the report's ramp fit, reports.fringes, uses the same ratio. The
+  [Kakarala 1992]; the report's ramp fit, reports.fringes.band_edges, uses the same ratio. The
   edge finder reads the image smoothed along its profiles and fits its ramp over about a
   pixel either side; here the image and its variance are smoothed by a Gaussian of
   ``EDGE_SMOOTH_PX`` (the variance by the squared kernel, which is the variance of the
@@ -69,15 +69,15 @@ from renderer.regions import WALL_REGIONS
 from workbench.core.files import atomic_write_npz
 
 TARGETS = ("report",)
-EDGE_SIGMA_PX = 0.1  # a third of reports.fringes.EDGE_SIGMA_MAX_PX (0.35), issue 28
+EDGE_SIGMA_PX = 0.1  # a third of reports.fringes.band_edges.EDGE_SIGMA_MAX_PX (0.35), issue 28
 WALL_SCALE_REL = 0.002  # the walls' photometric scale to 0.2 %, issue 28
-FLOOR_SPP = 64  # reports.region_compare.TRUSTED_SPP (tests/renderer/test_render_target.py holds them equal)
+FLOOR_SPP = 64  # reports.compare.regions.TRUSTED_SPP (tests/renderer/test_render_target.py holds them equal)
 PASS_SPP = 16  # the floor in MIN_PASSES = 4 passes: 3 degrees of freedom per pixel for the variance
 EDGE_SMOOTH_PX = 1.0
 EDGE_GRADIENT_SHARE = 0.1
 EDGE_QUANTILE = 90.0
-CD_BORDER_PX = 3  # the region test's 2 px border (reports.region_compare.BORDER_PX) and the smoothing's reach
-WALL_BORDER_PX = 1  # as reports.images.photometric_scale erodes the walls
+CD_BORDER_PX = 3  # the region test's 2 px border (reports.compare.regions.BORDER_PX) and the smoothing's reach
+WALL_BORDER_PX = 1  # as reports.compare.images.photometric_scale erodes the walls
 CROP_MARGIN_PX = 2  # bilinear warp: an image pixel reads the plan pixels around it
 MAX_GROWTH = 4.0
 # the CD's samples at most (frame and crop together): 4 and 2 times the presets' fixed spp
@@ -157,7 +157,7 @@ def wall_scale_noise(sum_mean: np.ndarray, sum_var: np.ndarray, masks: dict[str,
 
 def region_noise(mean: np.ndarray, var: np.ndarray, mask: np.ndarray) -> float:
     """The relative std of a region's mean (channel sums), as the region test's render term
-    (reports.region_compare: the sum of the pixels' variances over N^2)."""
+    (reports.compare.regions: the sum of the pixels' variances over N^2)."""
     n = int(mask.sum())
     total = float(mean[..., 3][mask].sum()) if n else 0.0
     return math.sqrt(float(var[..., 3][mask].sum())) / total if total > 0 else float("nan")

@@ -4,7 +4,7 @@ A CD's or grating's efficiency table is the one its ``table = { path = ... }`` n
 (checked: finished, intact, built for the element's structure), or else built through the
 table cache (workbench.core.cache, ``tables/``, named by the request's content hash) when
 missing; either is checked to cover where the camera sees (renderer.camera_coverage). A table
-planned for one camera (renderer.planner) holds the nodes its rays read solved in full; a
+planned for one camera (renderer.trace.planner) holds the nodes its rays read solved in full; a
 finished planned table whose exact nodes include another plan's serves that plan too.
 """
 
@@ -100,7 +100,7 @@ def table_settings(element, structure, where: str = "element", scene_file: str |
 def table_plan(element, where: str = "element", scene_file: str | None = None, nodes=None) -> TablePlan:
     """Where a CD's or grating's table is and what it holds, without building it.
 
-    ``nodes`` (rcwa.table.NodePlan, from renderer.planner): a planned table, unless the
+    ``nodes`` (rcwa.table.NodePlan, from renderer.trace.planner): a planned table, unless the
     whole table is in the cache already (it serves every plan)."""
     structure = rcwa.load_structure(element.structure)
     options = dict(element.table)

@@ -1,12 +1,18 @@
-"""Reports: a photograph and a render of the same view compared, the CD's colour fringes measured.
+"""Reports: a photograph and a render of the same view compared, the CD's colour fringes measured,
+and the scene parameters the photos constrain.
 
-Modules, one job each: ``prediction`` (the grating equation's lit bands, independent of
-the renderer), ``polar`` (the CD's disk unwrapped to radius and azimuth through a camera),
-``fringes`` (band edges found in an image and compared), ``images`` (decoding photos and
-renders to linear camera RGB, region masks, the display transform), ``metrics`` (error
-maps), ``page`` (the self-contained HTML page) and ``report`` (the whole report). The
-scene fit (``workbench fit``): ``scene_fit_model`` (the forward model: band edges and rim
-for scene parameters), ``scene_fit`` (the robust fit and its standard deviations),
-``scene_verdict`` (consistent, model, camera or unexplained), ``scene_fit_outputs``,
-``scene_fit_job`` (the command's steps) and ``verdict_block`` (the page's first block).
+- ``report``: ``workbench report``, the whole report of one photo.
+- ``camera_file``: the fitted camera read from calibration.json; ``table_error``: the tables'
+  own truncation errors.
+- ``compare``: photo and render in one space (``images``, ``merged_photo``, ``exposure_merge``),
+  error maps (``metrics``), per-region tests (``regions``, ``photo_noise``).
+- ``fringes``: what is measured on the CD: ``rim``, ``polar`` (the disk unwrapped), ``band_edges``,
+  ``hue``, ``cd_shadow`` (where the CD's shadow makes an edge), ``prediction_band`` (the
+  prediction's uncertainty band). The prediction itself is renderer.trace.prediction.
+- ``scene_fit``: the inverse problem: ``model`` (band edges and rim for scene parameters),
+  ``fit``, ``bias`` (the forward model's own offsets), ``structure_tables``, ``verdict``,
+  ``apply`` (a scene with fitted values), ``outputs``, ``job`` (``workbench fit``), ``study``.
+- ``page``: the HTML, apart from what measures: ``html``, ``tiles``, ``summary``,
+  ``verdict_block``, ``fringe_overlay``, ``fringe_plot``, ``lens_maps``, ``study_figures``,
+  ``run_index`` (a verify run's index page).
 """

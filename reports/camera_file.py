@@ -23,7 +23,7 @@ from typing import Any
 
 import numpy as np
 
-from calibration.decode import load_response
+from calibration.raw.decode import load_response
 from renderer.camera import CameraModel
 from renderer.lens import LENS_MODELS
 from workbench.core.errors import UserInputError
@@ -136,8 +136,8 @@ def _camera_std(data: dict, block: dict, key: str, source: str) -> dict[str, Any
     """The camera's standard deviations for the photo ``key``: ``camera_std`` (or the camera block's
     ``std``) as given, else calibration.json's top-level ``std`` (intrinsics, and per pose
     ``rotation_deg`` and ``camera_center_m`` per axis, whose RMS over the axes is the per-axis
-    std reports.camera_draws takes, and the pose's joint ``covariance`` with the intrinsics
-    where the calibration wrote it: calibration.pose_uncertainty.derived_std)."""
+    std reports.fringes.prediction_band takes, and the pose's joint ``covariance`` with the intrinsics
+    where the calibration wrote it: calibration.pose.uncertainty.derived_std)."""
     given = data.get("camera_std") or block.get("std")
     if isinstance(given, dict):
         return given
@@ -157,7 +157,7 @@ def _camera_std(data: dict, block: dict, key: str, source: str) -> dict[str, Any
 
 
 def _pose_covariance(joint: dict, source: str) -> dict[str, Any]:
-    """calibration.json's per-photo ``covariance`` (calibration.pose_uncertainty.POSE_READOUTS), checked."""
+    """calibration.json's per-photo ``covariance`` (calibration.pose.uncertainty.POSE_READOUTS), checked."""
     names, matrix = joint.get("parameters"), np.asarray(joint.get("matrix", []), float)
     if (not isinstance(names, list) or matrix.shape != (len(names), len(names)) or not np.all(np.isfinite(matrix))
             or not np.allclose(matrix, matrix.T, rtol=1e-6, atol=1e-18)):

@@ -3,35 +3,35 @@
 DIR/report.json holds every number on the page (``fringe_offset_px``: {median, p95,
 count} of the photo-render band-edge offsets where both show the edge with quality
 ``ok``), DIR/fringes.csv every band edge found (photo, render, prediction) and
-DIR/report.html the page (reports.page). Steps:
+DIR/report.html the page (reports.page.html). Steps:
 
 1. The camera: the calibration's fitted camera for the photo (reports.camera_file); the
    scene's camera is replaced by it, so prediction, masks and render share its pixels.
-2. Photo (reports.images.read_photo: calibration.decode) and render (EXR) as linear camera
+2. Photo (reports.compare.images.read_photo: calibration.raw.decode) and render (EXR) as linear camera
    RGB, same size. With a bracket (``brackets``), the photo's clipped pixels are filled from
-   its darker frames (reports.exposure_merge): the filled photo is what the page shows and
+   its darker frames (reports.compare.exposure_merge): the filled photo is what the page shows and
    what prediction, hues and maps are measured on; photo and render are compared through
    the photo's own saturation as taken (``fringe_offset_px``) and, unclipped, on the filled
    photo (``fringe_offset_unclipped_px``). Where the calibration applied the lens's
-   vignetting (calibration.vignetting), the render is multiplied by it first: the render
+   vignetting (calibration.intrinsics.vignetting), the render is multiplied by it first: the render
    as this lens records it, in every comparison below.
-3. Regions from a shape-id render (reports.images.region_masks); one photometric scale
+3. Regions from a shape-id render (reports.compare.images.region_masks); one photometric scale
    fitted on the walls brings the render to the photo's units.
 4. The CD: rim ellipses found in both images; the grating-equation prediction
-   (reports.prediction); band edges along circles and radii (reports.fringes) in photo,
+   (renderer.trace.prediction); band edges along circles and radii (reports.fringes.band_edges) in photo,
    render and prediction, paired, offsets in pixels and degrees. Also relative to each
    image's own CD: the photo's grid moved by the affine map between the two rim ellipses.
-   Hue crossings (reports.hue.find_hue_crossings: where the equivalent wavelength
+   Hue crossings (reports.fringes.hue.find_hue_crossings: where the equivalent wavelength
    passes 440, 460, ... nm) along the circles, paired the same way (``hue_offset_px``).
    The prediction's uncertainty band: cameras drawn within the calibration's standard
    deviations (prediction_band), plotted on the fringe plot.
-5. Error maps (reports.metrics) and per-region statistics.
+5. Error maps (reports.compare.metrics) and per-region statistics.
 6. The efficiency tables the render and the prediction read, each with the truncation
    error it records (reports.table_error; report.json's ``tables``, "not recorded" for a
    table built before tables recorded it).
 
 With a scene fit (``Inputs.scene_fit``: its scene_fit.json), report.json's ``verdict``
-(reports.verdict_block.report_verdict) and the page's first block say whether the photo
+(reports.page.verdict_block.report_verdict) and the page's first block say whether the photo
 agrees with the scene file and, if not, whether the model or the camera explains it.
 
 Problems that do not stop the rest (the CD not in view, no fringes visible, no rim found)
@@ -51,24 +51,28 @@ from typing import Any
 
 import numpy as np
 
-from calibration.decode import is_raw
-from calibration.vignetting import relative_illumination, vignetting_record, vignetting_summary
+from calibration.intrinsics.vignetting import relative_illumination, vignetting_record, vignetting_summary
 from renderer.scene import load_scene
-from reports import fringes, image_tiles, images, lens_maps, metrics, page, polar
-from reports.camera_draws import CAMERA_STD_KEYS, draw_cameras
-from reports.camera_file import FittedCamera, check_scene, read_camera, read_response
-from reports.exposure_merge import merge_highlights
-from reports.fringe_overlay import OVERLAY_LEGEND, offset_plot, overlay_svg
-from reports.fringe_plot import BAND_SIGMAS, fringe_plot
-from reports.hue import HUE_LEVELS_NM, find_hue_crossings, hue_scale
-from reports.prediction import CDGeometry, Prediction, cd_bbox, cd_geometry, predict
-from reports.region_compare import region_test
-from reports.report_summary import ERROR_TIPS, FRINGE_TIPS, calibration_table, region_test_html, summary_block
-from reports.rim import Rim, fit_rim
-from reports.run_index import thumbnail_png
-from reports.study_figures import study_sections as study_sections_of
+from renderer.trace.prediction import CDGeometry, Prediction, cd_bbox, cd_geometry, predict
+from reports.camera_file import FittedCamera, check_scene, read_camera
+from reports.compare import images, metrics
+from reports.compare.merged_photo import read_merged_photo
+from reports.compare.regions import region_test
+from reports.fringes import band_edges as fringes
+from reports.fringes import polar
+from reports.fringes.hue import HUE_LEVELS_NM, find_hue_crossings, hue_scale
+from reports.fringes.prediction_band import CAMERA_STD_KEYS, draw_cameras
+from reports.fringes.rim import Rim, fit_rim
+from reports.page import html as page
+from reports.page import lens_maps
+from reports.page import tiles as image_tiles
+from reports.page.fringe_overlay import OVERLAY_LEGEND, offset_plot, overlay_svg
+from reports.page.fringe_plot import BAND_SIGMAS, fringe_plot
+from reports.page.run_index import thumbnail_png
+from reports.page.study_figures import study_sections as study_sections_of
+from reports.page.summary import ERROR_TIPS, FRINGE_TIPS, calibration_table, region_test_html, summary_block
+from reports.page.verdict_block import report_verdict, verdict_html
 from reports.table_error import report_tables, tables_html, unrecorded_messages
-from reports.verdict_block import report_verdict, verdict_html
 from workbench.core.errors import UserInputError
 from workbench.core.files import atomic_write_text
 
@@ -136,7 +140,7 @@ def _sampled_prediction(pred: Prediction, grid: polar.PolarGrid) -> np.ndarray:
 
 
 def _correlation(photo: images.Photo) -> float:
-    """How far the photo's noise is shared (reports.fringes): 2 px for a demosaiced raw photo."""
+    """How far the photo's noise is shared (reports.fringes.band_edges): 2 px for a demosaiced raw photo."""
     return fringes.MOSAIC_CORRELATION_PX if photo.kind == "raw" else fringes.NOISE_CORRELATION_PX
 
 
@@ -145,7 +149,7 @@ def measure_fringes(pred: Prediction, photo: images.Photo, render: np.ndarray, g
     """Band edges in prediction, photo and render on ``grids``; pairs and summaries.
 
     ``photo`` is the photo as measured: with its clipped highlights filled from a bracket
-    (reports.exposure_merge) when there is one, so that its bands have half-maximum edges and
+    (reports.compare.exposure_merge) when there is one, so that its bands have half-maximum edges and
     hues to set against the prediction. ``as_taken`` is the single frame before filling: photo
     and render are compared through its sensor (its mosaic and saturation), so a band that
     saturates it saturates the render alike and its sharp edges count too. Without a bracket
@@ -185,7 +189,7 @@ def measure_fringes(pred: Prediction, photo: images.Photo, render: np.ndarray, g
 
 def measure_hue(pred: Prediction, photo: images.Photo, render: np.ndarray, circles: polar.PolarGrid,
                 focal_px: float) -> dict[str, Any]:
-    """Hue crossings (reports.hue.find_hue_crossings) along the circles in prediction, photo
+    """Hue crossings (reports.fringes.hue.find_hue_crossings) along the circles in prediction, photo
     and render; pairs and summaries, as for the band edges."""
     scale = hue_scale(pred.wavelengths_nm, pred.weights, pred.white)
     sampled = _sampled_prediction(pred, circles)
@@ -211,7 +215,7 @@ def _quality_counts(edges: list) -> dict[str, int]:
 def prediction_band(spec, camera, std: dict, grids, reference: list[fringes.Edge], draws: int = UNCERTAINTY_DRAWS,
                     seed: int = 0) -> dict[tuple, float]:
     """The prediction's uncertainty band: for cameras drawn within the calibration's standard
-    deviations (reports.camera_draws.draw_cameras), the RMS distance (px) of each predicted band
+    deviations (reports.fringes.prediction_band.draw_cameras), the RMS distance (px) of each predicted band
     edge from where ``camera`` puts it (``reference``: that camera's predicted edges), by edge key.
     The band is the reference edge +- ``BAND_SIGMAS`` times it."""
     ref = {e.key(): e for e in reference}
@@ -370,40 +374,6 @@ def _photo(inputs: Inputs, messages: list[str]) -> tuple[images.Photo, images.Ph
     return read_merged_photo(inputs.photo, inputs.calibration, inputs.brackets, inputs.brackets_strict, messages)
 
 
-def read_merged_photo(photo_path: Path, calibration: Path, brackets: tuple[Path, ...], strict: bool,
-                      messages: list[str]) -> tuple[images.Photo, images.Photo]:
-    """The photo with its clipped highlights filled from the bracket's darker frames (reports.exposure_merge), and
-    the photo as taken (the same object when nothing was filled). ``strict``: a frame that does not fit
-    is an error (else it is left out, with the reason)."""
-    response = read_response(calibration)
-    photo = images.read_photo(photo_path, response)
-    if not brackets:
-        return photo, photo
-    frames, left_out = [], {}
-    for path in brackets:
-        if not strict and is_raw(path) != is_raw(photo_path):  # a RAW+JPEG folder: not decoded
-            left_out[str(path)] = "raw, unlike the photo" if is_raw(path) else "not raw, unlike the photo"
-            continue
-        try:
-            frames.append(images.read_photo(path, response, what="--bracket"))
-        except UserInputError as error:
-            if strict:
-                raise
-            left_out[str(path)] = error.reason
-    merged, used, _ = merge_highlights(photo, frames, strict=strict)
-    merged.decoding = (merged.decoding or {}) | {
-        "bracket_left_out": ((merged.decoding or {}).get("bracket_left_out") or {}) | left_out}
-    if used:
-        messages.append(f"the photo's clipped pixels ({int(photo.clipped.sum())}) were filled from "
-                        f"{len(used)} darker bracket frame(s); {int(merged.clipped.sum())} stay clipped. Photo and "
-                        "render are compared through the photo's own saturation (fringe_offset_px) and, unclipped, "
-                        "by the filled photo's half-maximum edges (fringe_offset_unclipped_px), which the prediction "
-                        "and the hues use too")
-        return merged, photo
-    recorded = dataclasses.replace(photo, decoding=merged.decoding)  # which frames were left out, and why
-    return recorded, recorded
-
-
 def _error_maps(photo: np.ndarray, aligned: np.ndarray, photo_display: np.ndarray, render_display: np.ndarray,
                 masks: dict[str, np.ndarray], messages: list[str]) -> tuple[dict[str, np.ndarray], float, str]:
     """The error maps (relative error, CIEDE2000 and, where installed, FLIP), the display exposure
@@ -452,7 +422,7 @@ def _fringe_rows(cd: dict[str, Any]) -> tuple[list[dict], list[dict]]:
 
 
 def _through_lens(render: np.ndarray, falloff: np.ndarray | None) -> tuple[np.ndarray, np.ndarray | None]:
-    """The render as the photo's lens records it: times its vignetting (calibration.vignetting), where applied."""
+    """The render as the photo's lens records it: times its vignetting (calibration.intrinsics.vignetting), where applied."""
     return (render if falloff is None else (render * falloff).astype(np.float32)), falloff
 
 
@@ -581,7 +551,7 @@ def _page(report, inputs: Inputs, tiles, exposure, maps, limits, masks, cd, pair
 
 
 def _overlay(cd: dict[str, Any], width: int, height: int) -> str:
-    """The fringe overlay's SVG (reports.fringe_overlay), or nothing where the CD was not measured."""
+    """The fringe overlay's SVG (reports.page.fringe_overlay), or nothing where the CD was not measured."""
     if "_measured" not in cd:
         return ""
     return overlay_svg(cd["_measured"], cd.get("_band"), cd["rim"]["expected_center_px"], width, height)

@@ -2,7 +2,7 @@
 
 Which tables: those the render read (its sidecar's ``tables``, when the sidecar describes
 that very EXR: renderer.render.described_render) and the one the grating-equation
-prediction weighed its orders with (reports.prediction_efficiency). For each, report.json's
+prediction weighed its orders with (renderer.trace.efficiency_weights). For each, report.json's
 ``tables`` and the page's "efficiency tables" section give what the table records of its
 own truncation error (rcwa.table.truncation.summary): at a sample of its nodes, the same
 solve at about half the retained orders and, for a 2D cell, with the other factorization
@@ -19,7 +19,7 @@ from typing import Any
 from rcwa.table import read_table_metadata, truncation_summary
 from rcwa.table.store import read_progress
 from renderer.render import described_render
-from reports import page
+from reports.page import html as page
 from workbench.core.errors import UserInputError
 
 NOT_RECORDED = "not recorded"

@@ -5,7 +5,7 @@ This package is the face: the command line (``cli``, with one module per command
 stages in ``verify_run``) and its score against a synthetic dataset's truth (``score``),
 the demo (``demo``), the built-ins and what a table holds in words (``catalog``) and
 plain-text tables of results (``report_text``). The planner itself is the renderer's
-(renderer.planner; ``workbench plan`` prints it). The shared kernel lives in
+(renderer.trace.planner; ``workbench plan`` prints it). The shared kernel lives in
 ``workbench.core``; the libraries (rcwa, renderer, calibration, datasets_synthetic,
 reports) import only that.
 """

@@ -166,5 +166,5 @@ def format_table_info(info: dict) -> str:
         share = (f"{plan['nodes_solved']} of {plan['nodes']} nodes" if plan["nodes"] else "its nodes (mask unreadable)")
         fill = "x".join(map(str, plan["fill_orders"] or []))
         lines.insert(-2, f"  planned       {share} solved with the retained orders (the nodes a render's camera reads); "
-                         f"the others with {fill} (renderer.planner)")
+                         f"the others with {fill} (renderer.trace.planner)")
     return "\n".join(lines)

@@ -10,7 +10,7 @@ The calibration's errors (``calibration_errors``, also used by benchmarks/bench_
   sensor applied (datasets_synthetic.sensor: light scale x exposure time x electrons per
   unit x gain / (white - black)), per photo;
 * response RMS (%): the fitted curve against the hidden one in normalised value over
-  0.05-0.95 (calibration.response.response_rms);
+  0.05-0.95 (calibration.response.calibrate.response_rms);
 
 with the fringe offsets of each photo's report (report.json's fringe_offset_px). Written
 to RUN/score.json. Only ``score`` reads the truth; ``verify`` never does.
@@ -24,8 +24,8 @@ from typing import Any
 
 import numpy as np
 
-from calibration.pose_study import centre_error_mm, expected_exposure_scale, fov_deg, rotation_error_deg
-from calibration.response import response_rms
+from calibration.pose.study import centre_error_mm, expected_exposure_scale, fov_deg, rotation_error_deg
+from calibration.response.calibrate import response_rms
 from workbench.core.errors import UserInputError
 from workbench.core.files import atomic_write_text
 from workbench.verify_run import read_record

@@ -5,14 +5,14 @@ Seven stages, in order, each with its own folder in RUN:
 =============  =====================================================================  ==========================
 stage          what it does                                                           inputs hashed
 =============  =====================================================================  ==========================
-plan           renderer.planner on the run's scene: tables, orders, directions, cost  RUN/scene.toml
+plan           renderer.trace.planner on the run's scene: tables, orders, directions, cost  RUN/scene.toml
 tables         the scene's efficiency tables, built (or resumed) in the user's cache  RUN/scene.toml
 calibration    calibration.dataset on DATASET's photos/, brackets/, calibration/      those files, RUN/scene.toml
 render         every photo's calibrated scene (calibration/scenes/NAME.toml),          the scenes
                rendered (render/NAME.exr)
-fit            reports.scene_fit_job: the scene's [fit] parameters from the photos'    photos, brackets,
+fit            reports.scene_fit.job: the scene's [fit] parameters from the photos'    photos, brackets,
                band edges, the forward model's own offsets measured on the renders    calibration, renders,
-               (reports.scene_fit_bias), and the verdict (fit/scene_fit.json,         RUN/scene.toml
+               (reports.scene_fit.bias), and the verdict (fit/scene_fit.json,         RUN/scene.toml
                fitted_scene.toml; with the verdict ``model``, fit/scenes/NAME.toml:
                each photo's calibrated scene with the fitted values;
                fit/not_fitted.txt says why when there is nothing to fit or too few
@@ -26,7 +26,7 @@ report         reports.report: each photo against its render, its clipped highli
 =============  =====================================================================  ==========================
 
 The tables stage builds whole tables: calibration re-renders the scene from many
-cameras (renderer.fit), and a whole table in the cache serves the render's plan too
+cameras (renderer.rerender), and a whole table in the cache serves the render's plan too
 (renderer.tables.table_plan), so the plan stage's planned fractions and costs are what a
 render of the scene's camera alone would need, recorded for the user (RUN/plan/plan.txt).
 
@@ -80,20 +80,20 @@ from PIL import Image
 from tqdm import tqdm
 
 from calibration.dataset import calibrate_dataset, dataset_files
-from calibration.decode import is_raw
-from calibration.raw_checks import check_raw_file
+from calibration.raw.checks import check_raw_file
+from calibration.raw.decode import is_raw
 from rcwa.structure import BUILTIN_STRUCTURES
 from rcwa.table import build_table
-from renderer.planner import format_plan, plan_scene
 from renderer.render import render
 from renderer.render_target import FLOOR_SPP
 from renderer.scene import CDSpec, GratingSpec, SceneSpec, load_scene
 from renderer.tables import table_plan
+from renderer.trace.planner import format_plan, plan_scene
+from reports.page.run_index import write_run_index
+from reports.page.study_figures import study_figures
 from reports.report import Inputs, build_report
-from reports.run_index import write_run_index
-from reports.scene_fit_job import FitInputs, run_fit
-from reports.scene_fit_outputs import write_fitted_scene
-from reports.study_figures import study_figures
+from reports.scene_fit.job import FitInputs, run_fit
+from reports.scene_fit.outputs import write_fitted_scene
 from workbench.core.errors import UserInputError
 from workbench.core.executor import DaskExecutor
 from workbench.core.files import atomic_write_text
@@ -124,7 +124,7 @@ NOT_FITTED = "not_fitted.txt"  # in RUN/fit when the scene has nothing to fit or
 
 def photo_size(path: Path) -> tuple[int, int]:
     """(width, height) of a photo as calibration decodes it (raw: LibRaw's visible size, after
-    calibration.raw_checks refused a damaged or unsupported raw with the decode's own message)."""
+    calibration.raw.checks refused a damaged or unsupported raw with the decode's own message)."""
     if is_raw(path):
         return check_raw_file(path)
     try:
@@ -306,7 +306,7 @@ def _stage_fit(run: Run) -> dict:
 
 
 def _fit(run: Run, inputs: FitInputs) -> dict[str, Any]:
-    """reports.scene_fit_job.run_fit, here or as one task on the run's executor: the fit is joint over the photos
+    """reports.scene_fit.job.run_fit, here or as one task on the run's executor: the fit is joint over the photos
     (one least-squares problem over every photo's band edges), so it stays one task."""
     if run.executor is None:
         return run_fit(inputs)
@@ -372,7 +372,7 @@ def _point_sidecar_at(sidecar: Path, final_folder: Path) -> None:
 
 def _bracket_frames(dataset: Path) -> tuple[Path, ...]:
     """DATASET/brackets' files: each report fills its photo's clipped highlights from the darker frames that show
-    the photo's view (reports.exposure_merge checks that pixel by pixel and leaves the others out)."""
+    the photo's view (reports.compare.exposure_merge checks that pixel by pixel and leaves the others out)."""
     folder = dataset / "brackets"
     return tuple(sorted(p for p in folder.iterdir() if p.is_file())) if folder.is_dir() else ()
 

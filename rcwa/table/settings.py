@@ -51,14 +51,14 @@ class TableSettings:
 
 @dataclass(frozen=True)
 class NodePlan:
-    """The grid nodes a render reads (renderer.planner), solved with the table's orders; the
+    """The grid nodes a render reads (renderer.trace.planner), solved with the table's orders; the
     others are solved with only ``fill_orders`` retained (at least the kept orders).
 
     Why the others are not left empty: a path that meets the element after a diffuse
     bounce (the element's light thrown onto a wall, seen by the camera) reads directions no
     camera ray reads directly. Those paths are dim and already blurred by the bounce, so a
     less converged solve serves them; its error is measured and reported by the planner
-    (renderer.planner) and the render's equality within Monte Carlo noise is tested.
+    (renderer.trace.planner) and the render's equality within Monte Carlo noise is tested.
     """
 
     mask: np.ndarray               # (wavelengths, theta, phi) bool: solved with the table's orders

@@ -13,7 +13,7 @@ import cv2
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from calibration.intrinsics import board_points
+from calibration.intrinsics.calibrate import board_points
 from renderer import lens
 
 BOARD = board_points((9, 6), 0.03)

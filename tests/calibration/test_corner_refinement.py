@@ -1,4 +1,4 @@
-"""Corners by point symmetry (calibration/corner_refinement.py), on its own, away from any detector.
+"""Corners by point symmetry (calibration/board/corner_refinement.py), on its own, away from any detector.
 
 tests/calibration/test_corners.py measures the whole corner finder on rasterized boards
 (hard edges box-filtered into pixels). Here the refinement meets corners whose true centre
@@ -26,7 +26,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from calibration.corner_refinement import refine_by_symmetry
+from calibration.board.corner_refinement import refine_by_symmetry
 
 TOLERANCE_BLURRED_PX = 0.07
 TOLERANCE_SAME_POINT_PX = 1e-3

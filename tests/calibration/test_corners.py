@@ -1,4 +1,4 @@
-"""Board corners (calibration/corners.py) on analytically rasterized, tilted checkerboards and
+"""Board corners (calibration/board/corners.py) on analytically rasterized, tilted checkerboards and
 on OpenCV's real 9 x 6 sample views.
 
 The rasterized image is the board seen through a known homography, each pixel the exact
@@ -20,7 +20,7 @@ import cv2
 import numpy as np
 import pytest
 
-from calibration.corners import detect_board, find_board_corners
+from calibration.board.corners import detect_board, find_board_corners
 from tests.calibration.boards import board_homography, checkerboard_view, look_at_board, true_corners
 from workbench.core.errors import UserInputError
 

@@ -14,7 +14,7 @@ with test_pose.py within a session). Asserted against truth.json:
 * fitted_scene.toml renders, and its render agrees with the photo in brightness.
 Fast: a dataset without photos, a missing folder, `calibrate DATASET` routed to the
 ``dataset`` step, and user errors ending in exit status 2 with an error line; the board
-description (calibration/board.json, calibration.board_file): read, checked field by
+description (calibration/board.json, calibration.board.board_file): read, checked field by
 field, overridden by --board/--square-mm, and required (file or flags) when there are
 board views.
 """
@@ -28,7 +28,7 @@ import cv2
 import numpy as np
 import pytest
 
-from calibration.board_file import read_board_file, resolve_board
+from calibration.board.board_file import read_board_file, resolve_board
 from calibration.dataset import calibrate_dataset, dataset_files
 from tests.calibration.test_pose import calibrated_dataset
 from workbench.commands.calibrate import route_dataset
@@ -74,7 +74,7 @@ def test_calibration_json_layout(calibrated) -> None:
 @pytest.mark.slow
 def test_calibration_json_carries_the_lens_model_and_its_uncertainty(calibrated) -> None:
     """The board views' lens model (auto keeps the pinhole of the synthetic camera) and the digest
-    of intrinsics.json's projection uncertainty and cross-validation (calibration.projection_uncertainty):
+    of intrinsics.json's projection uncertainty and cross-validation (calibration.intrinsics.projection_uncertainty):
     a ray is pinned best near the centre (the map's std there under its corners'), and two halves of
     the views agree within twice their predicted difference (none of 30 synthetic pinhole seeds went
     over: tests/calibration/test_projection_uncertainty.py)."""
@@ -115,7 +115,7 @@ def test_per_second_scale_is_one_for_the_scene(calibrated) -> None:
 
 @pytest.mark.slow
 def test_response_against_truth(calibrated) -> None:
-    from calibration.response import response_rms
+    from calibration.response.calibrate import response_rms
 
     _, result, truth = calibrated
     assert response_rms(result["response"]["points"], truth["response"]["points"]) < RESPONSE_RMS
@@ -124,7 +124,7 @@ def test_response_against_truth(calibrated) -> None:
 @pytest.mark.slow
 @pytest.mark.slow
 def test_fitted_scene_renders_like_the_photo(calibrated, tmp_path: Path) -> None:
-    from calibration.photo import read_photo
+    from calibration.pose.photo import read_photo
     from workbench.cli import main
 
     out, result, truth = calibrated

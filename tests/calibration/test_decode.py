@@ -1,4 +1,4 @@
-"""Decoding photographs (calibration/decode.py, ``workbench decode``).
+"""Decoding photographs (calibration/raw/decode.py, ``workbench decode``).
 
 * The real Canon 550D raw (../shared/data/real/colorchart.dng): black and white levels as
   rawpy reports them and as the DNG's own tags (read with tifffile) say, the CFA pattern,
@@ -25,7 +25,7 @@ import pytest
 import rawpy
 import tifffile
 
-from calibration.decode import decode, decode_to_exr
+from calibration.raw.decode import decode, decode_to_exr
 from datasets_synthetic.dng import DngMetadata, write_dng
 from datasets_synthetic.jpeg import write_jpeg
 from datasets_synthetic.sensor import SensorModel

@@ -1,4 +1,4 @@
-"""Intrinsics from board views (calibration/intrinsics.py, ``workbench calibrate intrinsics``).
+"""Intrinsics from board views (calibration/intrinsics/calibrate.py, ``workbench calibrate intrinsics``).
 
 * Real views (OpenCV's 13 views of a 9 x 6 board, 640 x 480 JPEG): every view found; fx,
   fy, cx, cy agree with plain OpenCV (findChessboardCorners + cornerSubPix + the same
@@ -25,8 +25,8 @@ import cv2
 import numpy as np
 import pytest
 
-from calibration.charuco import CharucoSpec, charuco_board, parse_charuco
-from calibration.intrinsics import CRITERIA, MIN_VIEWS, board_points, calibrate_board_views
+from calibration.board.charuco import CharucoSpec, charuco_board, parse_charuco
+from calibration.intrinsics.calibrate import CRITERIA, MIN_VIEWS, board_points, calibrate_board_views
 from tests.calibration.boards import (
     board_homography,
     camera_matrix,

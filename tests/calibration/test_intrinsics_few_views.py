@@ -1,5 +1,5 @@
-"""Few board views and a real camera's published calibration (calibration/intrinsics.py,
-calibration/intrinsics_fit.py; issue 26, items 3 and 7).
+"""Few board views and a real camera's published calibration (calibration/intrinsics/calibrate.py,
+calibration/intrinsics/fit.py; issue 26, items 3 and 7).
 
 * Real views (BoofCV-Data's Bumblebee2 left camera, 11 views of a 4 x 6 inner-corner
   board, 30 mm squares, with the publisher's own BoofCV calibration: k1, k2, no tangential
@@ -25,8 +25,8 @@ import numpy as np
 import pytest
 import yaml
 
-from calibration.intrinsics import board_points
-from calibration.intrinsics_fit import MIN_VIEWS, OUTLIER_FACTOR, OUTLIER_FLOOR_PX, fit_views, fit_without_outliers
+from calibration.intrinsics.calibrate import board_points
+from calibration.intrinsics.fit import MIN_VIEWS, OUTLIER_FACTOR, OUTLIER_FLOOR_PX, fit_views, fit_without_outliers
 from tests.calibration.boards import camera_matrix, look_at_board
 from workbench.cli import main
 from workbench.core.errors import UserInputError

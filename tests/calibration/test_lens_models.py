@@ -1,4 +1,4 @@
-"""Lens models beyond the pinhole (calibration/lens_models.py, calibration/lens_choice.py; issue 26, item 1).
+"""Lens models beyond the pinhole (calibration/intrinsics/lens_models.py, lens_choice.py; issue 26, item 1).
 
 Synthetic corners (tests/calibration/lens_views.py: exact projections through a known camera,
 0.05 px of Gaussian noise, 12 views reaching into the image corners):
@@ -29,8 +29,8 @@ import cv2
 import numpy as np
 import pytest
 
-from calibration.lens_choice import choose_model, pick
-from calibration.lens_models import NOT_WORSE_REL, fit_model
+from calibration.intrinsics.lens_choice import choose_model, pick
+from calibration.intrinsics.lens_models import NOT_WORSE_REL, fit_model
 from renderer import lens
 from reports.camera_file import read_camera
 from tests.calibration.lens_views import corner_views

@@ -1,4 +1,4 @@
-"""Every lens model through the pose path (calibration/pose_inputs.py, pose_fit.py, pose_uncertainty.py,
+"""Every lens model through the pose path (calibration/pose/inputs.py, pose_fit.py, pose_uncertainty.py,
 fitted_scene.py, renderer/scene.py; issue 26, item 1: "everything that reads the camera file").
 
 * intrinsics.json of a fisheye or omnidir calibration loads with its model, coefficients and xi;
@@ -18,10 +18,10 @@ import json
 import numpy as np
 import pytest
 
-from calibration.fitted_scene import camera_table, fitted_scene_text
-from calibration.pose_fit import ChamferCost, Unknowns, project
-from calibration.pose_inputs import load_intrinsics
-from calibration.pose_uncertainty import derived_std
+from calibration.pose.edge_fit import ChamferCost, Unknowns, project
+from calibration.pose.inputs import load_intrinsics
+from calibration.pose.scene_file import camera_table, fitted_scene_text
+from calibration.pose.uncertainty import derived_std
 from renderer.camera import CameraModel, look_at
 from renderer.scene import load_scene, parse_scene
 from workbench.core.errors import UserInputError

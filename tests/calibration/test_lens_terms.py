@@ -1,4 +1,4 @@
-"""Distortion terms chosen by held-out views within a lens model (calibration/lens_choice.py
+"""Distortion terms chosen by held-out views within a lens model (calibration/intrinsics/lens_choice.py
 ``choose_terms``; issue 26 item 2, mrcal's practice).
 
 Synthetic corners (tests/calibration/lens_views.py: exact projections through a known camera,
@@ -27,10 +27,10 @@ import cv2
 import numpy as np
 import pytest
 
-from calibration.intrinsics import Calibration, calibrate_board_views, write_intrinsics
-from calibration.lens_choice import TERM_T, choose_terms, paired_t, term_candidates
-from calibration.lens_models import fit_model
-from calibration.projection_uncertainty import Camera, assess
+from calibration.intrinsics.calibrate import Calibration, calibrate_board_views, write_intrinsics
+from calibration.intrinsics.lens_choice import TERM_T, choose_terms, paired_t, term_candidates
+from calibration.intrinsics.lens_models import fit_model
+from calibration.intrinsics.projection_uncertainty import Camera, assess
 from tests.calibration.lens_views import board_images, corner_views
 from workbench.cli import main
 

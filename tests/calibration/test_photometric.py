@@ -1,4 +1,4 @@
-"""The CD-fringe stage (calibration/photometric.py) on the shared seed-0 draft dataset.
+"""The CD-fringe stage (calibration/pose/fringe_rotation.py) on the shared seed-0 draft dataset.
 
 `calibrate DATASET` runs once per session (tests/calibration/test_pose.py's
 ``calibrated_dataset``); here its fitted camera and walls' scale for view0 are reused with the
@@ -17,10 +17,10 @@ import math
 import numpy as np
 import pytest
 
-from calibration.photo import read_photo
-from calibration.photometric import FringeCost, FringeSettings, refine_rotation, rotated
-from calibration.pose import PoseSettings, fit_renderer
-from calibration.scene_model import scene_model
+from calibration.pose.calibrate import PoseSettings, fit_renderer
+from calibration.pose.fringe_rotation import FringeCost, FringeSettings, refine_rotation, rotated
+from calibration.pose.photo import read_photo
+from calibration.pose.scene_model import scene_model
 from renderer.render import with_resolution
 from renderer.scene import load_scene
 from tests.calibration.test_pose import calibrated_dataset

@@ -1,4 +1,4 @@
-"""Pose and field of view of a scene photo (calibration/pose.py, edges.py, scene_model.py).
+"""Pose and field of view of a scene photo (calibration/pose/calibrate.py, edges.py, scene_model.py).
 
 Fast checks, on images made here:
 * the sub-pixel edge finder on exactly area-sampled steps at every orientation;
@@ -30,12 +30,13 @@ import cv2
 import numpy as np
 import pytest
 
-from calibration.edges import edge_offsets, smoothed
-from calibration.pose import PoseSettings, Unknowns, calibrate_pose, fit_photo, load_intrinsics
-from calibration.scene_model import box_walls, light_corners, scene_model, visible
+from calibration.pose.calibrate import PoseSettings, Unknowns, calibrate_pose, fit_photo, load_intrinsics
+from calibration.pose.edges import edge_offsets, smoothed
+from calibration.pose.scene_model import scene_model, visible
 from renderer.camera import CameraModel
 from renderer.render import with_resolution
 from renderer.scene import load_scene, parse_scene
+from renderer.trace.geometry import box_walls, light_corners
 from tests import calibration_bounds as bounds
 from tests import realisation_bounds
 from workbench.core.errors import UserInputError
@@ -128,7 +129,7 @@ def rasterised_box(spec, camera: CameraModel) -> np.ndarray:
 
 
 class _Photo:
-    """The parts of calibration.photo.Photo fit_photo reads."""
+    """The parts of calibration.pose.photo.Photo fit_photo reads."""
 
     def __init__(self, grey: np.ndarray) -> None:
         self.rgb = np.repeat(grey[..., None], 3, axis=2)
@@ -201,7 +202,7 @@ def test_glass_hides_the_crease_behind_it() -> None:
 
 
 def test_fitted_scene_reproduces_the_camera_exactly() -> None:
-    from calibration.fitted_scene import fitted_scene_text
+    from calibration.pose.scene_file import fitted_scene_text
 
     spec = load_scene("cornell_cd")
     camera = dataclasses.replace(perturbed(spec.camera.model, 2.0, 0.03), fx=301.25, fy=302.5, cx=160.1, cy=121.7,
@@ -343,8 +344,8 @@ def test_coarse_fit_is_stable_under_round_off(calibrated) -> None:
     """view1 of the seed-0 dataset, whose capped chamfer cost has a wrong basin that one
     BOBYQA start fell into on 8 of 12 starts differing by 1e-9 in fx (a CI run failed on
     the exposure it then measured): every such start must now end in the right one."""
-    from calibration.photo import read_photo
-    from calibration.pose import coarse_fit, start_camera
+    from calibration.pose.calibrate import coarse_fit, start_camera
+    from calibration.pose.photo import read_photo
 
     out, _, _ = calibrated
     spec = load_scene("cornell_cd")
@@ -376,9 +377,9 @@ def _rim_projection(camera, rim: np.ndarray) -> np.ndarray:
 @pytest.mark.slow
 @pytest.mark.parametrize("photo", ["view0.dng", "view1.dng"])
 def test_the_pose_covariance_covers_where_the_true_camera_puts_the_cd(calibrated, photo: str) -> None:
+    from renderer.trace.prediction import cd_geometry
     from reports.camera_file import read_camera
-    from reports.prediction import cd_geometry
-    from reports.scene_verdict import moved_by_readout, view_moves
+    from reports.scene_fit.verdict import moved_by_readout, view_moves
 
     out, result, truth = calibrated
     joint = result["std"]["poses"][photo]["covariance"]

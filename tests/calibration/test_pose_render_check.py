@@ -1,4 +1,4 @@
-"""The render check's passes (calibration/pose_render_check.py): how many it renders is
+"""The render check's passes (calibration/pose/render_check.py): how many it renders is
 decided by the noise measured between them.
 
 The renderer is replaced by an exact image of the box (tests/calibration/test_pose.py's
@@ -16,12 +16,12 @@ from typing import cast
 import numpy as np
 import pytest
 
-import calibration.pose_render_check as check_module
-from calibration.edges import smoothed
-from calibration.photo import Photo
-from calibration.pose_fit import PoseSettings, match_edges
-from calibration.pose_render_check import SCALE_NOISE, render_check
-from calibration.scene_model import scene_model
+import calibration.pose.render_check as check_module
+from calibration.pose.edge_fit import PoseSettings, match_edges
+from calibration.pose.edges import smoothed
+from calibration.pose.photo import Photo
+from calibration.pose.render_check import SCALE_NOISE, render_check
+from calibration.pose.scene_model import scene_model
 from renderer.render import with_resolution
 from renderer.scene import load_scene
 from tests.calibration.test_pose import _Photo, rasterised_box

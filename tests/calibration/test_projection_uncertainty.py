@@ -1,4 +1,4 @@
-"""The projection uncertainty map and the cross-validation diff (calibration/projection_uncertainty.py;
+"""The projection uncertainty map and the cross-validation diff (calibration/intrinsics/projection_uncertainty.py;
 issue 26 item 2).
 
 Synthetic corners as tests/calibration/lens_views.py draws them (exact projections through a
@@ -24,9 +24,9 @@ import cv2
 import numpy as np
 import pytest
 
-from calibration import projection_uncertainty as pu
-from calibration.intrinsics import calibrate_board_views, write_intrinsics
-from calibration.lens_models import fit_model
+from calibration.intrinsics import projection_uncertainty as pu
+from calibration.intrinsics.calibrate import calibrate_board_views, write_intrinsics
+from calibration.intrinsics.lens_models import fit_model
 from tests.calibration.lens_views import corner_views
 
 SIZE = (640, 480)
@@ -105,7 +105,7 @@ def test_a_pinhole_fitted_to_a_fisheye_is_too_poor_and_the_fisheye_is_not():
 def test_the_omnidir_covariance_follows_the_xi_valley():
     # Mei's xi trades with fx along a shallow valley (tests/calibration/test_lens_models.py): fx's own std is
     # 5 % of it, yet the rays are pinned to a small fraction of a pixel, as the correlated covariance says;
-    # the stds with xi's column equal calibration.lens_models' own, and the model is not flagged (measured 1.44)
+    # the stds with xi's column equal calibration.intrinsics.lens_models' own, and the model is not flagged (measured 1.44)
     from tests.calibration.test_lens_models import OMNIDIR
     points, corners = corner_views(*OMNIDIR, SIZE, 12, seed=1)
     fit = fit_model(points, corners, SIZE, 0, "omnidir")
@@ -146,9 +146,9 @@ def test_the_real_bumblebee2_views_give_finite_numbers(tmp_path):
 
 
 def test_the_map_is_read_between_its_nodes_over_a_region():
-    """calibration.projection_uncertainty.map_over: a map linear in u and v is read exactly between
+    """calibration.intrinsics.projection_uncertainty.map_over: a map linear in u and v is read exactly between
     its nodes (bilinear), nodes marked -1 (no ray) are left out, an empty region gives None."""
-    from calibration.projection_uncertainty import map_over
+    from calibration.intrinsics.projection_uncertainty import map_over
 
     us, vs = np.linspace(0.0, 99.0, 7), np.linspace(0.0, 49.0, 5)
     std = 0.01 * us[None, :] + 0.02 * vs[:, None]

@@ -6,7 +6,7 @@ skipped when missing), then cut short, their samples zeroed, or their Compressio
 set to a codec LibRaw lacks. Each case must be a UserInputError whose one-line message
 names the file and says what is wrong; through the CLI, exit 2 with no traceback, in
 ``workbench decode`` and ``workbench calibrate intrinsics``. The readers of the other
-commands (calibration.photo for pose and ``calibrate DATASET``, reports.images for
+commands (calibration.pose.photo for pose and ``calibrate DATASET``, reports.compare.images for
 ``report``) go through the same decode and give the same message. Two controls show the
 checks do not refuse what they must not: a whole file, and a dark frame with a small
 black level whose noise reaches 0 at 14 % of the samples (isolated zeros, not blocks).
@@ -22,8 +22,8 @@ import pytest
 import rawpy
 import tifffile
 
-from calibration.decode import decode
-from calibration.raw_checks import MAX_ZERO_BLOCK_FRACTION, zero_block_fraction
+from calibration.raw.checks import MAX_ZERO_BLOCK_FRACTION, zero_block_fraction
+from calibration.raw.decode import decode
 from datasets_synthetic.dng import DngMetadata, write_dng
 from workbench.cli import main
 from workbench.core.errors import UserInputError
@@ -180,10 +180,11 @@ def test_commands_exit_2_naming_the_damaged_photo(tmp_path, capsys):
 
 
 def test_pose_and_report_readers_give_the_same_refusal(tmp_path):
-    """calibration.photo.read_photo (pose, calibrate DATASET, verify's calibration step) and reports.images.read_photo
-    (report) decode through calibration.decode.decode: the same damaged file, the same message."""
-    from calibration.photo import read_photo as pose_read
-    from reports.images import read_photo as report_read
+    """calibration.pose.photo.read_photo (pose, calibrate DATASET, verify's calibration step) and
+    reports.compare.images.read_photo (report) decode through calibration.raw.decode.decode: the same damaged
+    file, the same message."""
+    from calibration.pose.photo import read_photo as pose_read
+    from reports.compare.images import read_photo as report_read
 
     raw = np.zeros((64, 96), np.uint16)
     raw[:1] = 6000

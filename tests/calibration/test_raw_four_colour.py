@@ -1,4 +1,4 @@
-"""Four-colour filter arrays (CMYG, RGBW) through LibRaw (calibration.raw_layout).
+"""Four-colour filter arrays (CMYG, RGBW) through LibRaw (calibration.raw.layout).
 
 Each raw is a DNG written by datasets_synthetic.dng (CFAPattern of four colours and
 CFAPlaneColor) of a smooth four-channel scene, read back by LibRaw:
@@ -23,7 +23,7 @@ import numpy as np
 import pytest
 import tifffile
 
-from calibration.decode import decode, decode_to_exr
+from calibration.raw.decode import decode, decode_to_exr
 from datasets_synthetic.dng import DngMetadata, write_dng
 
 BLACK, WHITE = 512, 16383
@@ -128,8 +128,8 @@ def test_the_photo_readers_refuse_a_four_colour_raw_naming_its_channels(reader: 
     """calibrate pose and report compare the photo with the RGB scene camera: a four-colour raw
     is refused with the file and its channels named (before, its first three planes, C, M, Y,
     were taken as R, G, B without a word); a Bayer raw of the same writer still reads as RGB."""
-    from calibration.photo import read_photo as calibration_photo
-    from reports.images import read_photo as report_photo
+    from calibration.pose.photo import read_photo as calibration_photo
+    from reports.compare.images import read_photo as report_photo
     from workbench.core.errors import UserInputError
 
     read = calibration_photo if reader == "calibration" else report_photo

@@ -1,4 +1,4 @@
-"""Raw sensor layouts other than the 2 x 2 Bayer array (calibration.raw_layout).
+"""Raw sensor layouts other than the 2 x 2 Bayer array (calibration.raw.layout).
 
 Each synthetic raw is written by datasets_synthetic.dng and read back by LibRaw:
 * a linear DNG (LinearRaw, 3 samples per pixel: the layout a Nikon scanner NEF has, which
@@ -23,8 +23,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from calibration.decode import decode, decode_to_exr
-from calibration.photo import mosaic_like, read_photo
+from calibration.pose.photo import mosaic_like, read_photo
+from calibration.raw.decode import decode, decode_to_exr
 from datasets_synthetic.dng import DngMetadata, write_dng
 from workbench.cli import main
 from workbench.core.errors import UserInputError
@@ -131,7 +131,7 @@ def test_xtrans_saturation_mask_follows_the_demosaicing(tmp_path, xtrans, demosa
 
 def test_xtrans_small_image_and_the_renders_mosaic(tmp_path):
     """Markesteijn through LibRaw on a small X-Trans raw fails inside LibRaw: refused, naming --demosaic; ours
-    works, and calibration.photo.mosaic_like takes a render through the same array and demosaicing (so photo and
+    works, and calibration.pose.photo.mosaic_like takes a render through the same array and demosaicing (so photo and
     render blur alike): the decode of a raw equals mosaic_like of its normalised truth, to one raw code."""
     truth = _scene(96, 120)
     raw = _raw(_mosaic(truth, XTRANS))

@@ -1,4 +1,4 @@
-"""calibration.response: the camera response from exposure brackets, the raw linearity check,
+"""calibration.response.calibrate: the camera response from exposure brackets, the raw linearity check,
 and every bad input the command must refuse.
 
 Brackets are made here: a smooth irradiance map with a wide range, times 1 EV apart, a known
@@ -18,8 +18,8 @@ import numpy as np
 import pytest
 from PIL import Image, TiffImagePlugin
 
-from calibration import response as R
-from calibration import response_bracket
+from calibration.response import bracket as response_bracket
+from calibration.response import calibrate as R
 from renderer.response import ResponseCurve
 from workbench.core.errors import UserInputError
 

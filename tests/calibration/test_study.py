@@ -16,7 +16,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from calibration.pose_study import ERRORS, CalibrateStudyConfig, run_calibrate_study, scaled_camera
+from calibration.pose.study import ERRORS, CalibrateStudyConfig, run_calibrate_study, scaled_camera
 from tests import calibration_bounds as bounds
 from tests.conftest import synthetic_dataset
 from workbench.core.errors import UserInputError

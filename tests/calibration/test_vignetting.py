@@ -1,4 +1,4 @@
-"""The vignetting fit (calibration.vignetting) on tiles of known falloff, and the synthetic lens's falloff.
+"""The vignetting fit (calibration.intrinsics.vignetting) on tiles of known falloff, and the synthetic lens's falloff.
 
 The estimator's tests build a photo as s V(x) render with V the cos^p law of an ideal lens
 (datasets_synthetic.sensor), the render a smooth positive field with Poisson-like noise,
@@ -12,7 +12,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from calibration.vignetting import (
+from calibration.intrinsics.vignetting import (
     CHANNELS,
     corner_x,
     falloff,

@@ -18,7 +18,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from calibration.vignetting import CHANNELS
+from calibration.intrinsics.vignetting import CHANNELS
 from datasets_synthetic.sensor import SensorModel
 from renderer.camera import CameraModel
 from tests.calibration.test_dataset import PHOTOMETRIC, expected_scale

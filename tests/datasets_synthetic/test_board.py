@@ -11,7 +11,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from calibration.intrinsics import board_points
+from calibration.intrinsics.calibrate import board_points
 from datasets_synthetic.board import Checkerboard
 
 EXACT = 1e-12  # metres: both are sums of a few multiples of the square size

@@ -15,7 +15,7 @@ import dataclasses
 import numpy as np
 import pytest
 
-from calibration.corners import find_board_corners
+from calibration.board.corners import find_board_corners
 from datasets_synthetic.board import BOARD_KEY, Checkerboard, corners_visible, sample_pose
 from datasets_synthetic.board_views import BOARD_INTEGRATOR, FLASH_KEY, flash
 from datasets_synthetic.synth import hidden_camera
@@ -29,7 +29,7 @@ SIZE, SPP = (320, 240), 32
 # to the red or green wall) and no brightening beyond 0.3 % (the ratio moved by under 0.1 %
 # between render seeds): interreflections only add light.
 BOARD_FILL = (0.92, 1.003)
-# The corners found (calibration.corners) against the true projection, RMS over the 54 corners:
+# The corners found (calibration.board.corners) against the true projection, RMS over the 54 corners:
 # 0.080-0.097 px over render seeds 500-504 with either integrator, the direct render's 0.0003-
 # 0.0022 px above the path render's for each seed (the board 2.5 % darker: a little less signal
 # over the same noise). The bound: the path render's RMS plus 0.01 px, about 5 times that gap.
@@ -38,7 +38,7 @@ CORNER_MARGIN_PX = 0.01
 
 @pytest.fixture(scope="module")
 def board_view():
-    from renderer.fit import FitRenderer
+    from renderer.rerender import FitRenderer
     from renderer.variant import set_variant
 
     set_variant()

@@ -290,7 +290,7 @@ def test_clipped_pixels_are_those_over_the_white_level(dataset):
 
 
 def calibrate(out) -> dict:
-    """Calibrate from dataset ``out``'s board views (calibration.intrinsics: OpenCV's
+    """Calibrate from dataset ``out``'s board views (calibration.intrinsics.calibrate: OpenCV's
     detector, point-symmetry refinement, cv2.calibrateCamera with k3 held at 0 as in the
     truth) and compare with truth.json: views found, RMS reprojection error, relative
     errors of fx, fy, cx, cy, and the distortion difference (both models with the true K)
@@ -300,7 +300,7 @@ def calibrate(out) -> dict:
     print(calibrate(Path('DIR')))"``."""
     from pathlib import Path
 
-    from calibration.intrinsics import calibrate_board_views, distortion_difference_px
+    from calibration.intrinsics.calibrate import calibrate_board_views, distortion_difference_px
 
     out = Path(out)
     truth = json.loads((out / "truth.json").read_text())
@@ -335,9 +335,9 @@ def test_calibration_set_recovers_the_intrinsics(dataset):
     standard deviation is about 0.25 %, five times the focal lengths', so 0.5 % is two
     standard deviations and no tighter bound would hold across seeds); distortion within
     0.06-0.16 px where covered, 0.18-0.48 px over the whole image. The corners come from
-    findChessboardCornersSB refined by point symmetry (calibration.corners): with
+    findChessboardCornersSB refined by point symmetry (calibration.board.corners): with
     cornerSubPix instead (windows 5-11 px) the same views give 0.25 px corner errors and
-    principal points up to 0.5-1.8 % off (calibration/corners.py). With the board views
+    principal points up to 0.5-1.8 % off (calibration/board/corners.py). With the board views
     rendered by the direct-light integrator (datasets_synthetic.board_views, issue 28), seeds
     0 / 1 / 2 before -> after: largest error 0.396 -> 0.411 / 0.166 -> 0.162 / 0.133 -> 0.151 %
     (cy, cx, cx; the principal point's standard deviation is about 0.25 %), RMS 0.073 -> 0.074 /

@@ -78,7 +78,7 @@ def test_an_interrupted_run_keeps_the_old_dataset_and_the_rerun_resumes(tmp_path
     """A --force run over dataset A stops after two renders (raised inside the render): A is
     untouched and no half-written dataset sits in its place. The same command then renders
     only the two missing frames and writes exactly the bytes of an uninterrupted run."""
-    from renderer.fit import FitRenderer
+    from renderer.rerender import FitRenderer
 
     out = tmp_path / "ds"
     synth("cornell_cd", out, seed=1, **tiny)

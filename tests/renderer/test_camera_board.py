@@ -3,7 +3,7 @@
 The synthetic datasets' checkerboard (datasets_synthetic/board.py: 9 x 6 inner corners, 2 cm
 squares, a nearest-filtered texture) is rendered by Mitsuba through a fisheye, an
 omnidirectional and a rational camera (ideal pinhole render, then the camera's warp), lit by a
-constant environment; the calibration's own corner finder (calibration/corners.py) measures
+constant environment; the calibration's own corner finder (calibration/board/corners.py) measures
 the corners, and CameraModel.project of the board's true corners must agree: RMS within
 CORNER_RMS_PX (the issue's 0.1 px), none beyond CORNER_MAX_PX, and no worse than the same
 board through a pinhole camera by more than MODEL_EXCESS_PX. What remains is the corner
@@ -26,7 +26,7 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from calibration.corners import find_board_corners
+from calibration.board.corners import find_board_corners
 from datasets_synthetic.board import Checkerboard
 from renderer.camera import CameraModel
 from workbench.cli import main

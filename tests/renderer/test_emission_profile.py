@@ -225,7 +225,7 @@ def test_scalar_variant(tmp_path):
 
 def test_scene_file_profile_builds_and_renders(mitsuba_variant):
     """``emission_profile = { cos_power = n }`` reaches the built scene: the plugin, the
-    same parameter key as the area light (renderer.fit scales it), a finite render; a
+    same parameter key as the area light (renderer.rerender scales it), a finite render; a
     narrower beam at equal power puts more light straight below it."""
     import mitsuba as mi
 

@@ -8,7 +8,7 @@ import numpy as np
 
 
 def test_in_place_changes_equal_a_fresh_build(mitsuba_variant):
-    from renderer.fit import FitRenderer
+    from renderer.rerender import FitRenderer
     from renderer.scene import load_scene
 
     spec = load_scene("cornell_cd")
@@ -29,7 +29,7 @@ def test_in_place_changes_equal_a_fresh_build(mitsuba_variant):
 
 
 def test_light_power_and_exposure_scale_linearly(mitsuba_variant):
-    from renderer.fit import FitRenderer
+    from renderer.rerender import FitRenderer
 
     fit = FitRenderer("cornell_cd", resolution=(48, 36), spp=4)
     base = fit.render(seed=1)

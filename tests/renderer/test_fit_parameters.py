@@ -1,5 +1,5 @@
 """The scene file's ``[fit]`` table (renderer.fit_parameters), the fit values applied to a
-scene (renderer.fit_apply) and the fitted scene file (reports.scene_fit_outputs): fast,
+scene (reports.scene_fit.apply) and the fitted scene file (reports.scene_fit.outputs): fast,
 no rendering, no photos.
 
 Each test says what it guards. Tolerances: values that pass through float arithmetic only
@@ -17,10 +17,10 @@ import numpy as np
 import pytest
 
 from rcwa.structure import load_structure
-from renderer.fit_apply import apply_values, tilt_angle_deg, tilted_normal
 from renderer.fit_parameters import DEFAULT_FREE, HELD, FitTable, parse_fit_table
 from renderer.scene import load_scene
-from reports.scene_fit_outputs import fitted_scene_data, write_fitted_scene
+from reports.scene_fit.apply import apply_values, tilt_angle_deg, tilted_normal
+from reports.scene_fit.outputs import fitted_scene_data, write_fitted_scene
 from workbench.cli import main
 from workbench.core.errors import UserInputError
 
@@ -303,7 +303,7 @@ def test_fitted_structure_copy_keeps_a_relative_material_file(tmp_path):
 
 def test_cli_fit_with_a_bad_fit_field_exits_2_with_one_line(tmp_path, capsys):
     """`workbench fit` loads the scene before it reads the dataset or the calibration
-    (reports.scene_fit_job.run_fit), so a [fit] naming a missing field is reported first:
+    (reports.scene_fit.job.run_fit), so a [fit] naming a missing field is reported first:
     exit 2, one `error:` line naming the scene file and the field, no traceback."""
     scene = _scene_file(tmp_path, '"cd[3].center" = {}')
     dataset = tmp_path / "dataset"

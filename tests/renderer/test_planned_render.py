@@ -1,4 +1,4 @@
-"""Renders with planned tables (renderer.planner -> rcwa.table.NodePlan) equal renders with
+"""Renders with planned tables (renderer.trace.planner -> rcwa.table.NodePlan) equal renders with
 whole tables within Monte Carlo noise (issue 16), for cornell_cd, cornell_cd_view2 and
 grating2d_gold.
 

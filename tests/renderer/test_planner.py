@@ -1,4 +1,4 @@
-"""The simulation planner (renderer/planner.py): what a scene needs, from geometry and the
+"""The simulation planner (renderer/trace/planner.py): what a scene needs, from geometry and the
 grating equation alone (no table is built, no render runs)."""
 
 from __future__ import annotations
@@ -9,8 +9,8 @@ import numpy as np
 import pytest
 
 from rcwa.table import PRESETS, Table, angle_grid
-from renderer.planner import fold_azimuths, incident_directions, plan_scene
 from renderer.scene import load_scene
+from renderer.trace.planner import fold_azimuths, incident_directions, plan_scene
 from workbench.core.conventions import order_kx
 
 GRATING_EQUATION_TOL = 1e-12  # direction cosines: the planner inverts order_kx exactly, up to round-off

@@ -23,7 +23,7 @@ CD_CAP = 256
 # shared through the warp: ~100 independent values) the ratio's spread is ~0.15; fireflies make it heavy-tailed
 # (the fixed renders' own test pools 6 pairs for 0.7-1.4), so one pair is held to a factor of 2 either way.
 CD_RATIO_BOUNDS = (0.5, 2.0)
-Z_REGION = 5.0  # the report's own bar for a region's mean (reports.region_compare.Z_CONSISTENT)
+Z_REGION = 5.0  # the report's own bar for a region's mean (reports.compare.regions.Z_CONSISTENT)
 Z_SCALE = 4.0  # one Gaussian draw beyond 4 sigma: 6e-5
 
 
@@ -144,8 +144,8 @@ def test_passes_of_unequal_size_merge_to_an_unbiased_variance():
 def test_the_targets_constants_follow_the_report():
     """The floor is the region test's trusted spp, the edge goal a third of the report's edge rule, and the
     command line's choice the renderer's list (kept apart so that `workbench --help` does not import the renderer)."""
-    from reports.fringes import EDGE_SIGMA_MAX_PX
-    from reports.region_compare import TRUSTED_SPP
+    from reports.compare.regions import TRUSTED_SPP
+    from reports.fringes.band_edges import EDGE_SIGMA_MAX_PX
     from workbench.commands import render as command
 
     assert render_target.FLOOR_SPP == TRUSTED_SPP

@@ -12,9 +12,9 @@ import numpy as np
 import rcwa
 from rcwa.table import NodePlan, build_table, planned, read_table_metadata, settings_for
 from rcwa.table.truncation import sample_count
-from renderer.planner import format_plan, plan_scene
 from renderer.scene import load_scene
 from renderer.table_cost import table_cost, truncation_counts
+from renderer.trace.planner import format_plan, plan_scene
 
 
 def _cd_settings():

@@ -1,4 +1,4 @@
-"""reports/exposure_merge.py: a photo's clipped highlights filled from darker frames of its view.
+"""reports/compare/exposure_merge.py: a photo's clipped highlights filled from darker frames of its view.
 
 The frames are made here from one known irradiance image (a smooth ramp with a bright band,
 as a CD's first order is against the walls), exposed at known ratios, clipped at 1 and given
@@ -20,8 +20,8 @@ by 3 % (a wrong frame's scaling, a pixel taken from its neighbour on the band's 
 import numpy as np
 import pytest
 
-from reports.exposure_merge import MAX_RELATIVE_SPREAD, merge_highlights
-from reports.images import Photo
+from reports.compare.exposure_merge import MAX_RELATIVE_SPREAD, merge_highlights
+from reports.compare.images import Photo
 from workbench.core.errors import UserInputError
 
 SHAPE = (120, 160)

@@ -1,6 +1,6 @@
-"""reports/fringes.py, reports/rim.py and reports/polar.py: band edges and the CD's rim, on images made to order.
+"""reports/fringes/band_edges.py, rim.py and polar.py: band edges and the CD's rim, on images made to order.
 
-Images here are built from the grating-equation prediction (reports.prediction) of
+Images here are built from the grating-equation prediction (renderer.trace.prediction) of
 cornell_cd_view2 at a small size: each order's lit fraction times a brightness, over a
 background, with noise; so where the edges must be is known without a render.
 """
@@ -14,9 +14,11 @@ from scipy.spatial.transform import Rotation
 
 from renderer.render import with_resolution
 from renderer.scene import load_scene
-from reports import fringes, images, polar
-from reports.prediction import predict
-from reports.rim import fit_rim
+from renderer.trace.prediction import predict
+from reports.compare import images
+from reports.fringes import band_edges as fringes
+from reports.fringes import polar
+from reports.fringes.rim import fit_rim
 
 RESOLUTION = (320, 240)
 EXPOSURE_INVARIANCE_PX = 1e-6  # a half-maximum crossing does not move with a scale and an offset of the image
@@ -149,7 +151,7 @@ def test_rim_ellipse_is_found_where_it_was_drawn():
 
 def _sensor(image, clip_level):
     """A raw photo of ``image``: an RGGB mosaic clipped at ``clip_level``, demosaiced bilinearly."""
-    from calibration.decode import bilinear_demosaic
+    from calibration.raw.decode import bilinear_demosaic
 
     h, w = image.shape[:2]
     channel = np.ones((h, w), int)
@@ -162,7 +164,7 @@ def _sensor(image, clip_level):
 
 def test_saturated_bands_compare_through_the_photos_sensor(predictions):
     """A photo whose bands saturate: its edges are not half-maximum edges (flagged ``clipped``),
-    but the same scene's render passed through the photo's sensor (reports.images.
+    but the same scene's render passed through the photo's sensor (reports.compare.images.
     through_photo_sensor) has them at the same places, and the render as it is does not."""
     pred, _ = predictions
     circles, _radii = polar.standard_grids(pred.camera, pred.cd)

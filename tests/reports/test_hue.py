@@ -1,4 +1,4 @@
-"""reports/hue.py's hue crossings: the camera's hue as an equivalent wavelength.
+"""reports/fringes/hue.py's hue crossings: the camera's hue as an equivalent wavelength.
 
 The image here is made from the grating-equation prediction of cornell_cd_view2 with the
 wavelength per pixel known: each pixel of order -1's band shows monochromatic light at
@@ -13,8 +13,8 @@ import pytest
 
 from renderer.render import with_resolution
 from renderer.scene import load_scene
-from reports import hue, polar
-from reports.prediction import channel_weights, light_white, predict
+from renderer.trace.prediction import channel_weights, light_white, predict
+from reports.fringes import hue, polar
 from reports.report import _sampled_prediction
 
 RESOLUTION = (320, 240)

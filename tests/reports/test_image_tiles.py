@@ -1,4 +1,4 @@
-"""reports/image_tiles.py: the pyramid a page embeds, and that Chromium draws it back.
+"""reports/page/tiles.py: the pyramid a page embeds, and that Chromium draws it back.
 
 * The log code's round trip is within half a code step (its stated precision).
 * Each level's box average keeps the image's mean light (what a coarse level must show).
@@ -15,7 +15,8 @@ import numpy as np
 import pytest
 from PIL import Image
 
-from reports import image_tiles, page
+from reports.page import html as page
+from reports.page import tiles as image_tiles
 from tests.browser import chromium_page, wait_until
 
 

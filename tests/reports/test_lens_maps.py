@@ -1,4 +1,4 @@
-"""The lens's uncertainty maps on the report page (reports/lens_maps.py; issue 26 item 2: "the
+"""The lens's uncertainty maps on the report page (reports/page/lens_maps.py; issue 26 item 2: "the
 projection uncertainty map and the cross-validation diff on the real views, in the report").
 
 * Real views (BoofCV-Data's Bumblebee2, 11 views): `workbench calibrate intrinsics` writes the two
@@ -22,8 +22,8 @@ import numpy as np
 import pytest
 from PIL import Image
 
-from calibration.projection_uncertainty import PNG_SCALE
-from reports import lens_maps
+from calibration.intrinsics.projection_uncertainty import PNG_SCALE
+from reports.page import lens_maps
 from tests.browser import chromium_page
 from tests.calibration.test_pose import calibrated_dataset
 from tests.conftest import synthetic_dataset

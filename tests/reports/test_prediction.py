@@ -1,4 +1,4 @@
-"""reports/prediction.py: the grating equation's lit bands, checked against a forward model.
+"""renderer/trace/prediction.py: the grating equation's lit bands, checked against a forward model.
 
 The prediction traces backward (camera -> CD -> light). These tests go forward instead:
 a point of the light, a wavelength and an order fix where on the CD the diffracted ray
@@ -18,7 +18,7 @@ from scipy.optimize import fsolve
 from renderer.camera import CameraModel
 from renderer.render import with_resolution
 from renderer.scene import load_scene
-from reports import prediction
+from renderer.trace import prediction
 from workbench.core.conventions import order_kx
 from workbench.core.errors import UserInputError
 

@@ -1,4 +1,4 @@
-"""The prediction's uncertainty band (reports.report.prediction_band, reports.camera_draws.draw_cameras).
+"""The prediction's uncertainty band (reports.report.prediction_band, reports.fringes.prediction_band.draw_cameras).
 
 Cameras are drawn within the calibration's standard deviations and the predicted band
 edges of each are compared with the fitted camera's; the band is the fitted camera's edge
@@ -13,9 +13,10 @@ from scipy.spatial.transform import Rotation
 
 from renderer.render import with_resolution
 from renderer.scene import load_scene
-from reports import fringes, polar
-from reports.camera_draws import draw_cameras
-from reports.prediction import predict
+from renderer.trace.prediction import predict
+from reports.fringes import band_edges as fringes
+from reports.fringes import polar
+from reports.fringes.prediction_band import draw_cameras
 from reports.report import BAND_SIGMAS, _sampled_prediction, prediction_band
 
 RESOLUTION = (320, 240)

@@ -1,4 +1,4 @@
-"""reports/prediction_efficiency.py: the prediction's efficiency weighting, checked against independent computations.
+"""renderer/trace/efficiency_weights.py: the prediction's efficiency weighting, checked against independent computations.
 
 The prediction weighs each lit (pixel, wavelength) of order m by the order's RCWA efficiency
 at the incident wave's direction (the scene's table) and by the flat top's Fresnel
@@ -20,7 +20,8 @@ from scipy.interpolate import RegularGridInterpolator
 from rcwa.table import Table
 from renderer.render import with_resolution
 from renderer.scene import load_scene
-from reports import prediction, prediction_efficiency
+from renderer.trace import efficiency_weights as prediction_efficiency
+from renderer.trace import prediction
 from workbench.core.conventions import order_kx
 
 RESOLUTION = (160, 120)  # small: the weights do not depend on the pixel count

@@ -14,8 +14,8 @@ import numpy as np
 import pytest
 
 from datasets_synthetic.sensor import SensorModel
-from reports.photo_noise import fit_noise
-from reports.region_compare import Z_CONSISTENT, stable_masks
+from reports.compare.photo_noise import fit_noise
+from reports.compare.regions import Z_CONSISTENT, stable_masks
 from tests.conftest import synthetic_dataset
 from workbench.cli import main
 
@@ -32,7 +32,7 @@ WALLS = ("wall_left", "wall_right", "wall_back")
 
 
 def _frame(exposure_s: float, seed: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, SensorModel]:
-    """A smooth scene through the synthetic sensor, decoded as calibration.decode would: (rgb, clipped, channel)."""
+    """A smooth scene through the synthetic sensor, decoded as calibration.raw.decode would: (rgb, clipped, channel)."""
     sensor = SensorModel()
     h, w = 480, 640
     y, x = np.mgrid[0:h, 0:w]
@@ -72,7 +72,7 @@ def test_stable_masks_keep_only_what_every_camera_agrees_on():
 
 def _truth_scene(dataset, path):
     """The dataset's scene with its truth camera and the photo's exposure in the photo's units."""
-    from calibration.fitted_scene import fitted_scene_text
+    from calibration.pose.scene_file import fitted_scene_text
     from renderer.scene import load_scene
     from reports.camera_file import read_camera
 
@@ -90,8 +90,8 @@ def test_truth_render_is_consistent_per_region_and_a_5_percent_exposure_error_fl
                                                                                             tmp_path, capsys):
     from renderer.render import variance_path
     from renderer.scene import load_scene
-    from reports import images
-    from reports.region_compare import RegionInputs, compare_regions, render_variance
+    from reports.compare import images
+    from reports.compare.regions import RegionInputs, compare_regions, render_variance
 
     dataset = synthetic_dataset(tmp_path_factory, 0)
     scene = _truth_scene(dataset, tmp_path / "truth.toml")

@@ -106,11 +106,11 @@ def test_damaged_jpeg_is_refused_naming_the_file(tmp_path, capsys):
 
 
 def test_jpeg_is_linearised_through_the_calibrations_response(tmp_path):
-    """calibration.decode inverts the fitted response: a grey ramp encoded with gamma 2.2 comes back linear
+    """calibration.raw.decode inverts the fitted response: a grey ramp encoded with gamma 2.2 comes back linear
     within 1.5 % of full scale (JPEG at quality 100 keeps codes within about 1 of 255; the inverse response's
     slope near 0.2 irradiance is about 0.5 / 255 per code; the 65-knot table interpolates within 0.3 %)."""
-    from reports import images
     from reports.camera_file import read_response
+    from reports.compare import images
 
     linear = np.tile(np.linspace(0.05, 0.95, SIZE[0]), (SIZE[1], 1))
     codes = np.round(255 * linear ** (1 / GAMMA)).astype(np.uint8)

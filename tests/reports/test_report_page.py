@@ -1,4 +1,4 @@
-"""reports/page.py in a real browser: Debian's chromium driven by Playwright.
+"""reports/page/html.py in a real browser: Debian's chromium driven by Playwright.
 
 The page is built from small images (no render needed: the page does not care where its
 pixels came from), loaded from file://, and used as a person would: A/B flip by button
@@ -9,7 +9,8 @@ Makefile's install rule (Playwright's own browser download is not available here
 import numpy as np
 import pytest
 
-from reports import image_tiles, page
+from reports.page import html as page
+from reports.page import tiles as image_tiles
 from tests.browser import chromium_page, wait_until
 
 WIDTH, HEIGHT = 96, 72
@@ -104,7 +105,7 @@ def test_page_in_chromium(tmp_path):
 
 
 def test_values_print_as_a_person_reads_them():
-    """reports.page.format_value: 4 significant figures, lists of numbers joined, dicts as tables,
+    """reports.page.html.format_value: 4 significant figures, lists of numbers joined, dicts as tables,
     None as '-', text escaped; never a Python repr."""
     assert page.format_value(0.13352388710915497) == "0.1335"
     assert page.format_value([306.3776550292969, 277.96197509765625]) == "306.4, 278"

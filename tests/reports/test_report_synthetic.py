@@ -1,7 +1,7 @@
 """``workbench report`` end to end on a real synthetic pair (issue 15's bars).
 
 The photo is a raw file of a synthetic dataset (``workbench synth``, shared per session by
-tests/conftest.py); the render is made here with the dataset's truth camera (renderer.fit,
+tests/conftest.py); the render is made here with the dataset's truth camera (renderer.rerender,
 the path synth itself renders through, at the photo's 64 spp, another seed), and the
 calibration is the dataset's truth.json. So the only differences between photo and render
 are noise (Monte Carlo, shot and read noise, the Bayer mosaic): the band edges must agree
@@ -25,7 +25,7 @@ SCENE = "cornell_cd"  # its CD, propped toward the camera, shows first orders on
 SEED = 0
 PHOTO = "ev+0.dng"  # view0 as exposed for the room: the CD's first orders (30-60x the walls) clip in it
 BRACKET = ("ev-1.dng", "ev-2.dng", "ev-4.dng", "ev-6.dng", "ev+1.dng")  # the darker frames fill them (the brighter
-# one is left out); reports.exposure_merge
+# one is left out); reports.compare.exposure_merge
 KNOWN_ERROR_PHOTO = "ev-2.dng"  # fewer clipped bands: the known-error pairs need both images' edges, clipped or not
 RENDER_SPP = 64  # the photo's own
 RENDER_SEED = 901  # not the photo's
@@ -52,7 +52,7 @@ def _spec(camera):
 
 
 def _render_image(camera, spp=RENDER_SPP, seed=RENDER_SEED):
-    from renderer.fit import FitRenderer
+    from renderer.rerender import FitRenderer
 
     fit = FitRenderer(_spec(camera), resolution=(camera.width, camera.height), spp=spp)
     fit.set(camera=camera)
@@ -146,8 +146,10 @@ def test_known_camera_error_is_reported_as_the_predicted_offset(tmp_path_factory
 def known_error_offsets(dataset: Path, error: str, render_seed: int = RENDER_SEED) -> tuple[list[float], list[float]]:
     """The wrong camera's photo-render offsets, each less the grating equation's prediction
     (render (wrong) - photo (right)), and the offsets themselves."""
-    from reports import fringes, images, polar
-    from reports.prediction import predict
+    from renderer.trace.prediction import predict
+    from reports.compare import images
+    from reports.fringes import band_edges as fringes
+    from reports.fringes import polar
     from reports.report import _sampled_prediction, measure_fringes
 
     truth = read_camera(dataset / "truth.json", PHOTO).model

@@ -1,4 +1,4 @@
-"""The scene fit's rim points leave out a clipped edge (reports.scene_fit_model.photo_rim_points).
+"""The scene fit's rim points leave out a clipped edge (reports.scene_fit.model.photo_rim_points).
 
 The "photo" is cornell_cd's CD seen by the scene's camera, drawn analytically: the grating's
 disc (anti-aliased at 8 x 8 sub-pixels) over a mid-grey floor, blurred by a Gaussian of
@@ -17,9 +17,9 @@ import cv2
 import numpy as np
 
 from renderer.scene import load_scene
-from reports.images import Photo
-from reports.prediction import cd_geometry
-from reports.scene_fit_model import RIM_CLIP_PX, near_clipped, photo_rim_points, rim_residuals
+from renderer.trace.prediction import cd_geometry
+from reports.compare.images import Photo
+from reports.scene_fit.model import RIM_CLIP_PX, near_clipped, photo_rim_points, rim_residuals
 
 SUPERSAMPLE = 8
 BLUR_PX = 1.0

@@ -1,4 +1,4 @@
-"""Where the CD's shadow makes an edge near its rim (reports.rim_clutter).
+"""Where the CD's shadow makes an edge near its rim (reports.fringes.cd_shadow).
 
 Geometry only, on cornell_cd: its CD leans 20 deg toward the camera, so its near edge is
 2.6 mm above the floor and the ceiling light's shadow of the disc touches it there, while
@@ -12,8 +12,9 @@ import pytest
 
 from renderer.render import with_resolution
 from renderer.scene import load_scene
-from reports import rim, rim_clutter
-from reports.prediction import cd_geometry
+from renderer.trace.prediction import cd_geometry
+from reports.fringes import cd_shadow as rim_clutter
+from reports.fringes import rim
 
 RESOLUTION = (640, 480)
 RIM_COUNT = 96

@@ -1,10 +1,10 @@
-"""A verify run's index page (reports/run_index.py); the page on a real run's files is tested in
+"""A verify run's index page (reports/page/run_index.py); the page on a real run's files is tested in
 tests/workbench/test_verify.py (in Chromium)."""
 
 import numpy as np
 from PIL import Image
 
-from reports.run_index import THUMBNAIL_WIDTH, index_html, thumbnail_png
+from reports.page.run_index import THUMBNAIL_WIDTH, index_html, thumbnail_png
 
 
 def test_thumbnail_is_the_srgb_encoding_at_the_index_width(tmp_path):

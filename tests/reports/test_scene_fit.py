@@ -1,4 +1,4 @@
-"""The scene fit recovers a period it did not start from (reports.scene_fit, issue 25).
+"""The scene fit recovers a period it did not start from (reports.scene_fit.fit, issue 25).
 
 The "photo" is the forward model's own prediction for a CD whose track pitch is 3 % longer
 than the scene file's (lit fractions as linear RGB over a dark disc, with Gaussian noise),
@@ -26,11 +26,11 @@ import pytest
 
 from renderer.fit_parameters import parse_fit_table
 from renderer.scene import load_scene
-from reports.images import Photo
-from reports.prediction import cd_geometry, predict
-from reports.scene_fit import FitSettings, fit_scene
-from reports.scene_fit_model import FIT_SUPERSAMPLE, EdgeModel, View, view_grids
-from reports.scene_verdict import verdict
+from renderer.trace.prediction import cd_geometry, predict
+from reports.compare.images import Photo
+from reports.scene_fit.fit import FitSettings, fit_scene
+from reports.scene_fit.model import FIT_SUPERSAMPLE, EdgeModel, View, view_grids
+from reports.scene_fit.verdict import verdict
 
 TRUE_PERIOD = 1.648  # 3 % longer than cornell_cd's 1.6 um
 PERIOD_BAR = 0.003  # relative: the issue's bar for a fitted period
@@ -77,7 +77,7 @@ def test_the_file_period_is_consistent() -> None:
 def _fit_a_structure_field(name: str, field: str, truth: float):
     """A forward-model photo with the structure field ``field`` (scene_fit_efficiency.field_name) at
     ``truth``, 1 % noise, fitted with ``name`` free in [fit]: the fit's result."""
-    from reports.scene_fit_efficiency import StructureEfficiencies
+    from reports.scene_fit.structure_tables import StructureEfficiencies
 
     base = load_scene("cornell_cd")
     spec = dataclasses.replace(base, fit=parse_fit_table({name: {}}, base.cds, base.light))
@@ -93,7 +93,7 @@ def _fit_a_structure_field(name: str, field: str, truth: float):
 
 @pytest.mark.slow
 def test_a_deeper_groove_is_found_through_the_efficiencies() -> None:
-    """The groove depth moves no direction, only the orders' efficiencies (reports.scene_fit_efficiency:
+    """The groove depth moves no direction, only the orders' efficiencies (reports.scene_fit.structure_tables:
     tables at 7 depths, blended linearly): a photo predicted at 0.125 um (the file's 0.11 um, +14 %)
     with 1 % noise must be fitted within 0.003 um (about a tenth of the node spacing, 0.011 um;
     measured 0.1247 um, std 0.0004)."""
@@ -123,8 +123,8 @@ RIM_TILT_BAR_DEG = 0.3  # 96 points at 0.5 px give a tilt std near 0.1 deg (0.5 
 
 def _rim_start(tilt_deg: float, seed: int) -> tuple[np.ndarray, np.ndarray, list[str]]:
     """rim_start on rim points alone: those of cornell_cd's CD tilted ``tilt_deg`` toward e2, noisy."""
-    from renderer.fit_apply import apply_values
-    from reports.scene_fit import rim_start
+    from reports.scene_fit.apply import apply_values
+    from reports.scene_fit.fit import rim_start
 
     base = load_scene("cornell_cd")
     table = parse_fit_table({"cd[0].normal": {}, "cd[0].structure.period": {}}, base.cds, base.light)
@@ -166,8 +166,8 @@ def _fit_with_a_turned_camera(rotation_std_deg: float):
     """A photo predicted at the file's period through a camera turned CAMERA_TURN_DEG (2.4 px at
     cornell_cd's 456 px focal length), fitted (the period free) with the unturned camera and a
     calibration whose rotation std is ``rotation_std_deg``."""
-    from reports.camera_draws import moved_camera
-    from reports.scene_verdict import camera_effect
+    from reports.fringes.prediction_band import moved_camera
+    from reports.scene_fit.verdict import camera_effect
 
     base = load_scene("cornell_cd")
     spec = dataclasses.replace(base, fit=parse_fit_table({"cd[0].structure.period": {}}, base.cds, base.light))
@@ -186,7 +186,7 @@ def test_a_camera_turned_within_a_weak_calibration_is_called_camera() -> None:
     and the camera turned by that much explains the band edges: the camera-only fit brings them
     to the unperturbed level, naming rotation_deg (moved about one std; bar 2, its prior's 2
     sigma), while the scene file's edges are off by more (median above REMOVED_MEDIAN_PX)."""
-    from reports.scene_verdict import REMOVED_MEDIAN_PX
+    from reports.scene_fit.verdict import REMOVED_MEDIAN_PX
 
     judged = _fit_with_a_turned_camera(CAMERA_TURN_DEG)
     assert judged["residuals_before_px"]["median"] > REMOVED_MEDIAN_PX, judged["residuals_before_px"]

@@ -1,4 +1,4 @@
-"""The forward model's offsets measured on a render (reports.scene_fit_bias).
+"""The forward model's offsets measured on a render (reports.scene_fit.bias).
 
 Fast: the rim's offsets are a running median around the closed rim; a band's offset is the
 median of its edges' (prediction minus render), one channel where it has enough edges, else
@@ -22,8 +22,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from reports import fringes
-from reports.scene_fit_bias import RIM_BIAS_NEIGHBOURS, band_offsets, rim_offsets, usable_render
+from reports.fringes import band_edges as fringes
+from reports.scene_fit.bias import RIM_BIAS_NEIGHBOURS, band_offsets, rim_offsets, usable_render
 from tests.calibration.test_pose import calibrated_dataset
 from workbench.cli import main
 
@@ -77,9 +77,9 @@ def test_a_render_without_variance_or_too_noisy_is_not_used() -> None:
 @pytest.mark.slow
 def test_the_renders_rim_offsets_account_for_the_photos(tmp_path_factory, tmp_path: Path) -> None:
     from renderer.scene import load_scene
-    from reports.prediction import cd_geometry
-    from reports.scene_fit_job import FitInputs, load_views
-    from reports.scene_fit_model import EdgeModel, rim_residuals
+    from renderer.trace.prediction import cd_geometry
+    from reports.scene_fit.job import FitInputs, load_views
+    from reports.scene_fit.model import EdgeModel, rim_residuals
 
     out, _, _ = calibrated_dataset(tmp_path_factory)
     dataset = out.parent / "photos-only"

@@ -1,4 +1,4 @@
-"""The camera's uncertainty as the scene fit propagates it (reports.scene_verdict.camera_effect).
+"""The camera's uncertainty as the scene fit propagates it (reports.scene_fit.verdict.camera_effect).
 
 A pose fit pins the camera's rotation and its principal point (or its centre) together far
 better than either alone: a turn about the camera's y axis by delta moves a point at field
@@ -6,7 +6,7 @@ angle alpha by fx delta sec^2(alpha) pixels, a shift of cx moves every point ali
 a correlation of -1 with fx delta = sigma_cx their sum moves a point by fx delta tan^2(alpha),
 under 0.03 of either alone for the CD's field angles (under 10 deg from the axis). The
 propagated edge covariance must keep that (the joint ``covariance`` of
-calibration.pose_uncertainty.derived_std), and reduce to the independent standard
+calibration.pose.uncertainty.derived_std), and reduce to the independent standard
 deviations' when the covariance is diagonal.
 
 The band edges and rim points are those of a forward-model photo of cornell_cd (the
@@ -23,8 +23,8 @@ import pytest
 
 from renderer.fit_parameters import parse_fit_table
 from renderer.scene import load_scene
-from reports.scene_fit_model import EdgeModel, View, view_grids
-from reports.scene_verdict import camera_effect, moved_by_readout
+from reports.scene_fit.model import EdgeModel, View, view_grids
+from reports.scene_fit.verdict import camera_effect, moved_by_readout
 from tests.reports.test_scene_fit import forward_model_photo
 
 ROTATION_STD_DEG = 0.05

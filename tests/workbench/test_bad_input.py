@@ -58,7 +58,7 @@ def files(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
     from datasets_synthetic.dng import DngMetadata, write_dng
 
     # A whole DNG as the project writes it, its image data zero below the black level but for the first row (how
-    # missing data reads: LibRaw decodes it without an error; calibration.raw_checks refuses it). 64 x 48: the aspect
+    # missing data reads: LibRaw decodes it without an error; calibration.raw.checks refuses it). 64 x 48: the aspect
     # of cornell_cd's camera, so verify gets as far as the photo's samples.
     zeroed = np.zeros((48, 64), np.uint16)
     zeroed[0] = 6000

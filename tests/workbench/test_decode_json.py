@@ -1,5 +1,5 @@
 """``workbench decode --json`` prints the sensor layout and why its demosaicing was chosen
-(calibration.raw_layout), the same values the sidecar records, for a 2 x 2 Bayer DNG and a
+(calibration.raw.layout), the same values the sidecar records, for a 2 x 2 Bayer DNG and a
 LinearRaw DNG (3 samples per pixel, no filter array), both written by datasets_synthetic.dng."""
 
 from __future__ import annotations

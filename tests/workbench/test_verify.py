@@ -21,7 +21,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from reports import page
+from reports.page import html as page
 from tests import calibration_bounds as bounds
 from tests import realisation_bounds
 from tests.conftest import synthetic_dataset
@@ -133,7 +133,7 @@ def test_the_fit_stage_fits_an_unperturbed_scene_and_states_its_verdict(referenc
 def test_report_pages_print_numbers_to_their_precision(reference: tuple[Path, dict, float]) -> None:
     """Issue 27, item 2, on the pages a real run wrote: no Python repr ({'...}, [[...) and no number
     with more than 6 significant digits in the visible text (scripts and data: URIs left out; the page's
-    numbers go through reports.page.format_value, 4 significant figures); the summary block sits
+    numbers go through reports.page.html.format_value, 4 significant figures); the summary block sits
     between the verdict and the images with report.json's fringe offsets; the calibration's
     table gives fx with its standard deviation from calibration.json."""
     import html as html_module
@@ -244,7 +244,7 @@ def test_the_fringe_overlay_draws_the_reports_own_edges_in_chromium(reference: t
     within 0.5 px."""
     import csv
 
-    from reports.fringe_overlay import OFFSET_GOOD_PX, SHOWN_QUALITIES
+    from reports.page.fringe_overlay import OFFSET_GOOD_PX, SHOWN_QUALITIES
     from tests.browser import chromium_page
 
     out, _, _ = reference
@@ -354,7 +354,7 @@ def test_a_run_killed_during_calibration_and_rendering_resumes_to_the_same_resul
     ours, theirs = (json.loads((d / "calibration" / "calibration.json").read_text()) for d in (out, ref))
     _assert_same_calibration(ours, theirs)
     from renderer.render import render
-    from reports.images import read_linear
+    from reports.compare.images import read_linear
 
     fresh = render(out / "calibration" / "scenes" / "view0.toml", tmp_path / "fresh.exr", spp=SPP, resolution=(640, 480),
                    progress=False)  # what the killed run had rendered, made again without interruption
@@ -500,7 +500,7 @@ def _damage(path: Path, how: str) -> None:
 def test_a_damaged_raw_photo_is_refused_before_any_stage(how: str, words: str, tmp_path: Path,
                                                          capsys: pytest.CaptureFixture[str]) -> None:
     """A DNG the project writes, damaged: verify's up-front size check refuses it with the decode's own one-line
-    message (calibration.raw_checks), before any stage runs, so RUN is never created."""
+    message (calibration.raw.checks), before any stage runs, so RUN is never created."""
     data, photo = _raw_dataset(tmp_path / "data")
     _damage(photo, how)
     err = _error(["verify", str(data), "--scene", "cornell_cd", "--out", str(tmp_path / "run")], capsys)

@@ -9,7 +9,7 @@
 
 Each step is one entry of :data:`CALIBRATE_STEPS` (a function adding its parser, one running
 it). ``calibrate DATASET`` reads the board of DATASET/calibration/ from its board.json
-(calibration.board_file); ``--board`` and ``--square-mm`` override it (the run says so). It
+(calibration.board.board_file); ``--board`` and ``--square-mm`` override it (the run says so). It
 names a folder where the other steps name a subcommand: ``route_dataset`` rewrites such a
 command line to ``calibrate dataset DATASET ...`` before argparse sees it
 (``calibrate dataset DATASET`` works as well).
@@ -24,13 +24,13 @@ from typing import TYPE_CHECKING, Any
 
 import cv2
 
-from calibration.charuco import parse_charuco
-from calibration.intrinsics import calibrate_board_views, write_intrinsics
-from calibration.lens_models import MODEL_CHOICES
+from calibration.board.charuco import parse_charuco
+from calibration.intrinsics.calibrate import calibrate_board_views, write_intrinsics
+from calibration.intrinsics.lens_models import MODEL_CHOICES
 from workbench.commands.arguments import board_argument, exposure_times_argument, positive_number
 
-if TYPE_CHECKING:  # calibration.pose pulls in the renderer and scipy: imported where a pose is fitted
-    from calibration.pose import PoseSettings
+if TYPE_CHECKING:  # calibration.pose.calibrate pulls in the renderer and scipy: imported where a pose is fitted
+    from calibration.pose.calibrate import PoseSettings
 
 POSE_SCENE_HELP = "the scene the photos show: a built-in scene (`workbench list scenes`) or a scene file"
 DATASET_STEP = "dataset"
@@ -75,7 +75,10 @@ def add_intrinsics(steps: argparse._SubParsersAction) -> None:
 
 
 def uncertainty_line(record: dict) -> str:
-    """intrinsics.json's projection uncertainty and cross-validation diff in one line (calibration.projection_uncertainty)."""
+    """intrinsics.json's projection uncertainty and cross-validation diff in one line.
+
+    (calibration.intrinsics.projection_uncertainty)
+    """
     unc, cross = record.get("projection_uncertainty"), record.get("cross_validation") or {}
     if not unc:
         return "projection uncertainty: not computed"
@@ -109,7 +112,7 @@ def run_intrinsics(args: argparse.Namespace) -> int:
           f"dist {', '.join(f'{d:.4g}' for d in record['dist'])}" + (f", xi {record['xi']:.4g}" if "xi" in record else ""))
     choice = record.get("model_choice")
     print(f"model {record['model']}: " + (choice["why"] if choice else "as asked (--model)"))
-    if choice and "terms" in choice:   # calibration.lens_choice.choose_terms
+    if choice and "terms" in choice:   # calibration.intrinsics.lens_choice.choose_terms
         print(f"distortion terms {', '.join(choice['terms']['chosen'])}: {choice['terms']['why']}")
     print(uncertainty_line(record))
     for view in result.views:
@@ -137,7 +140,7 @@ def add_response(steps: argparse._SubParsersAction) -> None:
 
 
 def run_response(args: argparse.Namespace) -> int:
-    from calibration.response import calibrate_response  # deferred: pulls in scipy (start-up time)
+    from calibration.response.calibrate import calibrate_response  # deferred: pulls in scipy (start-up time)
 
     result = calibrate_response(args.images, args.out, times_s=args.times, progress=not args.quiet)
     if result.get("method") == "raw-linearity":
@@ -203,13 +206,13 @@ def add_dataset(steps: argparse._SubParsersAction) -> None:
 
 
 def _pose_settings(args: argparse.Namespace) -> PoseSettings:
-    from calibration.pose import PoseSettings  # deferred: pulls in the renderer and scipy (start-up time)
+    from calibration.pose.calibrate import PoseSettings  # deferred: pulls in the renderer and scipy (start-up time)
 
     return PoseSettings(render_check=not args.no_render_check, render_spp=args.render_spp)
 
 
 def run_pose(args: argparse.Namespace) -> int:
-    from calibration.pose import calibrate_pose  # deferred: pulls in the renderer and scipy (start-up time)
+    from calibration.pose.calibrate import calibrate_pose  # deferred: pulls in the renderer and scipy (start-up time)
 
     record = calibrate_pose(args.photo, args.scene, args.out, intrinsics=args.intrinsics, response=args.response,
                             settings=_pose_settings(args), progress=not args.quiet)

@@ -1,4 +1,4 @@
-"""``workbench decode FILE --out OUT.exr``: a photograph to linear camera RGB (calibration.decode)."""
+"""``workbench decode FILE --out OUT.exr``: a photograph to linear camera RGB (calibration.raw.decode)."""
 
 from __future__ import annotations
 
@@ -6,7 +6,7 @@ import argparse
 import json
 from pathlib import Path
 
-from calibration.decode import DEMOSAIC_ALGORITHMS, decode_to_exr
+from calibration.raw.decode import DEMOSAIC_ALGORITHMS, decode_to_exr
 
 SUMMARY_KEYS = ("width", "height", "black_level", "white_level", "cfa", "exposure_time_s", "iso", "make", "model",
                 "saturated_fraction", "linear", "source", "demosaic", "channels", "response", "layout",

@@ -1,5 +1,5 @@
 """``workbench fit DATASET --scene SCENE --calibration calibration.json --out DIR``: the scene fit and its verdict
-(reports.scene_fit_job)."""
+(reports.scene_fit.job)."""
 
 from __future__ import annotations
 
@@ -43,7 +43,7 @@ def add_parser(commands: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from reports.scene_fit_job import FitInputs, run_fit  # deferred: pulls in scipy, cv2 and nlopt (start-up time)
+    from reports.scene_fit.job import FitInputs, run_fit  # deferred: pulls in scipy, cv2 and nlopt (start-up time)
 
     out = Path(args.out)
     if out.exists() and not out.is_dir():

@@ -1,4 +1,4 @@
-"""``workbench plan SCENE``: what a scene needs simulated, before anything runs (renderer.planner)."""
+"""``workbench plan SCENE``: what a scene needs simulated, before anything runs (renderer.trace.planner)."""
 
 from __future__ import annotations
 
@@ -20,8 +20,8 @@ def add_parser(commands: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from renderer.planner import format_plan, plan_scene  # deferred: the renderer pulls in scipy and cv2 (start-up time)
     from renderer.scene import load_scene  # deferred: as above
+    from renderer.trace.planner import format_plan, plan_scene  # deferred: the renderer pulls in scipy and cv2 (start-up time)
 
     result = plan_scene(load_scene(args.scene))
     print(json.dumps(result.to_json(), indent=2) if args.json else format_plan(result))

@@ -18,7 +18,7 @@ def add_parser(commands: argparse._SubParsersAction) -> None:
                     "fringe_offset_px = {median, p95, count} of the photo-render band-edge offsets) and DIR/fringes.csv.")
     parser.add_argument("--photo", required=True, metavar="PHOTO",
                         help="the photo: a raw file (DNG, ...), a linear float image (EXR), or a JPEG/PNG/TIFF when the "
-                             "calibration holds a fitted response (decoded by calibration.decode)")
+                             "calibration holds a fitted response (decoded by calibration.raw.decode)")
     parser.add_argument("--render", required=True, metavar="RENDER.exr",
                         help="the render made with the calibration's camera (linear camera RGB, `workbench render`)")
     parser.add_argument("--calibration", required=True, metavar="calibration.json",

@@ -1,5 +1,5 @@
 """``workbench study rcwa|render|calibrate|fit``: accuracy-versus-time studies (rcwa.table_study, renderer.render_study,
-calibration.pose_study, reports.scene_fit_study)."""
+calibration.pose.study, reports.scene_fit.study)."""
 
 from __future__ import annotations
 
@@ -141,14 +141,14 @@ def run_render(args: argparse.Namespace) -> int:
 def fine_settings(rounds: tuple[int, ...]) -> tuple[tuple[int, tuple[float, ...]], ...]:
     """Each rounds count with a window schedule: the default's last ``min(n + 1, all)`` windows
     (fewer rounds, fewer windows: the cheap end of the fine stage)."""
-    from calibration.pose import PoseSettings  # deferred: pulls in the renderer, scipy and cv2 (start-up time)
+    from calibration.pose.calibrate import PoseSettings  # deferred: pulls in the renderer, scipy and cv2 (start-up time)
 
     windows = PoseSettings().fine_windows_px
     return tuple((n, windows[-min(n + 1, len(windows)):]) for n in rounds)
 
 
 def run_calibrate(args: argparse.Namespace) -> int:
-    from calibration.pose_study import CalibrateStudyConfig, run_calibrate_study  # deferred: as fine_settings
+    from calibration.pose.study import CalibrateStudyConfig, run_calibrate_study  # deferred: as fine_settings
 
     cfg = CalibrateStudyConfig(fine=fine_settings(args.rounds), scales=args.scales, render_spp=args.spp, knots=args.knots,
                                free_intrinsics=args.free_intrinsics)
@@ -169,7 +169,7 @@ def run_calibrate(args: argparse.Namespace) -> int:
 def run_fit(args: argparse.Namespace) -> int:
     from pathlib import Path
 
-    from reports.scene_fit_study import run_fit_study  # deferred: pulls in scipy, cv2 and nlopt (start-up time)
+    from reports.scene_fit.study import run_fit_study  # deferred: pulls in scipy, cv2 and nlopt (start-up time)
 
     data = run_fit_study(Path(args.dataset), args.scene, Path(args.calibration), args.truth_scene, Path(args.out),
                          progress=not args.quiet, renders=Path(args.renders) if args.renders else None)

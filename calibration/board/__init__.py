@@ -1,0 +1,1 @@
+"""Calibration boards in photographs: checkerboard and ChArUco corners, the board's description."""

@@ -1,0 +1,1 @@
+"""Intrinsics from board views: lens models, the choice among them, uncertainty, vignetting."""

@@ -1,0 +1,1 @@
+"""Pose and field of view of a scene photograph: edges, the edge fit, the render check, uncertainty."""

@@ -1,0 +1,1 @@
+"""Raw photographs decoded to linear camera RGB, and damaged or unsupported raws refused."""

@@ -1,0 +1,1 @@
+"""Photo and render brought to one space and compared: images, error maps, regions, noise."""

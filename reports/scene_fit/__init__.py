@@ -1,0 +1,1 @@
+"""The inverse problem: the scene parameters the photos constrain, and the verdict."""
