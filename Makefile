@@ -80,7 +80,7 @@ check: install
 	$(BIN)/python -m tests.check_layering
 
 test: install
-	$(BIN)/python -m pytest -q -m "not heavy"
+	$(BIN)/python -m pytest -q -m "not heavy" --durations=30
 
 test-fast: install
 	$(BIN)/python -m pytest -q -m "not slow and not heavy"

@@ -94,6 +94,7 @@ from reports.page.study_figures import study_figures
 from reports.report import Inputs, build_report
 from reports.scene_fit.job import FitInputs, run_fit
 from reports.scene_fit.outputs import write_fitted_scene
+from reports.scene_fit.verdict_record import Outcome, Verdict
 from workbench.core.errors import UserInputError
 from workbench.core.executor import DaskExecutor
 from workbench.core.files import atomic_write_text
@@ -289,7 +290,8 @@ def _stage_fit(run: Run) -> dict:
         except UserInputError as error:  # the photos do not constrain the scene (too few band edges): say so, go on
             atomic_write_text(folder / NOT_FITTED, error.reason + "\n")
             return {"verdict": None, "rerender": False, "reason": error.reason}
-        rerender = record["verdict"]["verdict"] == "model"
+        judged = Verdict.from_json(record["verdict"], folder / "scene_fit.json")
+        rerender = judged.outcome is Outcome.MODEL
         if rerender:
             for photo in run.photos:
                 calibrated = run.root / "calibration" / "scenes" / f"{photo.stem}.toml"
@@ -297,7 +299,7 @@ def _stage_fit(run: Run) -> dict:
                                    f"{photo.name}: the calibrated camera with the scene fit's values",
                                    base=tomllib.loads(calibrated.read_text()), name=f"{photo.stem}.toml",
                                    structures=folder)
-        return {"verdict": record["verdict"]["verdict"], "rerender": rerender,
+        return {"verdict": judged.outcome.value, "rerender": rerender,
                 "residuals_before_px": record["residuals_before_px"], "residuals_after_px": record["residuals_after_px"],
                 "seconds": record["timings"]["total"]}
 

@@ -12,21 +12,23 @@ import html
 from typing import Any
 
 from reports.page import html as page
+from reports.scene_fit.verdict_record import Outcome, Verdict
 
 HEADLINES = {
-    "consistent": "Consistent: the photo agrees with the scene file within the measured uncertainty",
-    "model": "Model: the scene file is off; these parameters explain the photo",
-    "camera": "Camera: the disagreement lies within the calibration's uncertainty",
-    "unexplained": "Unexplained: neither the camera nor the free scene parameters explain the photo",
+    Outcome.CONSISTENT: "Consistent: the photo agrees with the scene file within the measured uncertainty",
+    Outcome.MODEL: "Model: the scene file is off; these parameters explain the photo",
+    Outcome.CAMERA: "Camera: the disagreement lies within the calibration's uncertainty",
+    Outcome.UNEXPLAINED: "Unexplained: neither the camera nor the free scene parameters explain the photo",
 }
 
 
 def report_verdict(scene_fit: dict[str, Any], offsets_before: dict | None, offsets_after: dict | None) -> dict[str, Any]:
     """report.json's ``verdict``: the fit's verdict with the renders' fringe offsets before and after."""
-    v = scene_fit["verdict"]
-    return {"verdict": v["verdict"], "why": v["why"], "test": v["test"], "parameters": v.get("parameters", []),
-            "residuals_before_px": v["residuals_before_px"], "residuals_after_px": v["residuals_after_px"],
-            "largest_residuals": v.get("largest_residuals", []), "camera_fit": v.get("camera_fit"),
+    v = Verdict.from_json(scene_fit["verdict"])
+    return {"verdict": v.outcome.value, "why": v.why, "test": v.test, "parameters": [p.to_json() for p in v.parameters],
+            "residuals_before_px": v.residuals_before_px.to_json(), "residuals_after_px": v.residuals_after_px.to_json(),
+            "largest_residuals": list(v.largest_residuals or []),
+            "camera_fit": None if v.camera_fit is None else v.camera_fit.to_json(),
             "fitted_parameters": scene_fit["parameters"], "held": scene_fit.get("held", {}),
             "bias_correction": scene_fit.get("bias_correction"),
             "fringe_offset_px_nominal_scene": offsets_before, "fringe_offset_px_fitted_scene": offsets_after}

@@ -32,7 +32,8 @@ from reports.fringes import band_edges as fringes
 from reports.scene_fit.fit import FitSettings, SceneFitResult, fit_scene
 from reports.scene_fit.model import FIT_SUPERSAMPLE, EdgeModel, View, photo_rim_points, view_grids
 from reports.scene_fit.outputs import parameters_json, write_fitted_scene
-from reports.scene_fit.verdict import camera_effect, verdict
+from reports.scene_fit.verdict import camera_effect, judge
+from reports.scene_fit.verdict_record import Verdict
 from workbench.core.errors import UserInputError
 from workbench.core.files import atomic_write_text
 from workbench.core.version import versions
@@ -109,7 +110,7 @@ def bias_record(model: EdgeModel, views: list[View], renders: Path | None) -> di
     return out
 
 
-def _record(inputs: FitInputs, spec, table, model: EdgeModel, result: SceneFitResult, judged: dict, views: list[View],
+def _record(inputs: FitInputs, spec, table, model: EdgeModel, result: SceneFitResult, judged: Verdict, views: list[View],
             seconds: dict[str, float]) -> dict[str, Any]:
     labels = table.labels()
     return {
@@ -122,8 +123,9 @@ def _record(inputs: FitInputs, spec, table, model: EdgeModel, result: SceneFitRe
         "std_jacobian": result.std_jacobian.tolist(), "std_bootstrap": result.std_bootstrap.tolist(),
         "bias_correction": bias_record(model, views, inputs.renders),
         "correlations": np.round(result.correlations, 4).tolist(),
-        "residuals_before_px": judged["residuals_before_px"], "residuals_after_px": judged["residuals_after_px"],
-        "noise_px": result.noise_px, "verdict": judged,
+        "residuals_before_px": judged.residuals_before_px.to_json(),
+        "residuals_after_px": judged.residuals_after_px.to_json(),
+        "noise_px": result.noise_px, "verdict": judged.to_json(),
         "settings": {"supersample": inputs.supersample, "step_nm": inputs.step_nm,
                      **dataclasses.asdict(inputs.settings)},
         "rounds": result.log, "evaluations": result.evaluations,
@@ -150,11 +152,11 @@ def run_fit(inputs: FitInputs) -> dict[str, Any]:
     except ValueError as error:
         raise UserInputError(f"the photos do not constrain the scene: {error}", file=inputs.dataset / "photos") from None
     fitted = time.perf_counter()
-    judged = verdict(result, table.labels(), [p.name for p in table.free for _ in p.components],
-                     [v.name for v in views])
+    judged = judge(result, table.labels(), [p.name for p in table.free for _ in p.components],
+                   [v.name for v in views])
     inputs.out.mkdir(parents=True, exist_ok=True)
     write_fitted_scene(spec, table, result.values, inputs.out,
-                       f"{spec.name} with the scene fit's values (workbench fit; verdict: {judged['verdict']})")
+                       f"{spec.name} with the scene fit's values (workbench fit; verdict: {judged.outcome})")
     seconds = {"load": loaded - started, "fit": fitted - loaded, "total": time.perf_counter() - started,
                "forward_model": model.seconds, "evaluations": model.evaluations}
     record = _record(inputs, spec, table, model, result, judged, views, seconds)

@@ -30,6 +30,7 @@ from renderer.scene import load_scene
 from reports.scene_fit.apply import tilt_angle_deg
 from reports.scene_fit.fit import FitSettings
 from reports.scene_fit.job import FitInputs, run_fit
+from reports.scene_fit.verdict_record import Verdict
 from workbench.core.files import atomic_write_csv, atomic_write_text
 from workbench.core.plots import new_figure, save_figure
 from workbench.core.version import versions
@@ -87,11 +88,12 @@ def run_fit_study(dataset: Path, scene: str, calibration: Path, truth_scene: str
                            change.get("supersample", 1), change.get("step_nm", 5.0), settings,
                            change.get("renders", renders))
         record = run_fit(inputs)
+        judged = Verdict.from_json(record["verdict"], inputs.out / "scene_fit.json")
         row = {"sweep": sweep, "supersample": inputs.supersample, "step_nm": inputs.step_nm,
                "edge_fraction": settings.edge_fraction, "photos": len(record["photos"]),
                "render_offsets": inputs.renders is not None,
-               "edges": record["verdict"]["residuals_after_px"]["count"], "seconds": record["timings"]["total"],
-               "verdict": record["verdict"]["verdict"], **fit_errors(record, truth)}
+               "edges": judged.residuals_after_px.count, "seconds": record["timings"]["total"],
+               "verdict": judged.outcome.value, **fit_errors(record, truth)}
         rows.append(row)
         if progress:
             print(f"study fit {i + 1}/{len(runs)}: {sweep} {change}: {row['seconds']:.0f} s, "

@@ -48,6 +48,7 @@ from scipy.stats import chi2
 from reports.fringes.prediction_band import CAMERA_STD_KEYS, moved_camera
 from reports.scene_fit.fit import SceneFitResult, cauchy_weights, group_scales
 from reports.scene_fit.model import EdgeModel, ObservedEdges
+from reports.scene_fit.verdict_record import CameraFit, ChiSquare, MovedParameter, Outcome, Residuals, Verdict
 
 ALPHA = 1e-3
 MOVED_SIGMAS = 3.0
@@ -161,7 +162,7 @@ def moved_by_readout(camera, names: list[str], delta: np.ndarray):
     return moved_camera(camera, [d.get(k, 0.0) for k in ("fx", "fy", "cx", "cy")], turn_deg, shift)
 
 
-def camera_only_fit(result: SceneFitResult, rounds: int = CAMERA_FIT_ROUNDS) -> dict[str, Any] | None:
+def camera_only_fit(result: SceneFitResult, rounds: int = CAMERA_FIT_ROUNDS) -> CameraFit | None:
     """The scene file's residuals explained by the camera alone: the linear least-squares move c
     (in standard deviations of the calibration, each with a unit Gaussian prior) of the camera
     parameters that best explains r_nominal, min sum w (r0 - A c)^2 / s^2 + |c|^2, A the camera's
@@ -184,37 +185,26 @@ def camera_only_fit(result: SceneFitResult, rounds: int = CAMERA_FIT_ROUNDS) -> 
     for (_, key), value in zip(effect.parameters, effect.moves @ c, strict=True):  # each parameter's move, in its std
         moved[key] = max(moved.get(key, 0.0), abs(float(value)))
     statistic = float(c @ c)
-    return {"median_px": float(np.median(np.abs(after[:result.observed.edge_count]))), "statistic": statistic,
-            "dof": int(len(c)), "p_value": float(chi2.sf(statistic, len(c))),
-            "moved_std": dict(sorted(moved.items(), key=lambda item: -item[1]))}
+    return CameraFit(float(np.median(np.abs(after[:result.observed.edge_count]))), statistic, int(len(c)),
+                     float(chi2.sf(statistic, len(c))), dict(sorted(moved.items(), key=lambda item: -item[1])))
 
 
-@dataclass
-class Test:
-    statistic: float
-    dof: int
-    p_value: float
-
-    def to_json(self) -> dict[str, float]:
-        return {"statistic": self.statistic, "dof": self.dof, "p_value": self.p_value}
-
-
-def wald(d: np.ndarray, V: np.ndarray) -> Test:
+def wald(d: np.ndarray, V: np.ndarray) -> ChiSquare:
     """W = d^T V^-1 d and its chi^2(len(d)) p-value (module docstring)."""
     statistic = float(d @ np.linalg.pinv(V, hermitian=True) @ d)
-    return Test(statistic, len(d), float(chi2.sf(max(statistic, 0.0), len(d))))
+    return ChiSquare(statistic, len(d), float(chi2.sf(max(statistic, 0.0), len(d))))
 
 
-def likelihood_ratio(r0: np.ndarray, r1: np.ndarray, S: np.ndarray, dof: int) -> Test:
+def likelihood_ratio(r0: np.ndarray, r1: np.ndarray, S: np.ndarray, dof: int) -> ChiSquare:
     """LR = r0^T S^-1 r0 - r1^T S^-1 r1 and its chi^2(dof) p-value [Wilks 1938]."""
     solve = np.linalg.pinv(S, hermitian=True)
     statistic = float(r0 @ solve @ r0 - r1 @ solve @ r1)
-    return Test(statistic, dof, float(chi2.sf(max(statistic, 0.0), dof)))
+    return ChiSquare(statistic, dof, float(chi2.sf(max(statistic, 0.0), dof)))
 
 
-def _summary(r: np.ndarray) -> dict[str, Any]:
+def _summary(r: np.ndarray) -> Residuals:
     a = np.abs(r)
-    return {"median": float(np.median(a)), "p95": float(np.percentile(a, 95)), "count": int(len(a))}
+    return Residuals(float(np.median(a)), float(np.percentile(a, 95)), int(len(a)))
 
 
 def _largest(result: SceneFitResult, views: list[str]) -> list[dict[str, Any]]:
@@ -228,26 +218,42 @@ def _largest(result: SceneFitResult, views: list[str]) -> list[dict[str, Any]]:
     return out
 
 
-def _decide(camera: Test | None, noise: Test, moved: list[int], before_px: float, after_px: float,
-            camera_fit: dict[str, Any] | None) -> tuple[str, str]:
+def _decide(camera: ChiSquare | None, noise: ChiSquare, moved: list[int], before_px: float, after_px: float,
+            camera_fit: CameraFit | None) -> tuple[Outcome, str]:
     """(verdict, why) by the rules of the module docstring."""
     combined = camera or noise
     if combined.p_value >= ALPHA and before_px <= REMOVED_MEDIAN_PX:
-        return "consistent", "the scene file's values explain the band edges within the measured uncertainty"
+        return Outcome.CONSISTENT, "the scene file's values explain the band edges within the measured uncertainty"
     if combined.p_value < ALPHA and moved and after_px <= REMOVED_MEDIAN_PX:
-        return "model", ("scene parameters had to move by more than 3 standard deviations, and moving them removes "
-                         "the disagreement")
-    if camera_fit is not None and camera_fit["median_px"] <= REMOVED_MEDIAN_PX and camera_fit["p_value"] >= ALPHA:
-        named = [k for k, v in camera_fit["moved_std"].items() if v >= 1.0] or list(camera_fit["moved_std"])[:1]
-        return "camera", ("moving the camera within the calibration's uncertainty explains the band edges (most: "
-                          + ", ".join(f"{k} by {camera_fit['moved_std'][k]:.1f} std" for k in named) + ")")
-    return "unexplained", ("neither the camera's uncertainty nor the free scene parameters explain the band edges"
+        return Outcome.MODEL, ("scene parameters had to move by more than 3 standard deviations, and moving them "
+                               "removes the disagreement")
+    if camera_fit is not None and camera_fit.median_px <= REMOVED_MEDIAN_PX and camera_fit.p_value >= ALPHA:
+        named = [k for k, v in camera_fit.moved_std.items() if v >= 1.0] or list(camera_fit.moved_std)[:1]
+        return Outcome.CAMERA, ("moving the camera within the calibration's uncertainty explains the band edges (most: "
+                                + ", ".join(f"{k} by {camera_fit.moved_std[k]:.1f} std" for k in named) + ")")
+    return Outcome.UNEXPLAINED, ("neither the camera's uncertainty nor the free scene parameters explain the band edges"
                            if not moved else "the fitted scene leaves residuals above the unperturbed level")
 
 
-def verdict(result: SceneFitResult, labels: list[str], names: list[str], views: list[str]) -> dict[str, Any]:
-    """report.json's and scene_fit.json's ``verdict`` (module docstring). ``labels``: each
-    fitted component's name (FitTable.labels); ``names`` the parameter each belongs to."""
+def judge(result: SceneFitResult, labels: list[str], names: list[str], views: list[str]) -> Verdict:
+    """The verdict of a fit (module docstring).
+
+    Parameters
+    ----------
+    result : SceneFitResult
+        The fit (reports.scene_fit.fit).
+    labels : list of str
+        Each fitted component's name (FitTable.labels).
+    names : list of str
+        The parameter each component belongs to.
+    views : list of str
+        The photos' names, in the fit's view order.
+
+    Returns
+    -------
+    Verdict
+        The typed record; its ``to_json`` is scene_fit.json's ``verdict``.
+    """
     k, edges = len(result.values), result.observed.edge_count
     d = result.values - result.nominal
     test_noise = wald(d, result.covariance_noise)
@@ -256,29 +262,25 @@ def verdict(result: SceneFitResult, labels: list[str], names: list[str], views: 
     moved = [i for i in range(k) if abs(z[i]) > MOVED_SIGMAS]
     before, after = _summary(result.residuals_nominal[:edges]), _summary(result.residuals_fitted[:edges])
     camera_fit = camera_only_fit(result)
-    kind, why = _decide(test_camera, test_noise, moved, before["median"], after["median"], camera_fit)
+    kind, why = _decide(test_camera, test_noise, moved, before.median, after.median, camera_fit)
     noise = np.diag(result.sigma**2 / result.weights)
-    out: dict[str, Any] = {
-        "verdict": kind, "why": why,
-        "test": {"method": "Wald test of the fitted move from the scene file's values, with the fit's covariance "
-                           "(noise only, then with the camera's uncertainty: the sandwich covariance); chi-square "
-                           "with one degree of freedom per fitted component",
-                 "alpha": ALPHA, "noise_px": result.noise_px, "edges": edges,
-                 "rim_points": len(result.residuals_fitted) - edges,
-                 "noise_only": test_noise.to_json(),
-                 "noise_and_camera": None if test_camera is None else test_camera.to_json(),
-                 "likelihood_ratio": likelihood_ratio(result.residuals_nominal, result.residuals_fitted, noise,
-                                                      k).to_json()},
-        "moved_sigmas": MOVED_SIGMAS,
-        "parameters": [{"name": names[i], "component": labels[i], "nominal": float(result.nominal[i]),
-                        "fitted": float(result.values[i]), "std": float(result.std[i]), "sigmas": float(z[i])}
-                       for i in moved] if kind == "model" else [],
-        "camera_fit": camera_fit,
-        "residuals_before_px": before,
-        "residuals_after_px": after,
-        "rim_residuals_before_px": _summary(result.residuals_nominal[edges:]) if len(result.sigma) > edges else None,
-        "rim_residuals_after_px": _summary(result.residuals_fitted[edges:]) if len(result.sigma) > edges else None,
-    }
-    if kind == "unexplained":
-        out["largest_residuals"] = _largest(result, views)
-    return out
+    test = {"method": "Wald test of the fitted move from the scene file's values, with the fit's covariance "
+                      "(noise only, then with the camera's uncertainty: the sandwich covariance); chi-square "
+                      "with one degree of freedom per fitted component",
+            "alpha": ALPHA, "noise_px": result.noise_px, "edges": edges,
+            "rim_points": len(result.residuals_fitted) - edges,
+            "noise_only": test_noise.to_json(),
+            "noise_and_camera": None if test_camera is None else test_camera.to_json(),
+            "likelihood_ratio": likelihood_ratio(result.residuals_nominal, result.residuals_fitted, noise, k).to_json()}
+    parameters = tuple(MovedParameter(names[i], labels[i], float(result.nominal[i]), float(result.values[i]),
+                                      float(result.std[i]), float(z[i])) for i in moved) if kind is Outcome.MODEL else ()
+    rim = len(result.sigma) > edges
+    return Verdict(kind, why, test, MOVED_SIGMAS, parameters, camera_fit, before, after,
+                   _summary(result.residuals_nominal[edges:]) if rim else None,
+                   _summary(result.residuals_fitted[edges:]) if rim else None,
+                   tuple(_largest(result, views)) if kind is Outcome.UNEXPLAINED else None)
+
+
+def verdict(result: SceneFitResult, labels: list[str], names: list[str], views: list[str]) -> dict[str, Any]:
+    """report.json's and scene_fit.json's ``verdict``: :func:`judge`'s record as JSON."""
+    return judge(result, labels, names, views).to_json()

@@ -6,6 +6,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from reports.scene_fit.verdict_record import Verdict
 from workbench.commands.arguments import positive_number
 from workbench.commands.cache import add_cache_option
 from workbench.core.errors import UserInputError
@@ -71,16 +72,15 @@ def format_fit(record: dict) -> str:
             value = p["value"] if isinstance(p["value"], list) else [p["value"]]
             nominal = p["nominal"] if isinstance(p["nominal"], list) else [p["nominal"]]
             lines.append(f"{name}: {_numbers(nominal)} -> {_numbers(value)} {p['unit']} (std {_numbers(std)})")
-    v = record["verdict"]
-    before, after = v["residuals_before_px"], v["residuals_after_px"]
-    lines.append(f"band-edge residuals: median {before['median']:.2f} px before, {after['median']:.2f} px after "
-                 f"({after['count']} edges)")
-    test = v["test"]["noise_only"]
-    lines.append(f"verdict: {v['verdict']} ({v['why']}; Wald statistic {test['statistic']:.1f} on {test['dof']} "
-                 f"degrees of freedom, p = {test['p_value']:.2g}, noise only)")
-    for p in v.get("parameters", []):
-        lines.append(f"  {p['component']}: {p['nominal']:.5g} -> {p['fitted']:.5g} +- {p['std']:.2g} "
-                     f"({p['sigmas']:+.1f} std)")
+    v = Verdict.from_json(record["verdict"])
+    before, after = v.residuals_before_px, v.residuals_after_px
+    lines.append(f"band-edge residuals: median {before.median:.2f} px before, {after.median:.2f} px after "
+                 f"({after.count} edges)")
+    test = v.noise_only
+    lines.append(f"verdict: {v.outcome} ({v.why}; Wald statistic {test.statistic:.1f} on {test.dof} "
+                 f"degrees of freedom, p = {test.p_value:.2g}, noise only)")
+    for p in v.parameters:
+        lines.append(f"  {p.component}: {p.nominal:.5g} -> {p.fitted:.5g} +- {p.std:.2g} ({p.sigmas:+.1f} std)")
     return "\n".join(lines)
 
 
