@@ -51,9 +51,9 @@ WEIGHTINGS = ("geometric", "efficiency")
 
 
 def _spec_and_camera(dataset: Path, camera=None, scene: str = SCENE, photo: str = PHOTO):
+    from calibration.calibration_file import read_camera
     from renderer.render import with_resolution
     from renderer.scene import load_scene
-    from reports.camera_file import read_camera
 
     camera = camera or read_camera(dataset / "truth.json", photo).model
     spec = with_resolution(load_scene(scene), (camera.width, camera.height))

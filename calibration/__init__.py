@@ -18,5 +18,6 @@ One subpackage per step, each with its command's entry point in ``calibrate``:
   photo through every stage), ``render_check``, ``fringe_rotation`` (the CD-fringe check),
   ``uncertainty``, ``outputs``, ``scene_file`` (the scene file with the fitted camera),
   ``study`` (``workbench study calibrate``).
-- ``dataset``: every step on a dataset folder (``workbench calibrate DATASET``).
+- ``dataset``: every step on a dataset folder (``workbench calibrate DATASET``);
+  ``calibration_file``: calibration.json, its one writer and its one reader.
 """

@@ -39,7 +39,6 @@ DIR gets, each written atomically once everything has succeeded:
 
 from __future__ import annotations
 
-import json
 import time
 from collections.abc import Callable
 from pathlib import Path
@@ -48,25 +47,22 @@ import numpy as np
 from tqdm import tqdm
 
 from calibration.board.board_file import BoardSpec, resolve_board
+from calibration.calibration_file import calibration_record, write_calibration
 from calibration.intrinsics.calibrate import calibrate_board_views
 from calibration.intrinsics.projection_uncertainty import map_over
 from calibration.intrinsics.vignetting_stage import vignetting_stage
 from calibration.pose.edge_fit import FREE_RADIAL_TERMS, PoseSettings, Unknowns
 from calibration.pose.fringe_rotation import cd_mask
 from calibration.pose.inputs import fit_renderer, start_camera
-from calibration.pose.outputs import PHOTOMETRY_NOTE, json_default, result_json, versions
 from calibration.pose.photo import RAW_SUFFIXES, read_photo
-from calibration.pose.scene_file import fitted_scene_text
 from calibration.pose.scene_model import scene_model
 from calibration.pose.stages import PoseResult, check_photo, fit_photo
 from calibration.response.calibrate import calibrate_response
 from renderer.camera import CameraModel
 from renderer.scene import load_scene
 from workbench.core.errors import UserInputError
-from workbench.core.files import atomic_write_text
 from workbench.core.timing import timed
 
-DATASET_FORMAT = "workbench-calibration"
 IMAGE_SUFFIXES = {".jpg", ".jpeg", ".png", ".tif", ".tiff"}
 
 
@@ -173,9 +169,11 @@ def calibrate_dataset(dataset: str | Path, scene: str | Path, out: str | Path, *
     timings["vignetting_s"] = time.perf_counter() - tick
     bar.close()
     timings["total_s"] = time.perf_counter() - started
-    record = _record(dataset, scene, spec, files, intrinsics, response, results, settings, board_spec, timings)
+    lens_digest = lens_uncertainty_summary(intrinsics, spec, results) if intrinsics else {}
+    record = calibration_record(dataset, scene, spec, files, intrinsics, lens_digest, response, results, settings, board_spec,
+                                timings)
     record["vignetting"] = vignetting
-    _write(out, record, spec, results, intrinsics, response)
+    write_calibration(out, record, spec, results, intrinsics, response)
     return record
 
 
@@ -285,64 +283,3 @@ def held_intrinsics(intrinsics: dict) -> dict:
     if intrinsics.get("model", "pinhole") == "pinhole":
         dist = (dist + [0.0] * 5)[:5]
     return dict(intrinsics, dist=tuple(dist))
-
-
-def _record(dataset, scene, spec, files, intrinsics, response, results, settings: PoseSettings, board: BoardSpec | None,
-            timings: dict) -> dict:
-    first = next(iter(results.values()))
-    c = first.camera
-    scales = {name: r.exposure_scale for name, r in results.items()}
-    per_second = {name: (r.exposure_scale / r.exposure_time_s if r.exposure_scale and r.exposure_time_s else None)
-                  for name, r in results.items()}
-    intrinsic_std = ({k: intrinsics["std"][k] for k in ("fx", "fy", "cx", "cy", "dist")} if intrinsics
-                     else {k: first.std[k] for k in ("fx", "fy", "cx", "cy", "dist")})
-    return {
-        "format": DATASET_FORMAT, "command": "workbench calibrate DATASET", "dataset": str(dataset), "scene": str(scene),
-        "camera": {"width": c.width, "height": c.height, "fx": c.fx, "fy": c.fy, "cx": c.cx, "cy": c.cy,
-                   "dist": [float(d) for d in c.dist], "model": c.model, **({"xi": c.xi} if c.model == "omnidir" else {}),
-                   "fov_x_deg": first.camera_json()["fov_x_deg"],
-                   "world_to_camera": {name: r.camera.world_to_camera.tolist() for name, r in results.items()}},
-        "std": intrinsic_std | {"fov_x_deg": first.std["fov_x_deg"],
-                                "poses": {name: {k: r.std[k] for k in ("rotation_deg", "rotation_total_deg",
-                                                                       "camera_center_m", "covariance") if k in r.std}
-                                          for name, r in results.items()},
-                                "exposure_scale": {name: r.exposure_scale_std for name, r in results.items()}},
-        "exposure_scale": scales, "exposure_time_s": {name: r.exposure_time_s for name, r in results.items()},
-        "exposure_scale_per_second": per_second, "light_power_scale": 1.0, "photometry": PHOTOMETRY_NOTE,
-        "response": _response_summary(response),
-        "intrinsics": {"source": intrinsics["source"], "model": intrinsics.get("model", "pinhole"),
-                       "model_choice": (intrinsics.get("model_choice") or {}).get("why"), "rms_px": intrinsics.get("rms_px"),
-                       "distortion_terms": ((intrinsics.get("model_choice") or {}).get("terms") or {}).get("chosen"),
-                       **lens_uncertainty_summary(intrinsics, spec, results),
-                       "views": intrinsics.get("views"), "flags": intrinsics.get("flags")} if intrinsics
-        else {"source": f"fitted on {next(iter(results))} (no board views in calibration/)"},
-        "residuals": {name: {k: v for k, v in r.residuals.items()} for name, r in results.items()},
-        "cd_fringes": {name: r.log.get("cd_fringes") for name, r in results.items()},
-        "photos": {name: result_json(r) for name, r in results.items()},
-        "files": {k: [str(p) for p in v] for k, v in files.items()},
-        "settings": {"board": None if board is None else board.to_json(), "pose": settings.to_json(), "scene": spec.source},
-        "versions": versions(), "timings": timings,
-    }
-
-
-def _response_summary(response: dict | None) -> dict | None:
-    if response is None:
-        return None
-    keys = ("method", "points", "linear", "raw_linearity", "times_s", "files")
-    return {k: response[k] for k in keys if k in response}
-
-
-def _write(out: Path, record: dict, spec, results: dict, intrinsics: dict | None, response: dict | None) -> None:
-    out.mkdir(parents=True, exist_ok=True)
-    for i, (name, result) in enumerate(results.items()):
-        exposure = spec.camera.exposure * (result.exposure_scale if result.exposure_scale is not None else 1.0)
-        text = fitted_scene_text(spec, result.camera, exposure,
-                                 f"{spec.name} with the camera fitted to {name} by workbench calibrate")
-        atomic_write_text(out / "scenes" / f"{Path(name).stem}.toml", text)
-        if i == 0:
-            atomic_write_text(out / "fitted_scene.toml", text)
-    if intrinsics is not None:
-        atomic_write_text(out / "intrinsics.json", json.dumps(intrinsics, indent=2, default=json_default) + "\n")
-    if response is not None:
-        atomic_write_text(out / "response.json", json.dumps(response, indent=1, default=json_default) + "\n")
-    atomic_write_text(out / "calibration.json", json.dumps(record, indent=2, default=json_default) + "\n")

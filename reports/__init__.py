@@ -2,8 +2,8 @@
 and the scene parameters the photos constrain.
 
 - ``report``: ``workbench report``, the whole report of one photo.
-- ``camera_file``: the fitted camera read from calibration.json; ``table_error``: the tables'
-  own truncation errors.
+- ``table_error``: the tables' own truncation errors. The fitted camera comes from
+  calibration.calibration_file (calibration.json's one writer and reader).
 - ``compare``: photo and render in one space (``images``, ``merged_photo``, ``exposure_merge``),
   error maps (``metrics``), per-region tests (``regions``, ``photo_noise``).
 - ``fringes``: what is measured on the CD: ``rim``, ``polar`` (the disk unwrapped), ``band_edges``,

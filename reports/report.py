@@ -5,7 +5,7 @@ count} of the photo-render band-edge offsets where both show the edge with quali
 ``ok``), DIR/fringes.csv every band edge found (photo, render, prediction) and
 DIR/report.html the page (reports.page.html). Steps:
 
-1. The camera: the calibration's fitted camera for the photo (reports.camera_file); the
+1. The camera: the calibration's fitted camera for the photo (calibration.calibration_file); the
    scene's camera is replaced by it, so prediction, masks and render share its pixels.
 2. Photo (reports.compare.images.read_photo: calibration.raw.decode) and render (EXR) as linear camera
    RGB, same size. With a bracket (``brackets``), the photo's clipped pixels are filled from
@@ -51,10 +51,10 @@ from typing import Any
 
 import numpy as np
 
-from calibration.intrinsics.vignetting import relative_illumination, vignetting_record, vignetting_summary
+from calibration.calibration_file import FittedCamera, check_scene, read_camera, vignetting_record
+from calibration.intrinsics.vignetting import relative_illumination, vignetting_summary
 from renderer.scene import load_scene
 from renderer.trace.prediction import CDGeometry, Prediction, cd_bbox, cd_geometry, predict
-from reports.camera_file import FittedCamera, check_scene, read_camera
 from reports.compare import images, metrics
 from reports.compare.merged_photo import read_merged_photo
 from reports.compare.regions import region_test

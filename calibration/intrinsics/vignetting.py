@@ -37,10 +37,8 @@ brighter than the photo (at 6 std), and flat (0.7 %, 1.4 std) at the true camera
 
 from __future__ import annotations
 
-import json
 import time
 from dataclasses import dataclass
-from pathlib import Path
 
 import numpy as np
 from scipy.optimize import least_squares
@@ -177,15 +175,6 @@ def relative_illumination(record: dict | None, camera: CameraModel) -> np.ndarra
         return None
     x = squared_field_tangent(camera)
     return np.stack([falloff(np.asarray(record["coefficients"][ch], float), x) for ch in CHANNELS], axis=2)
-
-
-def vignetting_record(calibration: str | Path) -> dict | None:
-    """The ``vignetting`` of a calibration.json (None for camera files without one)."""
-    try:
-        record = json.loads(Path(calibration).read_text()).get("vignetting")
-    except (OSError, ValueError, AttributeError):
-        return None  # the camera file's reader (reports.camera_file) reports what is wrong with it
-    return record if isinstance(record, dict) else None
 
 
 def vignetting_summary(record: dict | None) -> dict:

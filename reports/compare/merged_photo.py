@@ -9,8 +9,8 @@ from __future__ import annotations
 import dataclasses
 from pathlib import Path
 
+from calibration.calibration_file import read_response
 from calibration.raw.decode import is_raw
-from reports.camera_file import read_response
 from reports.compare import images
 from reports.compare.exposure_merge import merge_highlights
 from workbench.core.errors import UserInputError

@@ -37,8 +37,8 @@ from pathlib import Path
 import cv2
 import numpy as np
 
+from calibration.calibration_file import exposure_relative_std
 from renderer.render import described_render, variance_path
-from reports.camera_file import exposure_relative_std
 from reports.compare.images import read_linear, region_masks
 from reports.compare.photo_noise import NoiseModel, fit_noise, second_differences
 from reports.fringes.prediction_band import draw_cameras

@@ -19,7 +19,7 @@ CAMERA_STD_KEYS = ("fx", "fy", "cx", "cy", "rotation_deg", "translation_m")
 
 def draw_cameras(camera: CameraModel, std: dict, count: int, seed: int = 0) -> list[CameraModel]:
     """``count`` cameras drawn about ``camera`` within the calibration's standard deviations
-    (reports.camera_file: ``fx``, ``fy``, ``cx``, ``cy`` in pixels, ``rotation_deg`` a small
+    (calibration.calibration_file: ``fx``, ``fy``, ``cx``, ``cy`` in pixels, ``rotation_deg`` a small
     rotation about each camera axis, ``translation_m`` along each axis; keys not given stay
     fixed). Each draw is ``camera + std * z`` with z standard normal from ``seed``, so the same
     seed with twice the std gives draws twice as far (the band's width scales with the std)."""

@@ -1,7 +1,7 @@
 """``workbench fit``: the scene parameters a dataset's photos constrain, and the verdict.
 
 Steps: every photo of DATASET/photos with its camera from the calibration
-(reports.camera_file.read_camera) and its clipped highlights filled from the dataset's
+(calibration.calibration_file.read_camera) and its clipped highlights filled from the dataset's
 bracket frames of its view (reports.compare.merged_photo.read_merged_photo); the scene's ``[fit]`` table
 (renderer.fit_parameters; the defaults without one); the forward model
 (reports.scene_fit.model) fitted to all photos' band edges at once (reports.scene_fit.fit),
@@ -20,12 +20,12 @@ from typing import Any
 
 import numpy as np
 
+from calibration.calibration_file import check_scene, read_camera
 from calibration.dataset import dataset_files
 from calibration.raw.decode import is_raw
 from renderer.render import variance_path
 from renderer.scene import load_scene
 from renderer.trace.prediction import PREDICTION_STEP_NM
-from reports.camera_file import check_scene, read_camera
 from reports.compare.images import read_linear
 from reports.compare.merged_photo import read_merged_photo
 from reports.fringes import band_edges as fringes

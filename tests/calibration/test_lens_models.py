@@ -29,10 +29,10 @@ import cv2
 import numpy as np
 import pytest
 
+from calibration.calibration_file import read_camera
 from calibration.intrinsics.lens_choice import choose_model, pick
 from calibration.intrinsics.lens_models import NOT_WORSE_REL, fit_model
 from renderer import lens
-from reports.camera_file import read_camera
 from tests.calibration.lens_views import corner_views
 from workbench.cli import main
 from workbench.core.errors import UserInputError

@@ -378,7 +378,7 @@ def _rim_projection(camera, rim: np.ndarray) -> np.ndarray:
 @pytest.mark.parametrize("photo", ["view0.dng", "view1.dng"])
 def test_the_pose_covariance_covers_where_the_true_camera_puts_the_cd(calibrated, photo: str) -> None:
     from renderer.trace.prediction import cd_geometry
-    from reports.camera_file import read_camera
+    from calibration.calibration_file import read_camera
     from reports.scene_fit.verdict import moved_by_readout, view_moves
 
     out, result, truth = calibrated

@@ -100,7 +100,7 @@ def test_a_verify_style_report_page_holds_the_maps(tmp_path_factory, tmp_path: P
     # calibrate DATASET (shared per session) then workbench report with its calibration.json, as verify runs them
     import OpenImageIO as oiio
 
-    from reports.camera_file import read_camera
+    from calibration.calibration_file import read_camera
     from tests.reports.test_report_synthetic import SCENE, _render_image
 
     out, calibration, _ = calibrated_dataset(tmp_path_factory)

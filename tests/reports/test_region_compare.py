@@ -72,9 +72,9 @@ def test_stable_masks_keep_only_what_every_camera_agrees_on():
 
 def _truth_scene(dataset, path):
     """The dataset's scene with its truth camera and the photo's exposure in the photo's units."""
+    from calibration.calibration_file import read_camera
     from calibration.pose.scene_file import fitted_scene_text
     from renderer.scene import load_scene
-    from reports.camera_file import read_camera
 
     truth = json.loads((dataset / "truth.json").read_text())
     sensor = truth["sensor"]

@@ -109,7 +109,7 @@ def test_jpeg_is_linearised_through_the_calibrations_response(tmp_path):
     """calibration.raw.decode inverts the fitted response: a grey ramp encoded with gamma 2.2 comes back linear
     within 1.5 % of full scale (JPEG at quality 100 keeps codes within about 1 of 255; the inverse response's
     slope near 0.2 irradiance is about 0.5 / 255 per code; the 65-knot table interpolates within 0.3 %)."""
-    from reports.camera_file import read_response
+    from calibration.calibration_file import read_response
     from reports.compare import images
 
     linear = np.tile(np.linspace(0.05, 0.95, SIZE[0]), (SIZE[1], 1))
@@ -125,7 +125,7 @@ def test_jpeg_is_linearised_through_the_calibrations_response(tmp_path):
 
 
 def test_broken_response_in_the_calibration_names_file_and_field(tmp_path):
-    from reports.camera_file import read_response
+    from calibration.calibration_file import read_response
     from workbench.core.errors import UserInputError
 
     calibration = tmp_path / "c.json"

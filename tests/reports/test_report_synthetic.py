@@ -15,7 +15,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from reports.camera_file import read_camera
+from calibration.calibration_file import read_camera
 from tests import realisation_bounds
 from tests.conftest import synthetic_dataset
 from workbench.cli import main

@@ -1,13 +1,17 @@
-"""The fitted camera a report uses, read from calibration.json.
+"""calibration.json, the fitted cameras of a dataset's photos: its one writer and its one reader.
 
-The form (that of the synthetic dataset's truth.json, which the calibration's output
+``calibrate DATASET`` (calibration.dataset) writes it through ``calibration_record`` and
+``write_calibration``; the report, the scene fit, verify and the region tests read it through
+``read_camera``, ``read_response``, ``exposure_relative_std`` and ``vignetting_record``.
+
+The form read (that of the synthetic dataset's truth.json, which the calibration's output
 shares): ``camera`` = {width, height, fx, fy, cx, cy, dist [k1, k2, p1, p2, k3],
 world_to_camera: {file name: 4 x 4}} (OpenCV's model and axes, metres), optionally ``model``
 (a lens model of renderer.lens, default ``pinhole``: ``dist`` then holds that model's
 coefficients, and ``xi`` is the omnidir model's), optionally a
 ``scene`` (the scene's name or file it was made for) and ``camera_std`` (standard
 deviations of fx, fy, cx, cy, dist, and ``rotation_deg``/``translation_m``) when the
-calibration estimated them; calibration.json's own ``std`` (calibration.dataset) is read
+calibration estimated them; calibration.json's own ``std`` (``calibration_record``) is read
 too, with each pose's joint ``covariance`` of rotation, centre and intrinsics. The pose is
 the one listed for the photo's file name, or the only one listed.
 """
@@ -23,11 +27,19 @@ from typing import Any
 
 import numpy as np
 
+from calibration.board.board_file import BoardSpec
+from calibration.pose.edge_fit import PoseSettings
+from calibration.pose.outputs import PHOTOMETRY_NOTE, json_default, result_json, versions
+from calibration.pose.scene_file import fitted_scene_text
+from calibration.pose.stages import PoseResult
 from calibration.raw.decode import load_response
 from renderer.camera import CameraModel
 from renderer.lens import LENS_MODELS
+from renderer.scene import SceneSpec
 from workbench.core.errors import UserInputError
+from workbench.core.files import atomic_write_text
 
+CALIBRATION_FORMAT = "workbench-calibration"
 INTRINSIC_KEYS = ("width", "height", "fx", "fy", "cx", "cy")
 
 
@@ -225,3 +237,97 @@ def exposure_relative_std(path: str | Path, photo_name: str) -> float | None:
         return None
     scale_value, std_value = float(scale), float(std)  # type: ignore[arg-type]
     return std_value / scale_value if scale_value > 0 else None
+
+
+def vignetting_record(calibration: str | Path) -> dict | None:
+    """The ``vignetting`` of a calibration.json (None for camera files without one)."""
+    try:
+        record = json.loads(Path(calibration).read_text()).get("vignetting")
+    except (OSError, ValueError, AttributeError):
+        return None  # read_camera reports what is wrong with the file
+    return record if isinstance(record, dict) else None
+
+
+# ---------------------------------------------------------------- the writer
+
+
+def calibration_record(dataset: Path | str, scene: Path | str, spec: SceneSpec, files: dict[str, list[Path]],
+                       intrinsics: dict | None,
+                       lens_digest: dict, response: dict | None, results: dict[str, PoseResult], settings: PoseSettings,
+                       board: BoardSpec | None, timings: dict) -> dict:
+    """calibration.json's content for the poses ``results`` of a dataset's photos (module docstring).
+
+    Parameters
+    ----------
+    dataset, scene, spec, files
+        The dataset folder and scene as given, the scene loaded, the files by folder (dataset_files).
+    intrinsics, lens_digest, response
+        intrinsics.json's and response.json's records (None where not made), the lens's uncertainty digest.
+    results, settings, board, timings
+        Each photo's pose by file name, the pose fit's settings, the board, seconds per step.
+
+    Returns
+    -------
+    dict
+        The record that ``write_calibration`` writes.
+    """
+    first = next(iter(results.values()))
+    c = first.camera
+    scales = {name: r.exposure_scale for name, r in results.items()}
+    per_second = {name: (r.exposure_scale / r.exposure_time_s if r.exposure_scale and r.exposure_time_s else None)
+                  for name, r in results.items()}
+    intrinsic_std = ({k: intrinsics["std"][k] for k in ("fx", "fy", "cx", "cy", "dist")} if intrinsics
+                     else {k: first.std[k] for k in ("fx", "fy", "cx", "cy", "dist")})
+    return {
+        "format": CALIBRATION_FORMAT, "command": "workbench calibrate DATASET", "dataset": str(dataset), "scene": str(scene),
+        "camera": {"width": c.width, "height": c.height, "fx": c.fx, "fy": c.fy, "cx": c.cx, "cy": c.cy,
+                   "dist": [float(d) for d in c.dist], "model": c.model, **({"xi": c.xi} if c.model == "omnidir" else {}),
+                   "fov_x_deg": first.camera_json()["fov_x_deg"],
+                   "world_to_camera": {name: r.camera.world_to_camera.tolist() for name, r in results.items()}},
+        "std": intrinsic_std | {"fov_x_deg": first.std["fov_x_deg"],
+                                "poses": {name: {k: r.std[k] for k in ("rotation_deg", "rotation_total_deg",
+                                                                       "camera_center_m", "covariance") if k in r.std}
+                                          for name, r in results.items()},
+                                "exposure_scale": {name: r.exposure_scale_std for name, r in results.items()}},
+        "exposure_scale": scales, "exposure_time_s": {name: r.exposure_time_s for name, r in results.items()},
+        "exposure_scale_per_second": per_second, "light_power_scale": 1.0, "photometry": PHOTOMETRY_NOTE,
+        "response": _response_summary(response),
+        "intrinsics": {"source": intrinsics["source"], "model": intrinsics.get("model", "pinhole"),
+                       "model_choice": (intrinsics.get("model_choice") or {}).get("why"), "rms_px": intrinsics.get("rms_px"),
+                       "distortion_terms": ((intrinsics.get("model_choice") or {}).get("terms") or {}).get("chosen"),
+                       **lens_digest,
+                       "views": intrinsics.get("views"), "flags": intrinsics.get("flags")} if intrinsics
+        else {"source": f"fitted on {next(iter(results))} (no board views in calibration/)"},
+        "residuals": {name: {k: v for k, v in r.residuals.items()} for name, r in results.items()},
+        "cd_fringes": {name: r.log.get("cd_fringes") for name, r in results.items()},
+        "photos": {name: result_json(r) for name, r in results.items()},
+        "files": {k: [str(p) for p in v] for k, v in files.items()},
+        "settings": {"board": None if board is None else board.to_json(), "pose": settings.to_json(), "scene": spec.source},
+        "versions": versions(), "timings": timings,
+    }
+
+
+def _response_summary(response: dict | None) -> dict | None:
+    if response is None:
+        return None
+    keys = ("method", "points", "linear", "raw_linearity", "times_s", "files")
+    return {k: response[k] for k in keys if k in response}
+
+
+def write_calibration(out: Path, record: dict, spec: SceneSpec, results: dict[str, PoseResult], intrinsics: dict | None,
+                      response: dict | None) -> None:
+    """DIR/calibration.json with ``record``, and beside it the scene files of the fitted cameras
+    (fitted_scene.toml and scenes/NAME.toml), intrinsics.json and response.json, each written atomically."""
+    out.mkdir(parents=True, exist_ok=True)
+    for i, (name, result) in enumerate(results.items()):
+        exposure = spec.camera.exposure * (result.exposure_scale if result.exposure_scale is not None else 1.0)
+        text = fitted_scene_text(spec, result.camera, exposure,
+                                 f"{spec.name} with the camera fitted to {name} by workbench calibrate")
+        atomic_write_text(out / "scenes" / f"{Path(name).stem}.toml", text)
+        if i == 0:
+            atomic_write_text(out / "fitted_scene.toml", text)
+    if intrinsics is not None:
+        atomic_write_text(out / "intrinsics.json", json.dumps(intrinsics, indent=2, default=json_default) + "\n")
+    if response is not None:
+        atomic_write_text(out / "response.json", json.dumps(response, indent=1, default=json_default) + "\n")
+    atomic_write_text(out / "calibration.json", json.dumps(record, indent=2, default=json_default) + "\n")
