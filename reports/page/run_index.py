@@ -18,6 +18,7 @@ import html
 import json
 from pathlib import Path
 from typing import Any
+from urllib.parse import quote
 
 import numpy as np
 from PIL import Image
@@ -50,13 +51,20 @@ def _offsets(fo: dict | None) -> tuple[str, str, str]:
     return f"{fo['median']:.2f}", f"{fo['p95']:.2f}", str(fo.get("count", "-"))
 
 
+def href(link: str) -> str:
+    """A relative file link for an href attribute: each character a URL gives a meaning (``#``, ``?``,
+    ``%``, spaces) percent-encoded [RFC 3986, Sec. 2.1], then HTML-escaped, so a photo named
+    ``a#1%41?x.dng`` links to its own folder."""
+    return html.escape(quote(link, safe="/"))
+
+
 def _thumbnail_cell(folder: Path, link: str, name: str) -> str:
     thumb = folder / "thumbnail.png"
     label = html.escape(name)
     if not thumb.is_file():
-        return f"<td class='photo'><a href='{html.escape(link)}'>{label}</a> (no thumbnail)</td>"
+        return f"<td class='photo'><a href='{href(link)}'>{label}</a> (no thumbnail)</td>"
     uri = "data:image/png;base64," + base64.b64encode(thumb.read_bytes()).decode("ascii")
-    return f"<td class='photo'><a href='{html.escape(link)}'><img src='{uri}' alt='{label}'>{label}</a></td>"
+    return f"<td class='photo'><a href='{href(link)}'><img src='{uri}' alt='{label}'>{label}</a></td>"
 
 
 def photo_rows(root: Path, record: dict[str, Any]) -> str:

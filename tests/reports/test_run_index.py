@@ -4,7 +4,7 @@ tests/workbench/test_verify.py (in Chromium)."""
 import numpy as np
 from PIL import Image
 
-from reports.page.run_index import THUMBNAIL_WIDTH, index_html, thumbnail_png
+from reports.page.run_index import THUMBNAIL_WIDTH, index_html, photo_rows, thumbnail_png
 
 
 def test_thumbnail_is_the_srgb_encoding_at_the_index_width(tmp_path):
@@ -26,3 +26,19 @@ def test_text_from_the_run_is_escaped(tmp_path):
         assert raw not in text, raw
     assert "&lt;script&gt;alert(1)&lt;/script&gt;" in text
     assert "no scene fit in this run" in text  # no RUN/fit/scene_fit.json
+
+
+def test_links_to_reports_of_oddly_named_photos_are_url_encoded(tmp_path):
+    """A photo named ``a#1%41?x.dng``: ``#`` would cut the link at a fragment, ``?`` at a query and
+    ``%41`` would decode to ``A`` (issue 46, cause 10); each is percent-encoded, then HTML-escaped."""
+    import re
+    from urllib.parse import unquote
+
+    name = "a#1%41?x.dng"
+    folder = tmp_path / "report" / "a#1%41?x"
+    folder.mkdir(parents=True)
+    (folder / "report.json").write_text("{}")
+    record = {"stages": {"report": {"result": {"reports": {name: {"html": "a#1%41?x/report.html"}}}}}}
+    link = re.search(r"href='([^']*)'", photo_rows(tmp_path, record)).group(1)
+    assert link == "report/a%231%2541%3Fx/report.html"
+    assert (tmp_path / unquote(link)).parent == folder  # the browser's decoding finds the folder
