@@ -338,17 +338,19 @@ def _atomic_write_json(path: Path, data) -> None:
 def read_progress(out: Path) -> dict:
     """progress.json: the finished chunks' checksums and seconds ({} when missing or unreadable)."""
     try:
-        return json.loads((out / "progress.json").read_text())
-    except (OSError, json.JSONDecodeError):
+        found = json.loads((out / "progress.json").read_text())
+    except (OSError, ValueError, RecursionError):  # ValueError: not JSON, or not text (UnicodeDecodeError)
         return {}
+    return found if isinstance(found, dict) else {}
 
 
 def read_meta(out: Path) -> dict | None:
     """The table's attributes from its zarr.json (None when missing or unreadable)."""
     try:
-        return json.loads((out / "zarr.json").read_text()).get("attributes", {})
-    except (OSError, json.JSONDecodeError, AttributeError):
+        attributes = json.loads((out / "zarr.json").read_text()).get("attributes", {})
+    except (OSError, ValueError, AttributeError, RecursionError):  # ValueError: not JSON, or not text
         return None
+    return attributes if isinstance(attributes, dict) else None
 
 
 def _size(path: Path) -> int:

@@ -183,3 +183,22 @@ def test_force_replaces_only_a_table(tmp_path):
     build_table(s, _small(s), table, progress=False)
     report = build_table(s, _small(s, keep=5), table, progress=False, force=True)  # another table: replaced
     assert report.chunks_computed == 3 and open_table(table).meta["settings"]["keep"] == [5]
+
+
+@pytest.mark.parametrize("garbage", [bytes(range(256)) * 8, b"[" * 100_000, b"[1, 2, 3]"],
+                         ids=["random bytes", "deeply nested", "not an object"])
+def test_garbage_in_a_tables_metadata_is_refused_in_one_line(tmp_path, capsys, garbage):
+    """Issue 46, cause 7: random bytes in zarr.json made `rcwa info`, `rcwa table` and a scene's
+    table path end in a UnicodeDecodeError traceback; a deeply nested array in a RecursionError."""
+    s = rcwa.load_structure("cd")
+    st = _small(s)
+    out = tmp_path / "g.zarr"
+    build_table(s, st, out, progress=False)
+    (out / "zarr.json").write_bytes(garbage)
+    (out / "progress.json").write_bytes(garbage)
+    assert main(["rcwa", "info", str(out)]) == 2
+    assert "not an efficiency table" in capsys.readouterr().err
+    with pytest.raises(UserInputError, match="cannot be read.*--force"):
+        build_table(s, st, out, progress=False)
+    with pytest.raises(UserInputError):
+        open_table(out)
