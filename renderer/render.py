@@ -25,6 +25,7 @@ from __future__ import annotations
 import hashlib
 import json
 import math
+import sys
 import time
 from collections.abc import Iterator
 from dataclasses import dataclass, replace
@@ -143,6 +144,9 @@ def render(scene: str | Path, out: str | Path, *, preset: str = "draft", spp: in
     finished = _finished_render(out, key)
     if finished is not None:
         return finished
+    for damaged in render_target.discard_damaged_checkpoints(partial):
+        print(f"note: {damaged}: a damaged checkpoint (not a readable .npz) was removed; its passes are rendered again",
+              file=sys.stderr)
     _refuse_to_overwrite(out, partial, key, force)
     variant = set_variant()
     import mitsuba as mi  # deferred: after set_variant, and start-up time
@@ -444,7 +448,7 @@ def _resume(partial: Path, key: str):
         with np.load(partial) as d:
             if str(d["key"]) == key:
                 return d["total"], d["total_sq"], int(d["done"])
-    except (OSError, KeyError, ValueError):
+    except render_target.DAMAGED_NPZ:
         pass
     return None, None, 0
 

@@ -56,6 +56,8 @@ from __future__ import annotations
 
 import json
 import math
+import zipfile
+import zlib
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -268,6 +270,10 @@ def crop_path(path: Path) -> Path:
 
 
 
+# What reading a damaged .npz raises: a truncated or overwritten archive, a damaged member.
+DAMAGED_NPZ = (OSError, KeyError, ValueError, EOFError, zipfile.BadZipFile, zlib.error)
+
+
 def _read_npz(path: Path, key: str, names: tuple[str, ...]) -> dict[str, Any] | None:
     """A saved part of this request's state: ``names``' arrays, the counts (ints) and checks; None if absent or not ours."""
     try:
@@ -276,8 +282,25 @@ def _read_npz(path: Path, key: str, names: tuple[str, ...]) -> dict[str, Any] | 
                 return None
             return {n: d[n] for n in names} | {"counts": [int(v) for v in d["counts"]],
                                                "checks": json.loads(str(d["checks"]))}
-    except (OSError, KeyError, ValueError):
+    except DAMAGED_NPZ:
         return None
+
+
+def discard_damaged_checkpoints(partial: Path) -> list[Path]:
+    """Remove the render's checkpoints (``partial`` and its crop sums) that cannot be read whole, and
+    name them: a damaged checkpoint is only lost work, and left in place it would be read on every rerun."""
+    damaged = []
+    for path in (partial, crop_path(partial)):
+        if not path.is_file():
+            continue
+        try:
+            with np.load(path) as d:
+                for name in d.files:
+                    d[name]
+        except DAMAGED_NPZ:
+            path.unlink(missing_ok=True)
+            damaged.append(path)
+    return damaged
 
 
 # ---------------------------------------------------------------- the passes, and when to stop

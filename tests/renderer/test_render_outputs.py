@@ -181,3 +181,19 @@ def test_the_passes_variance_predicts_how_far_two_renders_differ(mitsuba_variant
 def test_one_pass_writes_no_variance(mitsuba_variant, tmp_path):
     info = render("cornell_cd", tmp_path / "r.exr", spp=1, resolution=(48, 36), progress=False)
     assert info["passes"] == 1 and info["variance"] is None and not variance_path(tmp_path / "r.exr").exists()
+
+
+@pytest.mark.parametrize("damage", ["truncated", "garbage"])
+def test_a_damaged_checkpoint_is_removed_and_its_passes_rendered_again(mitsuba_variant, tmp_path, capsys, damage):
+    """Issue 46, cause 6: a truncated OUT.exr.partial.npz blocked every rerun with a BadZipFile
+    traceback (--force included). Now it is named, removed, and the render equals an uninterrupted one."""
+    clean = tmp_path / "clean.exr"
+    render("cornell_cd", clean, **TINY)
+    out = tmp_path / "r.exr"
+    partial = tmp_path / "r.exr.partial.npz"
+    np.savez(partial, total=np.zeros(3), total_sq=np.zeros(3), done=1, key="x")
+    data = partial.read_bytes()
+    partial.write_bytes(data[: len(data) // 2] if damage == "truncated" else bytes(range(256)) * 4)
+    info = render("cornell_cd", out, **TINY)
+    assert "damaged checkpoint" in capsys.readouterr().err and not partial.exists()
+    assert info["resumed_passes"] == 0 and np.array_equal(_exr(out), _exr(clean))
