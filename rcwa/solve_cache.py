@@ -27,7 +27,7 @@ from rcwa.solver import prepare
 from rcwa.structure import Structure
 from rcwa.symmetry import has_diagonal_mirror
 from workbench.core.cache import cache_root
-from workbench.core.files import atomic_write_text
+from workbench.core.files import atomic_write_text, path_safe_name
 from workbench.core.version import __version__
 
 CACHE_FORMAT = 1
@@ -94,7 +94,7 @@ def default_cache_path(structure_name: str) -> Path:
     """``NAME_raw.json`` in ``$RCWA_CONVERGENCE_CACHE`` if set, else in ``convergence/`` of the workbench cache."""
     chosen = os.environ.get(CACHE_ENVIRONMENT)
     folder = Path(chosen).expanduser() if chosen else cache_root() / "convergence"
-    return folder / f"{structure_name}_raw.json"
+    return folder / f"{path_safe_name(structure_name)}_raw.json"
 
 
 def _reset_peak_rss() -> bool:

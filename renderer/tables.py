@@ -33,6 +33,7 @@ from renderer.scene import SceneSpec
 from renderer.spectra import Curves, on_common_grid
 from workbench.core.cache import entry_path
 from workbench.core.errors import UserInputError
+from workbench.core.files import path_safe_name
 
 
 @dataclass(frozen=True)
@@ -108,7 +109,7 @@ def table_plan(element, where: str = "element", scene_file: str | None = None, n
         return _named_table_plan(Path(options["path"]), structure, where, scene_file)
     settings = table_settings(element, structure, where, scene_file)
     key = request_key(structure, settings)
-    whole = TablePlan(entry_path("tables", f"{structure.name}-{key[:16]}.zarr"), key, structure, settings)
+    whole = TablePlan(entry_path("tables", f"{path_safe_name(structure.name)}-{key[:16]}.zarr"), key, structure, settings)
     if nodes is None or _finished_table(whole.path, key) is not None:
         return whole
     settings = planned(settings, nodes)

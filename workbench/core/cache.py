@@ -31,6 +31,8 @@ from pathlib import Path
 
 from filelock import FileLock, Timeout
 
+from workbench.core.files import path_safe_name
+
 ENVIRONMENT_VARIABLE = "WORKBENCH_CACHE"
 KINDS = ("tables", "meshes")
 
@@ -62,6 +64,8 @@ def entry_path(kind: str, name: str) -> Path:
     """Where the entry ``name`` of ``kind`` (one of KINDS) lives in the cache."""
     if kind not in KINDS:
         raise ValueError(f"unknown cache kind {kind!r}; expected one of {KINDS}")
+    if name != path_safe_name(name, max_length=len(name)):  # a name is never a path (workbench.core.files.path_safe_name)
+        raise ValueError(f"a cache entry's name must be one safe path component, got {name!r}")
     return cache_root() / kind / name
 
 

@@ -10,6 +10,7 @@ import csv
 import hashlib
 import io
 import os
+import re
 from collections.abc import Callable
 from pathlib import Path
 
@@ -66,3 +67,20 @@ def file_sha256(path: str | Path) -> str:
         for block in iter(lambda: f.read(1 << 20), b""):
             digest.update(block)
     return digest.hexdigest()
+
+
+SAFE_NAME_LENGTH = 64  # a name's share of a path: well under every file system's 255-byte limit
+_UNSAFE = re.compile(r"[^A-Za-z0-9._+-]+")
+
+
+def path_safe_name(name: str, max_length: int = SAFE_NAME_LENGTH) -> str:
+    """A user's name (a structure's, a scene's) as one path component: characters other than
+    letters, digits and ``. _ + -`` become ``_`` (``/``, ``..``, NUL, spaces, any non-ASCII), no
+    leading dot (hidden files, ``..``), at most ``max_length`` characters; a name that had to
+    change keeps a short hash of the original so that two names stay apart. Never empty.
+    """
+    safe = _UNSAFE.sub("_", name).lstrip(".") or "_"
+    if safe == name and len(name) <= max_length:
+        return name
+    digest = hashlib.sha256(name.encode("utf-8", "surrogatepass")).hexdigest()[:8]
+    return f"{safe[:max_length - 9]}-{digest}"
