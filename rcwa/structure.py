@@ -96,6 +96,8 @@ class Structure:
             data = tomllib.loads(text)
         except tomllib.TOMLDecodeError as exc:
             raise UserInputError(f"not valid TOML ({exc})", file=source) from None
+        except RecursionError:  # tomllib parses nested arrays recursively
+            raise UserInputError("not valid TOML (arrays or tables nested too deeply)", file=source) from None
         return cls.from_dict(data, source=source, base_dir=base_dir, text=text)
 
     @classmethod

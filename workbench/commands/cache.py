@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 from pathlib import Path
 
 from workbench.core import cache
@@ -32,6 +33,12 @@ def apply_cache_option(args: argparse.Namespace) -> None:
         except NotADirectoryError:
             raise UserInputError("is a file, not a folder", field="--cache", expected="a folder for the cache",
                                  got=folder) from None
+        return
+    root = cache.cache_root()  # WORKBENCH_CACHE, or the user's cache folder (issue 46, cause 11)
+    if root.exists() and not root.is_dir():
+        raise UserInputError("names a file, not a folder", field=cache.ENVIRONMENT_VARIABLE
+                             if os.environ.get(cache.ENVIRONMENT_VARIABLE) else "the cache folder",
+                             expected="a folder for the cache (or --cache DIR)", got=str(root))
 
 
 def add_parser(commands: argparse._SubParsersAction) -> None:

@@ -3,6 +3,7 @@ UserInputError naming the field and what was expected; callers add the file."""
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 from typing import Any
 
@@ -24,7 +25,12 @@ def reject_unknown(table: dict[str, Any], known: set[str], where: str) -> None:
 def number(value: Any, where: str, *, positive: bool = False, nonnegative: bool = False) -> float:
     if isinstance(value, bool) or not isinstance(value, (int, float)):
         raise UserInputError("must be a number", field=where, got=value)
-    x = float(value)
+    try:
+        x = float(value)
+    except OverflowError:  # a TOML integer beyond a float's range
+        raise UserInputError("must be a finite number", field=where, got=value) from None
+    if not math.isfinite(x):  # TOML's inf and nan: no length, position or power is infinite or undefined
+        raise UserInputError("must be a finite number", field=where, got=value)
     if positive and not x > 0:
         raise UserInputError("must be positive", field=where, expected="a number > 0", got=value)
     if nonnegative and not x >= 0:

@@ -36,6 +36,9 @@ def test_required_and_unknown_fields_are_named():
     ([1.0], {}, "must be a number"),
     (0.0, {"positive": True}, "must be positive"),
     (-1e-9, {"nonnegative": True}, "must not be negative"),
+    (float("inf"), {"nonnegative": True}, "must be a finite number"),  # issue 46, cause 11: thickness = inf
+    (float("nan"), {}, "must be a finite number"),  # a scene's NaN CD centre
+    (10**400, {}, "must be a finite number"),  # a TOML integer past a float's range
 ])
 def test_bad_numbers_name_the_field_and_what_came(value, flags, message):
     with pytest.raises(UserInputError) as err:
