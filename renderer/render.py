@@ -45,7 +45,7 @@ from renderer.tables import table_keys
 from renderer.variant import set_variant
 from workbench.core.errors import UserInputError
 from workbench.core.files import atomic_write as _atomic
-from workbench.core.files import atomic_write_npz, atomic_write_text, file_sha256
+from workbench.core.files import atomic_write_npz, atomic_write_text, exclusive_output, file_sha256
 from workbench.core.timing import timed
 from workbench.core.version import __version__ as workbench_version
 from workbench.core.version import versions
@@ -136,6 +136,13 @@ def render(scene: str | Path, out: str | Path, *, preset: str = "draft", spp: in
     (renderer.render_target), the preset's spp the frame's cap; None: ``spp`` samples everywhere.
     """
     spp, pass_spp, spec, out = _checked_request(scene, out, preset, spp, resolution, integrator, mode, seed, target)
+    with exclusive_output(out, "render"):  # two renders into one --out at once: the second is refused
+        return _render(spec, out, preset, spp, pass_spp, integrator, mode, seed, progress, executor, force, plan, target)
+
+
+def _render(spec: SceneSpec, out: Path, preset: str, spp: int, pass_spp: int, integrator: str, mode: str, seed: int,
+            progress: bool, executor, force: bool, plan: bool, target: str | None) -> dict:
+    """``render`` under its output's lock."""
     goal = target_settings(preset, spp) if target is not None else None
     pass_spp = PASS_SPP if goal is not None else pass_spp
     passes = _Passes(spec, pass_spp, integrator, mode, seed, plan, math.ceil(spp / pass_spp))
@@ -416,16 +423,20 @@ def _finished_render(out: Path, key: str) -> dict | None:
 
 
 def _refuse_to_overwrite(out: Path, partial: Path, key: str, force: bool) -> None:
-    """A different render (or other files) at ``out`` is replaced only with ``force``; an
-    interrupted render of this request may carry on.
+    """A different render at ``out`` is replaced only with ``force``, files no render wrote (no sidecar
+    describes them) never; an interrupted render of this request may carry on.
     """
     present = [p for p in _outputs(out) + [variance_path(out)] if p.exists()]
-    if not present or force or _resume(partial, key)[2] > 0 or State.load(partial, key).passes > 0:
+    if not present or _resume(partial, key)[2] > 0 or State.load(partial, key).passes > 0:
         return  # (a fixed render's saved passes, or a targeted one's)
     info = _read_sidecar(out)
-    if info is None:
-        what = "files that no render of this workbench described: " + ", ".join(p.name for p in present)
-    elif out.is_file() and file_sha256(out) != info.get("output_sha256"):
+    if info is None:  # not even --force replaces what no render wrote (issue 46, cause 3)
+        raise UserInputError("the output already holds files that no render of this workbench described: "
+                             + ", ".join(p.name for p in present), file=out,
+                             expected="a new path, or those files moved away (--force replaces only a render's own files)")
+    if force:
+        return
+    if out.is_file() and file_sha256(out) != info.get("output_sha256"):
         what = "a render whose EXR was changed since it was written"
     elif info.get("request_key") == key:
         return  # this request, with a part missing (a deleted preview): rendered again

@@ -22,11 +22,10 @@ from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
 
-from filelock import FileLock, Timeout
 from tqdm import tqdm
 
 from workbench.core.errors import UserInputError
-from workbench.core.files import atomic_write_text, file_sha256
+from workbench.core.files import atomic_write_text, exclusive_output, file_sha256
 from workbench.core.version import __version__ as workbench_version
 from workbench.core.version import versions
 
@@ -237,14 +236,5 @@ def _duration(seconds: float) -> str:
 def run_lock(root: Path) -> Iterator[None]:
     """One verify run at a time in RUN: an ``flock`` (filelock) on ``.RUN.verify.lock`` beside it, taken without
     waiting; a second run into the same folder is refused while the first holds it."""
-    root.parent.mkdir(parents=True, exist_ok=True)
-    lock = FileLock(str(root.parent / f".{root.name}.verify.lock"))
-    try:
-        lock.acquire(timeout=0)
-    except Timeout:
-        raise UserInputError("another verify run is writing into this folder now", file=root,
-                             expected="to wait until it has finished, or another --out") from None
-    try:
+    with exclusive_output(root, "verify", "another verify run is writing into this folder now"):
         yield
-    finally:
-        lock.release()

@@ -39,12 +39,19 @@ def test_identical_request_is_served_and_a_different_one_needs_force(mitsuba_var
 
 
 def test_a_changed_or_foreign_output_is_not_overwritten_without_force(mitsuba_variant, tmp_path):
+    """Files no render wrote are not replaced even with --force (issue 46, cause 3): --force replaces
+    only what a render wrote; a render's EXR edited since is replaced with --force only."""
     out = tmp_path / "mine.exr"
     out.write_bytes(b"my own file")
-    with pytest.raises(UserInputError, match="no render of this workbench described: mine.exr"):
-        render("cornell_cd", out, **TINY)
-    assert out.read_bytes() == b"my own file"
-    render("cornell_cd", out, force=True, **TINY)
+    out.with_suffix(".png").write_bytes(b"my own preview")
+    for force in (False, True):
+        with pytest.raises(UserInputError, match="no render of this workbench described: mine.exr, mine.png"):
+            render("cornell_cd", out, force=force, **TINY)
+    assert out.read_bytes() == b"my own file" and out.with_suffix(".png").read_bytes() == b"my own preview"
+    out.unlink()
+    out.with_suffix(".png").unlink()
+    render("cornell_cd", out, **TINY)
+    render("cornell_cd", out, force=True, **(TINY | {"spp": 8}))  # a render's own files: --force replaces them
     with open(out, "ab") as f:  # edited after the render: no longer the finished request
         f.write(b"\0")
     with pytest.raises(UserInputError, match="EXR was changed"):
@@ -197,3 +204,27 @@ def test_a_damaged_checkpoint_is_removed_and_its_passes_rendered_again(mitsuba_v
     info = render("cornell_cd", out, **TINY)
     assert "damaged checkpoint" in capsys.readouterr().err and not partial.exists()
     assert info["resumed_passes"] == 0 and np.array_equal(_exr(out), _exr(clean))
+
+
+def test_a_second_render_into_the_same_output_at_once_is_refused(mitsuba_variant, tmp_path):
+    """Issue 46, cause 4: two different renders into one --out both exited 0, one replacing the other.
+    The render holds its output's lock (workbench.core.files.exclusive_output) while it runs."""
+    import subprocess
+    import sys
+    import time
+
+    out = tmp_path / "q.exr"
+    holder = subprocess.Popen([sys.executable, "-c", (
+        "import sys, time; from workbench.core.files import exclusive_output\n"
+        f"with exclusive_output({str(out)!r}, 'render'):\n    print('held', flush=True); time.sleep(20)")],
+        stdout=subprocess.PIPE, text=True)
+    try:
+        assert holder.stdout.readline().strip() == "held"
+        started = time.monotonic()
+        with pytest.raises(UserInputError, match="another render is writing this output now"):
+            render("cornell_cd", out, **TINY)
+        assert time.monotonic() - started < 10 and not out.exists()  # refused at once, nothing written
+    finally:
+        holder.kill()
+        holder.wait()
+    render("cornell_cd", out, **TINY)  # the lock dies with its process

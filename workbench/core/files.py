@@ -11,7 +11,8 @@ import hashlib
 import io
 import os
 import re
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 from pathlib import Path
 
 
@@ -84,3 +85,27 @@ def path_safe_name(name: str, max_length: int = SAFE_NAME_LENGTH) -> str:
         return name
     digest = hashlib.sha256(name.encode("utf-8", "surrogatepass")).hexdigest()[:8]
     return f"{safe[:max_length - 9]}-{digest}"
+
+
+@contextmanager
+def exclusive_output(path: str | Path, command: str, busy: str | None = None) -> Iterator[None]:
+    """One ``command`` at a time writing ``path``: an ``flock`` (filelock) on ``.NAME.COMMAND.lock``
+    beside it, taken without waiting; a second run into the same output is refused (UserInputError)
+    while the first holds it (``busy``: the refusal's words). The lock dies with its process, so a
+    killed run never leaves one behind."""
+    from filelock import FileLock, Timeout  # deferred: only commands that write outputs take one
+
+    from workbench.core.errors import UserInputError
+
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    lock = FileLock(str(path.parent / f".{path.name}.{command}.lock"))
+    try:
+        lock.acquire(timeout=0)
+    except Timeout:
+        raise UserInputError(busy or f"another {command} is writing this output now", file=path,
+                             expected="to wait until it has finished, or another --out") from None
+    try:
+        yield
+    finally:
+        lock.release()
