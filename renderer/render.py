@@ -25,6 +25,7 @@ from __future__ import annotations
 import hashlib
 import json
 import math
+import os
 import sys
 import time
 from collections.abc import Iterator
@@ -340,6 +341,29 @@ def target_summary(record: dict) -> str:
     return ", ".join(parts)
 
 
+FILM_BYTES_PER_PIXEL = 160  # Mitsuba's film (RGBA and weight, float32), the passes' sums and squares, mean and
+# variance (three float64 channels each), the EXR and preview buffers: measured peaks stay below this
+FILM_MEMORY_FRACTION = 0.5
+
+
+def check_film_memory(resolution: tuple[int, int], field: str, total_bytes: int | None = None,
+                      file: str | None = None) -> None:
+    """Refuse a frame whose buffers would not fit in memory, before Mitsuba allocates them (issue 46,
+    cause 1: ``--resolution 100000x100000`` ran until memory ran out), with the estimate in the message."""
+    if total_bytes is None:
+        try:
+            total_bytes = os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")
+        except (ValueError, OSError, AttributeError):
+            return
+    width, height = resolution
+    need = width * height * FILM_BYTES_PER_PIXEL
+    if need > FILM_MEMORY_FRACTION * total_bytes:
+        raise UserInputError(f"a {width} x {height} frame needs about {need / 2**30:.0f} GiB of buffers, more than half of "
+                             f"this machine's {total_bytes / 2**30:.0f} GiB", field=field, file=file,
+                             expected=f"at most about {int(FILM_MEMORY_FRACTION * total_bytes / FILM_BYTES_PER_PIXEL / 1e6)} "
+                                      "megapixels")
+
+
 def _checked_request(scene: str | Path, out: str | Path, preset: str, spp: int | None,
                      resolution: tuple[int, int] | None, integrator: str, mode: str,
                      seed: int, target: str | None = None) -> tuple[int, int, SceneSpec, Path]:
@@ -368,6 +392,8 @@ def _checked_request(scene: str | Path, out: str | Path, preset: str, spp: int |
     if out.is_dir():
         raise UserInputError("is a folder, not a file", field="--out", expected="a path ending in .exr", got=str(out))
     spec = with_resolution(load_scene(scene), resolution or settings.get("resolution"))
+    check_film_memory((spec.camera.model.width, spec.camera.model.height), "--resolution" if resolution else "camera.resolution",
+                      file=None if resolution else spec.source)
     # MIN_PASSES passes where spp allows: their spread is the render's noise (variance_path)
     return spp, min(settings["pass_spp"], max(1, math.ceil(spp / MIN_PASSES))), spec, out
 

@@ -13,6 +13,7 @@ from __future__ import annotations
 import hashlib
 import json
 import math
+import os
 from dataclasses import asdict, dataclass, replace
 
 import numpy as np
@@ -25,6 +26,11 @@ from workbench.core.version import __version__ as workbench_version
 FORMAT_VERSION = 1
 GRAZING_THETA_DEG = 89.999  # theta = 90 (no incident power) is solved at this limit
 POLARIZATIONS = ("unpolarized", "s", "p", "all")
+# Sizes refused before anything is allocated (issue 46, cause 1): a grid's node counts are known
+# from the request's numbers alone, so a 0.00001 deg step or 1e8 wavelengths is refused at once.
+MAX_WAVELENGTHS = 10_000  # 0.03 nm apart over the visible: far finer than any camera or light resolves
+MAX_ANGLE_NODES = 90_001  # a 0.001 deg step over 0-90 deg
+TABLE_MEMORY_FRACTION = 0.5  # a table is read whole by a render: at most half of this machine's memory
 
 
 @dataclass(frozen=True)
@@ -97,22 +103,26 @@ PRESETS: dict[str, dict] = {
 
 def parse_wavelengths(text: str) -> tuple[float, ...]:
     """``START:STOP:COUNT`` (inclusive, like numpy.linspace) or a comma-separated list, in nm."""
+    if text.count(",") >= MAX_WAVELENGTHS:  # before the list is parsed
+        _check_count(text.count(",") + 1, MAX_WAVELENGTHS, "--wavelengths", "wavelengths")
     try:
         if ":" in text:
             start, stop, count = text.split(":")
             start_f, stop_f, count_i = float(start), float(stop), int(count)
-            if count_i < 1 or stop_f < start_f or (count_i > 1 and stop_f == start_f):
+            if count_i < 1 or stop_f < start_f or (count_i > 1 and stop_f == start_f) or not math.isfinite(stop_f):
                 raise ValueError
-            return tuple(float(v) for v in np.linspace(start_f, stop_f, count_i))
-        values = tuple(float(v) for v in text.split(",") if v.strip())
-        if not values:
-            raise ValueError
-        return values
+        else:
+            values = tuple(float(v) for v in text.split(",") if v.strip())
+            if not values or not all(math.isfinite(v) and v > 0 for v in values):
+                raise ValueError
+            return values
     except ValueError:
         raise UserInputError(
             "not a wavelength range", field="--wavelengths",
             expected="START:STOP:COUNT with STOP >= START and COUNT >= 1 (e.g. 400:700:31), or NM,NM,...", got=text,
         ) from None
+    _check_count(count_i, MAX_WAVELENGTHS, "--wavelengths", "wavelengths")
+    return tuple(float(v) for v in np.linspace(start_f, stop_f, count_i))
 
 
 def angle_grid(step: float, start: float, stop: float, name: str, *, cover: bool = False) -> tuple[float, ...]:
@@ -122,6 +132,7 @@ def angle_grid(step: float, start: float, stop: float, name: str, *, cover: bool
     if not (isinstance(step, (int, float)) and math.isfinite(step) and step > 0):
         raise UserInputError("the angular step must be positive", field=name, expected="a step > 0 degrees", got=step)
     steps = (stop - start) / step
+    _check_count(steps, MAX_ANGLE_NODES, name, "angles")
     count = int(math.ceil(steps - 1e-9) if cover else math.floor(steps + 1e-9)) + 1
     values = start + step * np.arange(count)
     return tuple(float(v) for v in values)
@@ -159,7 +170,40 @@ def settings_for(structure: Structure, preset: str = "paper", *, theta_step: flo
     full_turn = p_hi - p_lo == 360  # 360 deg is 0 deg again
     phi = angle_grid(phi_step if phi_step is not None else p["phi_step"], p_lo, p_hi - (1e-9 if full_turn else 0.0),
                      "--phi-step", cover=not full_turn)
-    return TableSettings(wl, theta, phi, counts, kept, pol, reflection_only, both_sides, factorization, use_symmetry)
+    settings = TableSettings(wl, theta, phi, counts, kept, pol, reflection_only, both_sides, factorization, use_symmetry)
+    check_table_memory(settings)
+    return settings
+
+
+def _check_count(count: float, limit: int, field: str, what: str) -> None:
+    if count > limit:
+        raise UserInputError(f"asks for {count:.3g} {what}, more than the {limit} a table may hold along one axis",
+                             field=field, expected=f"at most {limit} {what}")
+
+
+def table_bytes(settings: TableSettings) -> int:
+    """The bytes of a table's arrays held in memory at once (a render reads it whole): float32 per
+    (wavelength, theta, phi, kept order, polarization), for R, T and, with both sides, their ``_below``."""
+    nodes = len(settings.wavelengths_nm) * len(settings.theta_deg) * len(settings.phi_deg)
+    arrays = (1 if settings.reflection_only else 2) * (2 if settings.both_sides else 1)
+    return nodes * math.prod(settings.keep) * len(pol_names(settings.pol)) * arrays * 4
+
+
+def check_table_memory(settings: TableSettings, total_bytes: int | None = None) -> None:
+    """Refuse a table that would not fit in memory, with the estimate in the message (as the solver's
+    ``--orders`` check does): more than TABLE_MEMORY_FRACTION of this machine's memory."""
+    if total_bytes is None:
+        try:
+            total_bytes = os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")
+        except (ValueError, OSError, AttributeError):
+            return
+    need = table_bytes(settings)
+    if need > TABLE_MEMORY_FRACTION * total_bytes:
+        grid = f"{len(settings.wavelengths_nm)} x {len(settings.theta_deg)} x {len(settings.phi_deg)}"
+        raise UserInputError(f"the table ({grid} nodes, {math.prod(settings.keep)} kept orders) needs about "
+                             f"{need / 2**30:.1f} GiB, more than half of this machine's {total_bytes / 2**30:.0f} GiB",
+                             field="--theta-step/--phi-step/--wavelengths/--keep-orders",
+                             expected="coarser steps, fewer wavelengths or fewer kept orders")
 
 
 def table_symmetry(structure: Structure, orders: tuple[int, ...], keep: tuple[int, ...],

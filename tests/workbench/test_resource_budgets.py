@@ -1,0 +1,79 @@
+"""Resource budgets before work (issue 46, cause 1): a request whose size exceeds the machine is
+refused from its numbers alone, with the estimate in the message, before anything is allocated.
+
+Each probe runs the real command in its own process; its peak resident memory (``os.wait4``'s
+rusage) must stay under PROBE_MEMORY_BYTES, the issue's bar: before these checks the same requests
+ran until the kernel killed them (24 GB) or until time ran out.
+"""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from rcwa import load_structure
+from rcwa.table import settings_for
+from rcwa.table.settings import check_table_memory, table_bytes
+from renderer.render import check_film_memory
+from workbench.core.errors import UserInputError
+
+PROBE_MEMORY_BYTES = 1 << 30  # the issue's bar: under 1 GB before the refusal
+CORNELL = Path(__file__).resolve().parents[2] / "renderer" / "scenes" / "cornell_cd.toml"
+
+
+def _probe(args: list[str], tmp_path: Path) -> tuple[int, str, int]:
+    """(exit status, stderr, peak RSS in bytes) of ``workbench ARGS`` in its own process."""
+    process = subprocess.Popen([sys.executable, "-m", "workbench.cli", *args], stdout=subprocess.DEVNULL,
+                               stderr=subprocess.PIPE, text=True, cwd=tmp_path)
+    _, status, usage = os.wait4(process.pid, 0)
+    err = process.stderr.read() if process.stderr else ""
+    return os.waitstatus_to_exitcode(status), err, usage.ru_maxrss * 1024  # ru_maxrss is in KiB on Linux
+
+
+def _big_camera(tmp_path: Path) -> str:
+    text = CORNELL.read_text()
+    start = text.index("resolution = [", text.index("[camera]"))
+    scene = tmp_path / "big.toml"
+    scene.write_text(text[:start] + "resolution = [100000, 100000]" + text[text.index("]", start) + 1:])
+    return str(scene)
+
+
+PROBES = {
+    "theta step 0.00001 deg": (["rcwa", "table", "cd", "--out", "t.zarr", "--theta-step", "0.00001"], "--theta-step"),
+    "1e8 wavelengths": (["rcwa", "table", "cd", "--out", "t.zarr", "--wavelengths", "400:700:100000000"],
+                        "--wavelengths"),
+    "a 2 TB table": (["rcwa", "table", "cd", "--out", "t.zarr", "--theta-step", "0.01", "--phi-step", "0.01",
+                      "--wavelengths", "400:700:300"], "GiB"),
+    "--resolution 100000x100000": (["render", "cornell_cd", "--out", "r.exr", "--resolution", "100000x100000"], "GiB"),
+    "a scene's camera of 1e10 pixels": (["render", "{big}", "--out", "r.exr"], "camera.resolution"),
+}
+
+
+@pytest.mark.parametrize("name", list(PROBES))
+def test_an_oversized_request_is_refused_before_work(tmp_path, name):
+    args, expected = PROBES[name]
+    args = [a.replace("{big}", _big_camera(tmp_path)) for a in args]
+    code, err, peak = _probe(args, tmp_path)
+    assert code == 2 and err.startswith("error: ") and err.strip().count("\n") == 0 and expected in err, err
+    assert peak < PROBE_MEMORY_BYTES, f"{name}: {peak / 2**20:.0f} MiB before the refusal"
+    assert not any(tmp_path.glob("t.zarr/*")) and not (tmp_path / "r.exr").exists()
+
+
+def test_the_table_estimate_is_its_arrays_bytes():
+    s = load_structure("cd")
+    st = settings_for(s, "draft")
+    nodes = len(st.wavelengths_nm) * len(st.theta_deg) * len(st.phi_deg)
+    assert table_bytes(st) == nodes * st.keep[0] * 1 * 2 * 4  # R and T, float32, one polarization
+    check_table_memory(st, total_bytes=4 * table_bytes(st))  # fits in half of four times its size
+    with pytest.raises(UserInputError, match="needs about"):
+        check_table_memory(st, total_bytes=table_bytes(st))
+
+
+def test_the_film_estimate_scales_with_the_pixels():
+    check_film_memory((978, 734), "--resolution", total_bytes=1 << 30)  # the paper's frame fits in 1 GiB
+    with pytest.raises(UserInputError, match="4000 x 4000 frame"):
+        check_film_memory((4000, 4000), "--resolution", total_bytes=1 << 30)
