@@ -73,6 +73,7 @@ from typing import Any
 import numpy as np
 from scipy.interpolate import PchipInterpolator
 
+from workbench.core import validation
 from workbench.core.errors import UserInputError
 
 __all__ = [
@@ -342,14 +343,13 @@ def _material_from_csv(file: Any, base_dir: Path | None) -> Material:
 
 def _read_csv(path: Path) -> tuple[tuple[float, ...], tuple[float, ...], tuple[float, ...]]:
     """Rows ``(wavelength_nm, n, k)`` of a material CSV file, validated."""
+    if not path.exists():
+        raise UserInputError("material file not found", file=path, expected=_CSV_EXPECTED)
+    data = validation.read_limited(path, "material")  # a device (/dev/zero) or a huge file is refused unread
     try:
-        text = path.read_text(encoding="utf-8-sig")
-    except FileNotFoundError:
-        raise UserInputError("material file not found", file=path, expected=_CSV_EXPECTED) from None
+        text = data.decode("utf-8-sig")
     except UnicodeDecodeError:
         raise UserInputError("material file is not UTF-8 text", file=path, expected=_CSV_EXPECTED) from None
-    except OSError as exc:
-        raise UserInputError(f"cannot read material file ({exc.strerror})", file=path, expected=_CSV_EXPECTED) from None
     lines = [(i, s) for i, line in enumerate(text.splitlines(), 1) if (s := line.strip()) and not s.startswith("#")]
     if not lines:
         raise UserInputError("material file is empty", file=path, expected=_CSV_EXPECTED)

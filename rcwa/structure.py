@@ -27,6 +27,7 @@ BUILTIN_STRUCTURES: tuple[str, ...] = ("cd", "gold2d")
 
 _TOP_KEYS = {"name", "description", "period", "superstrate", "substrate", "layers", "notes"}
 _LAYER_KEYS = {"thickness", "material", "shapes", "name"}
+MAX_LAYERS = 1000  # issue 46, cause 1: a structure of 100,000 layers ran until time ran out
 
 
 @dataclass(frozen=True)
@@ -147,6 +148,10 @@ def _parse(data: dict[str, Any], source: str, base_dir: Path | None, text: str) 
     layers_data = data.get("layers", [])
     if not isinstance(layers_data, list):
         raise UserInputError("must be a list of tables ([[layers]])", field="layers", got=layers_data)
+    if len(layers_data) > MAX_LAYERS:  # every layer is an eigen-solve per direction: refused before any
+        raise UserInputError(f"has {len(layers_data)} layers, more than the {MAX_LAYERS} a structure may have",
+                             field="layers", expected=f"at most {MAX_LAYERS} layers (a staircase of a smooth profile "
+                                                      "needs tens; uniform layers of one material can be merged)")
     layers = tuple(_parse_layer(item, f"layers[{i}]", period, material) for i, item in enumerate(layers_data))
     name = data.get("name", Path(source).stem if not source.startswith("<") else "structure")
     if not isinstance(name, str):

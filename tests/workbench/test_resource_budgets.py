@@ -77,3 +77,36 @@ def test_the_film_estimate_scales_with_the_pixels():
     check_film_memory((978, 734), "--resolution", total_bytes=1 << 30)  # the paper's frame fits in 1 GiB
     with pytest.raises(UserInputError, match="4000 x 4000 frame"):
         check_film_memory((4000, 4000), "--resolution", total_bytes=1 << 30)
+
+
+def _files(tmp_path: Path) -> dict[str, str]:
+    cd = (Path(__file__).resolve().parents[2] / "rcwa" / "structures" / "cd.toml").read_text()
+    many = tmp_path / "many.toml"
+    many.write_text(cd + '\n[[layers]]\nthickness = 0.001\nmaterial = "polycarbonate"\n' * 100_000)
+    zero_material = tmp_path / "zero_material.toml"
+    zero_material.write_text('name = "z"\nperiod = [1.6]\nsuperstrate = "air"\nsubstrate = { file = "/dev/zero" }\n')
+    fifo = tmp_path / "fifo.toml"
+    os.mkfifo(fifo)
+    return {"many": str(many), "zero_material": str(zero_material), "fifo": str(fifo)}
+
+
+FILE_PROBES = {
+    "/dev/zero as a structure": (["rcwa", "solve", "/dev/zero", "--wavelength", "550", "--orders", "5"],
+                                 "not a regular file"),
+    "/dev/zero as a material": (["rcwa", "solve", "{zero_material}", "--wavelength", "550", "--orders", "5"],
+                                "not a regular file"),
+    "a FIFO as a structure": (["rcwa", "solve", "{fifo}", "--wavelength", "550", "--orders", "5"], "not a regular file"),
+    "/dev/zero as a scene": (["render", "/dev/zero", "--out", "r.exr"], "not a regular file"),
+    "100,000 layers": (["rcwa", "solve", "{many}", "--wavelength", "550", "--orders", "5"], "layers"),
+}
+
+
+@pytest.mark.skipif(not Path("/dev/zero").exists(), reason="no /dev/zero on this system")
+@pytest.mark.parametrize("name", list(FILE_PROBES))
+def test_a_device_pipe_or_endless_file_is_refused_unread(tmp_path, name):
+    """Issue 46, cause 1: /dev/zero named as a structure or material file was read whole (9.6 GB in 13 s)."""
+    args, expected = FILE_PROBES[name]
+    files = _files(tmp_path)
+    code, err, peak = _probe([a.format(**files) if a.startswith("{") else a for a in args], tmp_path)
+    assert code == 2 and err.startswith("error: ") and expected in err, err
+    assert peak < PROBE_MEMORY_BYTES, f"{name}: {peak / 2**20:.0f} MiB before the refusal"

@@ -4,6 +4,7 @@ UserInputError naming the field and what was expected; callers add the file."""
 from __future__ import annotations
 
 import math
+import stat
 from pathlib import Path
 from typing import Any
 
@@ -60,17 +61,39 @@ def read_text_file(path: str | Path, what: str) -> str:
     """The UTF-8 text of the ``what`` file at ``path`` (for example ``"structure"``).
 
     Each way a user's file can be wrong is a UserInputError naming the file: not found,
-    a folder, unreadable, not text (a binary file), or empty.
+    a folder, a device or pipe (``/dev/zero`` would be read forever), larger than ``MAX_TEXT_BYTES``,
+    unreadable, not text (a binary file), or empty.
     """
     path = Path(path)
     if not path.exists():
         raise UserInputError(f"{what} file not found", file=path, expected=f"an existing {what} file (TOML)")
     if path.is_dir():
         raise UserInputError(f"is a folder, not a {what} file", file=path, expected=f"a {what} file (TOML)")
+    return _decoded_text(read_limited(path, what), path, what)
+
+
+MAX_TEXT_BYTES = 16 << 20  # a structure, scene or material file is kilobytes; a table of n, k a few megabytes
+
+
+def read_limited(path: str | Path, what: str, limit: int = MAX_TEXT_BYTES) -> bytes:
+    """A user's file's bytes, refused (UserInputError naming it) when it is not a regular file (a
+    device, a pipe) or larger than ``limit``: read with the limit, so a file that grows is cut off too."""
+    path = Path(path)
     try:
-        data = path.read_bytes()
+        if not stat.S_ISREG(path.stat().st_mode):
+            raise UserInputError(f"is not a regular file (a device, pipe or socket), not a {what} file", file=path,
+                                 expected=f"a {what} file")
+        with path.open("rb") as handle:
+            data = handle.read(limit + 1)
     except OSError as exc:
         raise UserInputError(f"cannot read the {what} file ({exc.strerror})", file=path) from None
+    if len(data) > limit:
+        raise UserInputError(f"the {what} file is larger than {limit >> 20} MiB", file=path,
+                             expected=f"a {what} file of at most {limit >> 20} MiB")
+    return data
+
+
+def _decoded_text(data: bytes, path: Path, what: str) -> str:
     try:
         text = data.decode("utf-8-sig")
     except UnicodeDecodeError as exc:
