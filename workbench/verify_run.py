@@ -15,6 +15,7 @@ import hashlib
 import json
 import os
 import shutil
+import sys
 import time
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
@@ -38,7 +39,7 @@ PRESETS: dict[str, dict[str, Any]] = {"draft": {"tables": "draft", "spp": 256, "
 KEY_FILE = ".stage-key"  # in a finished stage's folder: the key it was made for
 DONE_FILE = ".stage-done"  # in a staging folder whose work finished (moved into place next)
 VERSIONED = ("numpy", "scipy", "mitsuba", "drjit", "opencv", "rawpy", "nlopt", "zarr")
-OWN_NAMES = (*STAGES, ".staging", "scene.toml", "run.json")  # what a run writes in RUN; --force removes only these
+OWN_NAMES = (*STAGES, ".staging", "scene.toml", "run.json", "index.html")  # what a run writes in RUN; --force removes only these
 
 
 @dataclass(frozen=True)
@@ -138,6 +139,12 @@ def open_run(root: Path, identity: dict[str, str], settings: VerifySettings, for
         raise UserInputError("is a file, not a folder", field="--out", expected="a folder for the run", got=str(root))
     root.mkdir(parents=True, exist_ok=True)
     record = read_record(root)
+    if record is None and (root / "run.json").exists() and all(p.name in OWN_NAMES for p in root.iterdir()):
+        # a damaged run.json (issue 46, cause 9) in a folder only a run wrote: a new record, and the stage
+        # folders kept, so every stage whose key file matches its inputs and settings is reused, not recomputed
+        print(f"note: {root / 'run.json'} could not be read; the run starts a new record and reuses every stage "
+              "whose key still matches", file=sys.stderr)
+        return _new_record(identity, settings)
     if record is None:
         present = sorted(p.name for p in root.iterdir())
         if present and not force:

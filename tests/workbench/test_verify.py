@@ -557,3 +557,30 @@ def test_the_render_stage_runs_on_a_dask_scheduler(reference: tuple[Path, dict, 
         local = oiio.ImageBuf(str(reference[0] / "render" / f"{photo}.exr")).get_pixels()
         remote = oiio.ImageBuf(str(out / "render" / f"{photo}.exr")).get_pixels()
         assert np.allclose(local, remote, rtol=1e-4, atol=1e-6)
+
+
+def test_a_truncated_run_record_keeps_every_intact_stage(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """Issue 46, cause 9: a truncated run.json made the rerun refuse its own stage folders as written by no
+    verify run, and --force then recomputed every stage. Now the record starts anew (said on stderr) and a
+    stage whose key file matches is skipped, its work not run again."""
+    from workbench.verify_run import Run, run_stage
+
+    root = tmp_path / "run"
+    identity = {"dataset": str(tmp_path), "scene": "cornell_cd"}
+    calls: list[Path] = []
+
+    def work(folder: Path) -> dict:
+        calls.append(folder)
+        (folder / "out.txt").write_text("computed")
+        return {"value": 1}
+
+    def run_once() -> dict:
+        run = Run(root, open_run(root, identity, VerifySettings(), force=False), tmp_path, [], (4, 3), VerifySettings())
+        return run_stage(run, "plan", {}, {"k": 1}, 1.0, work)
+
+    assert run_once()["status"] == "done" and len(calls) == 1
+    text = (root / "run.json").read_text()
+    (root / "run.json").write_text(text[: len(text) // 2])  # killed mid-write by a tool that did not write atomically
+    entry = run_once()
+    assert entry["skipped"] and entry["result"] == {"value": 1} and len(calls) == 1  # reused, not recomputed
+    assert "could not be read" in capsys.readouterr().err
