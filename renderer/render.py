@@ -44,6 +44,7 @@ from renderer.render_target import CROP_SEED_OFFSET, PASS_SPP, TARGETS, State, T
 from renderer.scene import SceneSpec, load_scene
 from renderer.tables import table_keys
 from renderer.variant import set_variant
+from workbench.core.cache import reading as cache_reading
 from workbench.core.errors import UserInputError
 from workbench.core.files import atomic_write as _atomic
 from workbench.core.files import atomic_write_npz, atomic_write_text, exclusive_output, file_sha256
@@ -137,7 +138,7 @@ def render(scene: str | Path, out: str | Path, *, preset: str = "draft", spp: in
     (renderer.render_target), the preset's spp the frame's cap; None: ``spp`` samples everywhere.
     """
     spp, pass_spp, spec, out = _checked_request(scene, out, preset, spp, resolution, integrator, mode, seed, target)
-    with exclusive_output(out, "render"):  # two renders into one --out at once: the second is refused
+    with exclusive_output(out, "render"), cache_reading():  # one render per --out; no cache clear under it
         return _render(spec, out, preset, spp, pass_spp, integrator, mode, seed, progress, executor, force, plan, target)
 
 

@@ -138,3 +138,33 @@ def test_entry_lock_waits_and_says_so(tmp_path, waiting):
     thread.join()
     assert order == ["first done", "second in"]
     assert (len(messages) == 1 and "waiting for another process" in messages[0]) if waiting else messages == []
+
+
+def test_clear_removes_nothing_while_a_render_reads_the_cache(tmp_path, capsys):
+    """Issue 46, cause 5: `cache clear` during a render deleted the meshes the render had just built
+    (only a table being built was locked). A render holds a reader's lock (cache.reading) the whole
+    time; a reader that died leaves a marker nobody holds, which the next clear removes."""
+    import subprocess
+    import sys
+
+    from workbench.core import cache
+
+    root = tmp_path / "cache"
+    (root / "meshes").mkdir(parents=True)
+    mesh = root / "meshes" / "abc.ply"
+    mesh.write_text("ply")
+    holder = subprocess.Popen([sys.executable, "-c", (
+        "import sys, time, pathlib; from workbench.core.cache import reading\n"
+        f"with reading(pathlib.Path({str(root)!r})):\n    print('reading', flush=True); time.sleep(20)")],
+        stdout=subprocess.PIPE, text=True)
+    try:
+        assert holder.stdout.readline().strip() == "reading"
+        assert cache.readers(root) == 1
+        removed, kept = cache.clear(root)
+        assert not removed and [e.name for e in kept] == ["abc.ply"] and mesh.exists()
+    finally:
+        holder.kill()
+        holder.wait()
+    assert cache.readers(root) == 0  # the killed reader's marker is stale: removed
+    removed, _ = cache.clear(root)
+    assert [e.name for e in removed] == ["abc.ply"] and not mesh.exists()

@@ -65,8 +65,10 @@ def run(args: argparse.Namespace) -> int:
         return 0
     removed, kept = cache.clear(root)
     print(f"{root}: removed {len(removed)} entries ({_size(sum(e.bytes for e in removed))})")
+    reading = cache.readers(root)
     for entry in kept:
-        print(f"kept {entry.kind}/{entry.name}: locked by a running build")
+        print(f"kept {entry.kind}/{entry.name}: " + (f"the cache is read by {reading} running render(s)" if reading
+                                                      else "locked by a running build"))
     return 0
 
 

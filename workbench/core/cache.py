@@ -21,6 +21,7 @@ This module is part of the shared kernel: it imports no other project package.
 from __future__ import annotations
 
 import os
+import secrets
 import shutil
 import sys
 import time
@@ -163,9 +164,59 @@ def _remove(path: Path) -> None:
         path.unlink(missing_ok=True)
 
 
-def clear(root: Path | None = None) -> tuple[list[CacheEntry], list[CacheEntry]]:
-    """Remove every entry no running build holds: (removed, kept because locked)."""
+READER_PREFIX = ".reader-"
+
+
+@contextmanager
+def reading(root: Path | None = None) -> Iterator[None]:
+    """Mark the cache as read by this process for the block (a render: its meshes and tables are read
+    by Mitsuba after they were built). Each reader holds an ``flock`` on its own file
+    ``.reader-PID-TOKEN.lock`` at the cache's root, so readers never wait for each other; ``clear``
+    removes nothing while any reader holds its lock (issue 46, cause 5: a clear during a render
+    deleted the meshes the render had just built). A killed reader's lock dies with it."""
     root = cache_root() if root is None else root
+    marker = root / f"{READER_PREFIX}{os.getpid()}-{secrets.token_hex(4)}.lock"
+    lock = FileLock(str(marker))
+    try:
+        root.mkdir(parents=True, exist_ok=True)
+        lock.acquire()
+    except OSError:  # a read-only cache: nobody can clear it either, so there is nothing to guard
+        yield
+        return
+    while not marker.exists():  # a clear took it for a dead reader's between its creation and the lock
+        lock.release()
+        lock.acquire()
+    try:
+        yield
+    finally:
+        lock.release()
+        marker.unlink(missing_ok=True)
+
+
+def readers(root: Path | None = None) -> int:
+    """How many processes read the cache now (``reading``); stale markers of dead readers are removed."""
+    root = cache_root() if root is None else root
+    active = 0
+    for marker in root.glob(f"{READER_PREFIX}*.lock") if root.is_dir() else []:
+        lock = FileLock(str(marker))
+        try:
+            lock.acquire(timeout=0)
+        except Timeout:
+            active += 1
+            continue
+        try:
+            marker.unlink(missing_ok=True)  # nobody held it: a reader that died without removing it
+        finally:
+            lock.release()
+    return active
+
+
+def clear(root: Path | None = None) -> tuple[list[CacheEntry], list[CacheEntry]]:
+    """Remove every entry no running build holds, none while a render reads the cache (``reading``):
+    (removed, kept because locked or read)."""
+    root = cache_root() if root is None else root
+    if readers(root):
+        return [], entries(root)
     removed, kept = [], []
     for entry in entries(root):
         if _remove_unless_locked(entry.path, lock_path(entry.path)):

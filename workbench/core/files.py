@@ -99,7 +99,8 @@ def exclusive_output(path: str | Path, command: str, busy: str | None = None) ->
 
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    lock = FileLock(str(path.parent / f".{path.name}.{command}.lock"))
+    lock_file = path.parent / f".{path.name}.{command}.lock"
+    lock = FileLock(str(lock_file))
     try:
         lock.acquire(timeout=0)
     except Timeout:
@@ -108,4 +109,5 @@ def exclusive_output(path: str | Path, command: str, busy: str | None = None) ->
     try:
         yield
     finally:
+        lock_file.unlink(missing_ok=True)  # while held, as workbench.core.cache.entry_lock: no lock file lingers
         lock.release()
