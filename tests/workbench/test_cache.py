@@ -168,3 +168,16 @@ def test_clear_removes_nothing_while_a_render_reads_the_cache(tmp_path, capsys):
     assert cache.readers(root) == 0  # the killed reader's marker is stale: removed
     removed, _ = cache.clear(root)
     assert [e.name for e in removed] == ["abc.ply"] and not mesh.exists()
+
+
+def test_a_cache_variable_naming_a_file_is_refused_in_one_line(tmp_path, monkeypatch, capsys):
+    """Issue 46, cause 11: WORKBENCH_CACHE naming a file was a traceback (the --cache flag was checked)."""
+    from workbench.cli import main
+    from workbench.core.cache import ENVIRONMENT_VARIABLE
+
+    afile = tmp_path / "afile"
+    afile.write_text("not a folder")
+    monkeypatch.setenv(ENVIRONMENT_VARIABLE, str(afile))
+    assert main(["cache", "list"]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("error: ") and "WORKBENCH_CACHE" in err and err.strip().count("\n") == 0
