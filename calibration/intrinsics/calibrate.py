@@ -34,7 +34,10 @@ fits every term the flags free, as OpenCV does; a set whose cross-validation dif
 poor for the data gives way to the first richer set that is not, ``_fit_accepted_terms``):
 intrinsics.json ``model_choice.terms`` gives the candidates, their scores and the chosen set; the
 fit, its standard deviations (0 for a held term), the outlier rule and the uncertainty maps are
-the chosen set's.
+the chosen set's. With fewer than FEW_VIEWS views the choice may take the centre prior (the
+principal point held at the image centre with a stated std, lens_choice's module docstring):
+intrinsics.json ``priors`` and ``std.priors`` say so, the command's summary prints it, and the
+stds include the prior's. A fit whose projection folds back inside the image is warned of.
 """
 
 from __future__ import annotations
@@ -54,8 +57,14 @@ from calibration.board.charuco import CharucoSpec, charuco_board, find_charuco_c
 from calibration.board.corners import find_board_corners, validate_pattern
 from calibration.board.images import grey_unit
 from calibration.intrinsics.fit import CRITERIA, FEW_VIEWS, MIN_VIEWS, fit_without_outliers, held_out_rms
-from calibration.intrinsics.lens_choice import ModelChoice, TermChoice, choose_model, choose_terms, label
-from calibration.intrinsics.lens_models import MODEL_CHOICES
+from calibration.intrinsics.lens_choice import ModelChoice, TermChoice, choose_model, choose_terms
+from calibration.intrinsics.lens_models import (
+    CENTRE_PRIOR_FLAGS,
+    MODEL_CHOICES,
+    centre_prior,
+    fold_reason,
+    with_prior_std,
+)
 from calibration.intrinsics.projection_uncertainty import (
     PNG_SCALE,
     POOR_RATIO,
@@ -110,6 +119,7 @@ class Calibration:
     choice: ModelChoice | None = None    # how --model auto chose
     uncertainty: ProjectionUncertainty | None = None   # the projection uncertainty map and cross-validation diff
     terms: TermChoice | None = None      # which distortion terms were fitted, and why
+    priors: dict[str, Any] = field(default_factory=dict)   # priors the fit took (lens_models.centre_prior), if any
 
     @property
     def found(self) -> list[str]:
@@ -127,7 +137,7 @@ class Calibration:
                 "warnings": list(self.warnings), "model": self.model,
                 "coefficients": list(LENS_MODELS[self.model].coefficients),
                 **({"xi": float(self.xi)} if self.model == "omnidir" else {}),
-                **self._choice_json(),
+                **self._choice_json(), **({"priors": self.priors} if self.priors else {}),
                 **(self.uncertainty.to_json() if self.uncertainty is not None else {})}
 
 
@@ -258,17 +268,28 @@ def _calibrate_without_outliers(views: list[_View], size: tuple[int, int], flags
 
 
 def _fit_terms(views: list[_View], size: tuple[int, int], flags: int, model: str, terms: tuple[str, ...] | None,
-               with_uncertainty: bool):
+               with_uncertainty: bool, prior: bool = False):
     """One fit of ``terms`` without outlier views (the views' reports updated), the held-out RMS of the
-    views left out, warnings, and its uncertainty (or None)."""
+    views left out, warnings, and its uncertainty (or None). ``prior``: the principal point held at the
+    image centre, its prior std carried into the others' (calibration.intrinsics.lens_models.with_prior_std).
+    A fit whose projection folds back inside the image (lens_models.fold_reason) is warned of."""
+    flags = flags | (CENTRE_PRIOR_FLAGS if prior else 0)
     fit, used, warnings = _calibrate_without_outliers([v for v in views if v.usable], size, flags, model, terms)
+    if prior:
+        fit = with_prior_std(fit, [v.points for v in used], [v.corners for v in used], size, flags)
     for view in views:
         if view.usable and not view.report.used:
             view.report.rms_px = held_out_rms(view.points, view.corners, fit.K, fit.dist, fit.model, fit.xi)
-    warnings = _few_view_warnings(len(used), fit.K, fit.std) + warnings
+    folds = fold_reason(fit, size)
+    warnings = _few_view_warnings(len(used), fit.K, fit.std) + warnings + ([folds] if folds else [])
     uncertainty = assess(Camera(model, fit.K, fit.dist, fit.xi, fit.terms), [v.points for v in used],
                          [v.corners for v in used], size, flags) if with_uncertainty else None
     return fit, used, warnings + (uncertainty.warnings if uncertainty is not None else []), uncertainty
+
+
+def _too_poor(result) -> bool:
+    uncertainty = result[3]
+    return uncertainty is not None and uncertainty.cross_validation is not None and uncertainty.cross_validation.too_poor
 
 
 def _fit_accepted_terms(views: list[_View], size: tuple[int, int], flags: int, model: str, choice: TermChoice | None,
@@ -277,33 +298,48 @@ def _fit_accepted_terms(views: list[_View], size: tuple[int, int], flags: int, m
     (calibration.intrinsics.projection_uncertainty.POOR_RATIO) and a richer candidate's is not, the first such set
     instead, as the held-out rule's POOR_RMS_PX does for the RMS [mrcal: the cross-validation diff flags a
     model too lean for the data; measured on OpenCV's right*.jpg: k1, k2 held out 0.5 % better, pooled
-    ratio 3.2, and with p1, p2 1.57]. Noted in ``choice``; where every richer set is too poor as well,
-    the chosen one stays (with the warning)."""
-    reports = [(v.report.note, v.report.used, v.report.rms_px) for v in views]
-    result = _fit_terms(views, size, flags, model, choice.chosen if choice else None, with_uncertainty)
-    if choice is None or not choice.held_out or result[3] is None or result[3].cross_validation is None \
-            or not result[3].cross_validation.too_poor:
+    ratio 3.2, and with p1, p2 1.57]. Candidates the term choice rejected (not fitted, or folding back
+    inside the image) are not tried. Noted in ``choice``; where every richer set is too poor as well, or
+    there is none, the chosen fit stays (with the warning), its views' records as that fit left them."""
+    before = [(v.report.note, v.report.used, v.report.rms_px) for v in views]
+    result = _fit_terms(views, size, flags, model, choice.chosen if choice else None, with_uncertainty,
+                        choice is not None and choice.prior)
+    if choice is None or not choice.held_out or not _too_poor(result):
         return result
-    first, ratios = result, {label(choice.chosen): result[3].cross_validation.ratio}
-    for terms in choice.candidates[choice.candidates.index(choice.chosen) + 1:]:
-        for view, (note, used, rms) in zip(views, reports, strict=True):
-            view.report.note, view.report.used, view.report.rms_px = note, used, rms
-        result = _fit_terms(views, size, flags, model, terms, with_uncertainty)
+    first, after = result, [(v.report.note, v.report.used, v.report.rms_px) for v in views]
+    chosen = choice.name(choice.index)
+    ratios = {chosen: result[3].cross_validation.ratio}
+    for k in range(choice.index + 1, len(choice.candidates)):
+        score = choice.scores[k]
+        if score is None or not np.isfinite(score):
+            continue
+        _restore(views, before)
+        result = _fit_terms(views, size, flags, model, choice.candidates[k], with_uncertainty, choice.priors[k])
         cross = result[3].cross_validation if result[3] is not None else None
         if cross is None:
             break
-        ratios[label(terms)] = cross.ratio
+        ratios[choice.name(k)] = cross.ratio
         if not cross.too_poor:
-            choice.why += (f"; but the cross-validation finds {label(choice.chosen)} too poor for the data (pooled ratio "
-                           f"{ratios[label(choice.chosen)]:.2f} over {POOR_RATIO:g}) and {label(terms)} not "
-                           f"({cross.ratio:.2f}): {label(terms)} fitted")
-            choice.chosen, choice.cross_validation = terms, ratios
+            choice.why += (f"; but the cross-validation finds {chosen} too poor for the data (pooled ratio "
+                           f"{ratios[chosen]:.2f} over {POOR_RATIO:g}) and {choice.name(k)} not ({cross.ratio:.2f}): "
+                           f"{choice.name(k)} fitted")
+            choice.choose(k)
+            choice.cross_validation = ratios
             return result
+    _restore(views, after)
+    choice.cross_validation = ratios
+    choice.why += (f"; the cross-validation finds every richer set too poor as well ({_ratios(ratios)})" if len(ratios) > 1
+                   else f"; the cross-validation finds {chosen} too poor for the data, and there is no richer set to try")
+    return first
+
+
+def _ratios(ratios: dict[str, float]) -> str:
+    return ", ".join(f"{name} {ratio:.2f}" for name, ratio in ratios.items())
+
+
+def _restore(views: list[_View], reports: list[tuple[str, bool, float | None]]) -> None:
     for view, (note, used, rms) in zip(views, reports, strict=True):
         view.report.note, view.report.used, view.report.rms_px = note, used, rms
-    choice.cross_validation = ratios
-    choice.why += f"; the cross-validation finds every richer set too poor as well ({ratios})"
-    return _fit_terms(views, size, flags, model, choice.chosen, with_uncertainty) if len(ratios) > 1 else first
 
 
 def _few_view_warnings(used: int, K: np.ndarray, std: np.ndarray) -> list[str]:
@@ -349,27 +385,35 @@ def calibrate_board_views(paths: Sequence[str | Path], board_size: tuple[int, in
     what = (f"{board_size[0]} x {board_size[1]} squares (ChArUco)" if charuco
             else f"{board_size[0]} x {board_size[1]} inner corners")
     _check_enough_views(views, what)
-    usable = [v for v in views if v.usable]
-    choice = None
-    if model == "auto":
-        choice = choose_model([v.points for v in usable], [v.corners for v in usable], size, flags)
-        model = choice.model
-    term_choice = None
-    if terms == "auto":
-        known = choice.per_view.get(model) if choice is not None and choice.held_out else None
-        term_choice = choose_terms([v.points for v in usable], [v.corners for v in usable], size, flags, model, known)
+    choice, term_choice = _choose([v for v in views if v.usable], size, flags, model, terms)
+    model = choice.model if choice is not None else model
     fit, used, warnings, uncertainty = _fit_accepted_terms(views, size, flags, model, term_choice, with_uncertainty)
+    prior = term_choice is not None and term_choice.prior
     K, dist, std = fit.K, fit.dist, fit.std
     uncertainty_s = uncertainty.seconds if uncertainty is not None else 0.0
     fitted_s = time.perf_counter() - start - detected_s - uncertainty_s
     std_json = {"fx": float(std[0]), "fy": float(std[1]), "cx": float(std[2]), "cy": float(std[3]),
-                "dist": [float(s) for s in std[4:]], **({"xi": fit.xi_std} if model == "omnidir" else {})}
+                "dist": [float(s) for s in std[4:]], **({"xi": fit.xi_std} if model == "omnidir" else {}),
+                **({"priors": ["principal_point"]} if prior else {})}
     timings = {"detection_s": detected_s, "calibration_s": fitted_s,
                "uncertainty_s": uncertainty_s,
                "total_s": time.perf_counter() - start}
-    return Calibration(K, dist, std_json, fit.rms_px, size[0], size[1], [v.report for v in views], flags,
-                       [v.corners for v in used], [v.points for v in used], timings, warnings, model, fit.xi, choice,
-                       uncertainty, term_choice)
+    return Calibration(K, dist, std_json, fit.rms_px, size[0], size[1], [v.report for v in views],
+                       flags | (CENTRE_PRIOR_FLAGS if prior else 0), [v.corners for v in used], [v.points for v in used],
+                       timings, warnings, model, fit.xi, choice, uncertainty, term_choice,
+                       centre_prior(size) if prior else {})
+
+
+def _choose(usable: list[_View], size: tuple[int, int], flags: int, model: str, terms: str):
+    """The model (``auto``: calibration.intrinsics.lens_choice.choose_model, which chooses every scored model's
+    terms on the same folds) and its term choice (``terms="auto"``; None for ``all``)."""
+    points, corners = [v.points for v in usable], [v.corners for v in usable]
+    choice = choose_model(points, corners, size, flags) if model == "auto" else None
+    model = choice.model if choice is not None else model
+    if terms != "auto":
+        return choice, None
+    known = choice.terms.get(model) if choice is not None else None
+    return choice, known if known is not None else choose_terms(points, corners, size, flags, model)
 
 
 def _write_maps(uncertainty: ProjectionUncertainty, out: Path, record: dict[str, Any]) -> None:

@@ -7,9 +7,26 @@ views it was not fitted to]; the simplest model (MODEL_ORDER) not worse than any
 more than NOT_WORSE_REL, and never one above POOR_RMS_PX when a richer one scores better.
 With too few views to hold any out (MIN_TRAINING_VIEWS), in-sample RMS is all there is and a
 richer model always fits it better: then only the POOR_RMS_PX rule can move the choice past
-the pinhole. Omnidir, the slowest to fit (about 24 s of the 36 s that 20 draft board views
-took), is scored only where fisheye, the other wide-angle model, beats the pinhole: on a lens
-that is not wide-angle its xi goes to 0, where it is the pinhole without k3.
+the pinhole. Each model is scored at the distortion terms its own term choice picks (``choose_terms``
+below, on the same folds for every model and set): comparing every model with every term the flags
+free set an over-parameterised pinhole (k1, k2, p1, p2) against the fisheye's k1..k4 (measured on the
+Sony HX5V views: the pinhole's own k1, k2 score 0.1573 px held out, better than any fisheye set, yet
+the fisheye won at 0.1579 against 0.1667). Omnidir, the slowest to fit (about 24 s of the 36 s that
+20 draft board views took), is scored only where the lens may be wide-angle: fisheye beats the
+pinhole, or fisheye could not be scored (OpenCV's fisheye initialisation fails on some real fisheye
+views: measured on BoofCV's fisheye_half, where omnidir scores 0.57 px against the rational model's
+2.5), or the pinhole is poor (over POOR_RMS_PX). On a lens that is not wide-angle its xi goes to 0,
+where it is the pinhole without k3.
+
+Not physical: a set whose fit (on any fold) folds back inside the image (the projection's distance
+from the principal point stops growing with the angle off axis before it reaches the image's edge:
+calibration.intrinsics.lens_models.fold_reason) is rejected, scored inf, the reason recorded
+(``TermChoice.rejected``, intrinsics.json ``model_choice.terms.rejected`` and the model's note).
+
+Priors with few views: under FEW_VIEWS views, for the models OpenCV's calibrateCamera fits, the
+candidates start with the simplest set plus the centre prior (the principal point held at the image
+centre, its std CENTRE_PRIOR_REL of the image's size, carried into the other stds:
+calibration.intrinsics.lens_models.with_prior_std); the same held-out rule takes it or not.
 
 Distortion terms (``choose_terms``), within the chosen model, on the same folds: the nested
 candidate sets of calibration.intrinsics.lens_models.TERM_CANDIDATES that the flags allow (the pinhole by
@@ -41,18 +58,27 @@ from typing import Any
 
 import numpy as np
 
+from calibration.intrinsics.fit import FEW_VIEWS
 from calibration.intrinsics.lens_models import (
+    CENTRE_PRIOR_FLAGS,
     CV_FOLDS,
     MODEL_ORDER,
     NOT_WORSE_REL,
     POOR_RMS_PX,
+    PRIOR_MODELS,
     TERM_CANDIDATES,
     allowed_terms,
     fit_model,
+    fold_reason,
     held_out_rms,
 )
 from renderer.lens import LENS_MODELS
 from workbench.core.errors import UserInputError
+
+
+class NotPhysical(UserInputError):
+    """A term set whose fit folds back inside the image (calibration.intrinsics.lens_models.fold_reason)."""
+
 
 MIN_TRAINING_VIEWS = 3      # a fold's training views must determine the intrinsics (intrinsics_fit.MIN_VIEWS)
 TERM_T = 1.0                # a richer set of terms must lower the held-out squared error by this many standard errors
@@ -67,10 +93,11 @@ class ModelChoice:
     held_out: bool                       # scores are held-out RMS (else in-sample: too few views)
     why: str
     notes: dict[str, str] = field(default_factory=dict)
-    per_view: dict[str, np.ndarray] = field(default_factory=dict)   # each view's held-out squared error, px^2
+    terms: dict[str, TermChoice] = field(default_factory=dict)   # each scored model's term choice (held out)
 
     def to_json(self) -> dict[str, Any]:
-        return {"model": self.model, "score": "held-out view RMS, px" if self.held_out else "in-sample RMS, px",
+        return {"model": self.model, "score": ("held-out view RMS of each model's chosen distortion terms, px"
+                                                if self.held_out else "in-sample RMS, px"),
                 "rms_px": {m: (None if not np.isfinite(s) else float(s)) for m, s in self.scores.items()},
                 "why": self.why, "notes": dict(self.notes)}
 
@@ -84,11 +111,15 @@ def folds_of(count: int) -> list[list[int]]:
 def held_out_squares(points: Sequence[np.ndarray], corners: Sequence[np.ndarray], size: tuple[int, int], flags: int,
                      model: str, terms: Sequence[str] | None = None) -> np.ndarray:
     """Each view's sum of squared corner errors (px^2), held out: ``model`` (fitting ``terms``, default
-    those the flags free) fitted to the other folds, the view at its own best pose."""
+    those the flags free) fitted to the other folds, the view at its own best pose. NotPhysical where a
+    fold's fit folds back inside the image (calibration.intrinsics.lens_models.fold_reason)."""
     squares = np.zeros(len(points))
     for fold in folds_of(len(points)):
         train = [i for i in range(len(points)) if i not in fold]
         fit = fit_model([points[i] for i in train], [corners[i] for i in train], size, flags, model, terms)
+        reason = fold_reason(fit, size)
+        if reason is not None:
+            raise NotPhysical(reason, field="IMAGE")
         for i in fold:
             squares[i] = held_out_rms(points[i], corners[i], fit) ** 2 * len(points[i])
     return squares
@@ -135,8 +166,27 @@ def pick(scores: dict[str, float], tolerance: float = NOT_WORSE_REL) -> tuple[st
 
 
 def _wide_angle(scores: dict[str, float]) -> bool:
-    """Whether fisheye beats the pinhole on held-out views by more than NOT_WORSE_REL."""
-    return scores.get("fisheye", np.inf) * (1 + NOT_WORSE_REL) < scores.get("pinhole", np.inf)
+    """Whether the lens may be wide-angle, so that omnidir is worth scoring: fisheye beats the pinhole on
+    held-out views by more than NOT_WORSE_REL, or fisheye could not be scored (a fisheye fit that fails,
+    as OpenCV's initialisation does on some real fisheye views, says nothing about the lens), or the
+    pinhole is poor (over POOR_RMS_PX)."""
+    fisheye, pinhole = scores.get("fisheye", np.inf), scores.get("pinhole", np.inf)
+    return not np.isfinite(fisheye) or fisheye * (1 + NOT_WORSE_REL) < pinhole or pinhole > POOR_RMS_PX
+
+
+def _score_model(points, corners, size, flags, model: str, held_out: bool) -> tuple[float, TermChoice | None]:
+    """A model's score: held out, that of the distortion terms its own term choice picks (``choose_terms``,
+    the same folds for every model and set), so that models are compared at their chosen sets, never one
+    over-parameterised against another's lean set; in sample, every term the flags free."""
+    if not held_out:
+        return _in_sample_score(points, corners, size, flags, model), None
+    terms = choose_terms(points, corners, size, flags, model)
+    if terms.scores[terms.index] is None:   # the only set the flags allow: not scored by the term choice
+        extra = CENTRE_PRIOR_FLAGS if terms.prior else 0
+        squares = held_out_squares(points, corners, size, flags | extra, model, terms.chosen)
+        terms.scores[terms.index], terms.squares = pooled_rms(squares, points), [squares]
+    score = terms.scores[terms.index]
+    return (float(score) if score is not None else float("inf")), terms
 
 
 def choose_model(points: Sequence[np.ndarray], corners: Sequence[np.ndarray], size: tuple[int, int],
@@ -145,31 +195,33 @@ def choose_model(points: Sequence[np.ndarray], corners: Sequence[np.ndarray], si
     held_out = len(points) >= MIN_TRAINING_VIEWS + 1
     scores: dict[str, float] = {}
     notes: dict[str, str] = {}
-    per_view: dict[str, np.ndarray] = {}
+    term_choices: dict[str, TermChoice] = {}
     for model in MODEL_ORDER:
         if model == "omnidir" and held_out and not _wide_angle(scores):
-            notes[model] = ("not scored: fisheye, the other wide-angle model, does not beat the pinhole, so the lens is "
-                            "not wide-angle (omnidir's folds are three quarters of auto's time)")
+            notes[model] = ("not scored: fisheye, the other wide-angle model, does not beat the pinhole and the pinhole "
+                            "is not poor, so the lens is not wide-angle (omnidir's folds are three quarters of auto's "
+                            "time)")
             continue
         try:
-            if held_out:
-                per_view[model] = held_out_squares(points, corners, size, flags, model)
-                score = pooled_rms(per_view[model], points)
-            else:
-                score = _in_sample_score(points, corners, size, flags, model)
+            score, terms = _score_model(points, corners, size, flags, model, held_out)
+            if terms is not None:
+                term_choices[model] = terms
+                if terms.rejected:
+                    notes[model] = "; ".join(f"{k}: {v}" for k, v in terms.rejected.items())
         except UserInputError as error:
             score, notes[model] = float("inf"), error.reason
         scores[model] = score if np.isfinite(score) else float("inf")
     model, why = pick(scores, NOT_WORSE_REL if held_out else float("inf"))
-    kind = f"held-out RMS over {len(folds_of(len(points)))} folds" if held_out else \
-        f"in-sample RMS (only {len(points)} views: none can be held out)"
-    return ModelChoice(model, scores, held_out, f"{why}; {kind}", notes, per_view)
+    kind = (f"held-out RMS of each model's chosen terms over {len(folds_of(len(points)))} folds" if held_out else
+            f"in-sample RMS (only {len(points)} views: none can be held out)")
+    return ModelChoice(model, scores, held_out, f"{why}; {kind}", notes, term_choices)
 
 
 @dataclass
 class TermChoice:
     """The distortion terms fitted within one model (module docstring): the candidate sets simplest
-    first, their held-out RMS (px; inf where not fitted, None where not scored), the chosen set and why."""
+    first (``priors``: whether each holds the principal point at the image centre as a prior), their
+    held-out RMS (px; inf where not fitted or not physical, None where not scored), the chosen set and why."""
 
     model: str
     candidates: list[tuple[str, ...]]
@@ -179,17 +231,39 @@ class TermChoice:
     why: str
     t: dict[str, float] = field(default_factory=dict)   # paired t of each pair tried, "simpler vs richer"
     cross_validation: dict[str, float] = field(default_factory=dict)   # pooled ratios, where a set was too poor
+    priors: list[bool] = field(default_factory=list)    # per candidate: the centre prior (CENTRE_PRIOR_FLAGS)
+    index: int = -1                                      # the chosen candidate
+    rejected: dict[str, str] = field(default_factory=dict)   # candidates not fitted or not physical, and why
+    squares: list[np.ndarray] = field(default_factory=list)  # per candidate, each view's held-out squared error
+
+    def __post_init__(self) -> None:
+        self.priors = self.priors or [False] * len(self.candidates)
+        if self.index < 0:
+            self.index = self.candidates.index(self.chosen)
+
+    @property
+    def prior(self) -> bool:
+        """Whether the chosen candidate holds the principal point at the image centre (a prior)."""
+        return self.priors[self.index]
+
+    def name(self, k: int) -> str:
+        return label(self.candidates[k]) + (" + centre prior" if self.priors[k] else "")
+
+    def choose(self, k: int) -> None:
+        self.index, self.chosen = k, self.candidates[k]
 
     def to_json(self) -> dict[str, Any]:
         def number(s: float | None) -> float | None:
             return None if s is None or not np.isfinite(s) else float(s)
-        return {"candidates": [{"terms": list(c), "rms_px": number(s)} for c, s in zip(self.candidates, self.scores,
-                                                                                       strict=True)],
+        candidates = [{"terms": list(c), "rms_px": number(s)} | ({"priors": ["principal_point"]} if p else {})
+                      for c, s, p in zip(self.candidates, self.scores, self.priors, strict=True)]
+        return {"candidates": candidates,
                 "score": "held-out view RMS, px" if self.held_out else "not scored (too few views to hold any out)",
                 "rule": f"the simplest set that no richer set beats by over {TERM_T:g} standard error of the paired "
                         "per-view difference of held-out squared errors",
-                "paired_t": dict(self.t), "chosen": list(self.chosen),
+                "paired_t": dict(self.t), "chosen": list(self.chosen), "priors": ["principal_point"] if self.prior else [],
                 **({"cross_validation_pooled_ratio": dict(self.cross_validation)} if self.cross_validation else {}),
+                **({"rejected": dict(self.rejected)} if self.rejected else {}),
                 "fixed": [n for n in LENS_MODELS[self.model].coefficients if n not in self.chosen],
                 "fixed_note": "held at 0: no standard deviation (its std reads 0)", "why": self.why}
 
@@ -216,18 +290,20 @@ def paired_t(simple: np.ndarray, rich: np.ndarray) -> float:
     if not np.all(np.isfinite(d)):
         return float("inf") if np.all(np.isfinite(rich)) else float("-inf")
     se = float(np.std(d, ddof=1)) / np.sqrt(len(d)) if len(d) > 1 else 0.0
-    return float(np.sign(d.mean()) * np.inf) if se == 0.0 else float(d.mean() / se)
+    if se == 0.0:
+        return 0.0 if d.mean() == 0.0 else float(np.sign(d.mean()) * np.inf)
+    return float(d.mean() / se)
 
 
-def _first_unbeaten(candidates: list[tuple[str, ...]], squares: list[np.ndarray], rms: list[float]):
+def _first_unbeaten(names: list[str], squares: list[np.ndarray], rms: list[float]):
     """The simplest candidate no richer one beats (module docstring); the paired t of every pair tried
     ("simpler vs richer": t)."""
     tried: dict[str, float] = {}
-    for k in range(len(candidates)):
+    for k in range(len(names)):
         if not np.isfinite(rms[k]):
             continue
-        t = {f"{label(candidates[k])} vs {label(c)}": paired_t(squares[k], squares[j])
-             for j, c in enumerate(candidates[k + 1:], k + 1)}
+        t = {f"{names[k]} vs {c}": paired_t(squares[k], squares[j])
+             for j, c in enumerate(names[k + 1:], k + 1) if np.isfinite(rms[j])}
         tried |= t
         poor = rms[k] > POOR_RMS_PX and any(s < rms[k] for s in rms[k + 1:])
         if not poor and all(v <= TERM_T for v in t.values()):
@@ -239,30 +315,60 @@ def _first_unbeaten(candidates: list[tuple[str, ...]], squares: list[np.ndarray]
     return min(finite, key=lambda k: rms[k]), tried
 
 
+def _candidates(model: str, flags: int, views: int) -> tuple[list[tuple[str, ...]], list[bool]]:
+    """term_candidates, and with fewer than FEW_VIEWS views (a model whose fit honours the flag, the principal
+    point not already held) first the simplest set with the principal point held at the image centre, the
+    prior of calibration.intrinsics.lens_models.CENTRE_PRIOR_REL: the simplest of all (fewest free parameters)."""
+    candidates = term_candidates(model, flags)
+    priors = [False] * len(candidates)
+    if views < FEW_VIEWS and model in PRIOR_MODELS and not flags & CENTRE_PRIOR_FLAGS:
+        candidates, priors = [candidates[0], *candidates], [True, *priors]
+    return candidates, priors
+
+
+def _held_out_or_why(points, corners, size, flags, model, terms) -> tuple[np.ndarray, str | None]:
+    """held_out_squares, or infinite errors and why (a fit that fails or folds back inside the image)."""
+    try:
+        return held_out_squares(points, corners, size, flags, model, terms), None
+    except UserInputError as error:
+        return np.full(len(points), np.inf), error.reason
+
+
 def choose_terms(points: Sequence[np.ndarray], corners: Sequence[np.ndarray], size: tuple[int, int], flags: int,
                  model: str, richest: np.ndarray | None = None) -> TermChoice:
-    """The distortion terms of ``model`` by held-out views (module docstring). ``richest``: the held-out
-    per-view squared errors of every term the flags free, where the model choice has them already."""
-    candidates = term_candidates(model, flags)
+    """The distortion terms of ``model`` (and with few views the centre prior) by held-out views (module
+    docstring). ``richest``: the held-out per-view squared errors of every term the flags free, where known.
+    A set whose fit folds back inside the image is rejected as not physical, the reason recorded."""
+    candidates, priors = _candidates(model, flags, len(points))
     if len(candidates) == 1:
-        return TermChoice(model, candidates, [None], candidates[0], False,
-                          "the only set the flags allow")
+        return TermChoice(model, candidates, [None], candidates[0], False, "the only set the flags allow")
     if len(points) < MIN_TRAINING_VIEWS + 1:
-        return TermChoice(model, candidates, [None] * len(candidates), candidates[-1], False,
-                          f"every term the flags free, as only {len(points)} views leave "
-                          "none to hold out")
-    squares = []
-    for terms in candidates:
-        try:
-            squares.append(richest if terms == candidates[-1] and richest is not None else
-                           held_out_squares(points, corners, size, flags, model, terms))
-        except UserInputError:
-            squares.append(np.full(len(points), np.inf))
-    rms = [pooled_rms(s, points) for s in squares]
-    k, t = _first_unbeaten(candidates, squares, rms)
-    scores = ", ".join(f"{label(c)} {r:.4f}" for c, r in zip(candidates, rms, strict=True))
-    pairs = ", ".join(f"{pair} {value:.2f}" for pair, value in t.items())
-    why = (f"the simplest set no richer one beats by over {TERM_T:g} standard error of the "
-           f"paired per-view difference (held-out RMS over {len(folds_of(len(points)))} folds: {scores} px; "
-           f"paired t: {pairs})")
-    return TermChoice(model, candidates, list(rms), candidates[k], True, why, t)
+        plain = len(candidates) - 1
+        return TermChoice(model, candidates, [None] * len(candidates), candidates[plain], False,
+                          f"every term the flags free, as only {len(points)} views leave none to hold out",
+                          priors=priors, index=plain)
+    choice = TermChoice(model, candidates, [], candidates[-1], True, "", priors=priors, index=len(candidates) - 1)
+    for k, terms in enumerate(candidates):
+        if k == len(candidates) - 1 and richest is not None:
+            choice.squares.append(richest)
+            continue
+        extra = CENTRE_PRIOR_FLAGS if priors[k] else 0
+        squares, why = _held_out_or_why(points, corners, size, flags | extra, model, terms)
+        choice.squares.append(squares)
+        if why is not None:
+            choice.rejected[choice.name(k)] = why
+    rms = [pooled_rms(s, points) for s in choice.squares]
+    names = [choice.name(k) for k in range(len(candidates))]
+    if not any(np.isfinite(rms)) and choice.rejected:
+        raise UserInputError("no set of distortion terms could be fitted to the board views: "
+                             + "; ".join(f"{n}: {w}" for n, w in choice.rejected.items()), field="IMAGE")
+    k, choice.t = _first_unbeaten(names, choice.squares, rms)
+    choice.scores = list(rms)
+    choice.choose(k)
+    scores = ", ".join(f"{n} {r:.4f}" for n, r in zip(names, rms, strict=True))
+    pairs = ", ".join(f"{pair} {value:.2f}" for pair, value in choice.t.items())
+    rejected = "; rejected: " + "; ".join(f"{n}: {w}" for n, w in choice.rejected.items()) if choice.rejected else ""
+    choice.why = (f"the simplest set no richer one beats by over {TERM_T:g} standard error of the "
+                  f"paired per-view difference (held-out RMS over {len(folds_of(len(points)))} folds: {scores} px; "
+                  f"paired t: {pairs}){rejected}")
+    return choice

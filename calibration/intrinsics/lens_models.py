@@ -28,12 +28,21 @@ CALIB_ZERO_TANGENT_DIST, the rational model those but k3, and CALIB_FIX_K4..K6; 
 CALIB_ZERO_TANGENT_DIST; fisheye none, the flags being the pinhole's). TERM_CANDIDATES lists each
 model's nested candidate sets, simplest first, among which calibration.intrinsics.lens_choice chooses by the
 same held-out rule. A held coefficient has no variance: its std is 0, as OpenCV reports a held k3.
+
+The centre prior (few views; calibration.intrinsics.lens_choice offers it): the principal point held
+at the image centre ((w - 1) / 2, (h - 1) / 2, where OpenCV's CALIB_FIX_PRINCIPAL_POINT holds it)
+with a std of CENTRE_PRIOR_REL (2 %) of the image's width and height [Hartley 2004, Ch. 6: the
+principal point is often near the image centre, and fixing it there is a common assumption]; the
+publisher's calibrations of the two real 640 x 480 cameras in the project's data put it 1.1-1.7 % of
+the width and 1.5-1.6 % of the height from the centre. Its std is carried into the others'
+(``with_prior_std``). ``fold_reason``: whether a fit is physical (monotone out to the image's edge).
 """
 
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
+from typing import Any
 
 import cv2
 import numpy as np
@@ -48,6 +57,11 @@ CV_FOLDS = 5                # held-out folds of the choice (fewer views: one vie
 NOT_WORSE_REL = 0.05        # a held-out RMS within 5 % of a richer model's is "not worse": fold noise is of that size
 POOR_RMS_PX = 1.0           # never a model above this when a richer one does better (the issue's rule)
 FIT_CRITERIA = (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 100, 1e-12)
+CENTRE_PRIOR_FLAGS = cv2.CALIB_FIX_PRINCIPAL_POINT   # the centre prior: OpenCV holds the principal point at the centre
+CENTRE_PRIOR_REL = 0.02     # its std, per axis, as a fraction of the image's width and height (module docstring)
+PRIOR_MODELS = ("pinhole", "rational")               # the models whose fit (calibrateCamera) honours that flag
+FOLD_FIELD_DEG = 90.0       # fold_reason: the projection must be monotone to the image's edge or this far off axis
+FOLD_STEPS = 600            # angles sampled by fold_reason
 XI_STEP = 1e-6              # central-difference step of the omnidir Jacobian's xi column
 TERM_CANDIDATES: dict[str, tuple[tuple[str, ...], ...]] = {   # nested free-coefficient sets, simplest first
     "pinhole": (("k1", "k2"), ("k1", "k2", "p1", "p2"), ("k1", "k2", "p1", "p2", "k3")),
@@ -112,7 +126,7 @@ def _calibration_failed(count: int, error: cv2.error | str) -> UserInputError:
 
 
 def _fit_opencv(points: Sequence[np.ndarray], corners: Sequence[np.ndarray], size: tuple[int, int], flags: int,
-                model: str, terms: tuple[str, ...]) -> Fit:
+                model: str, terms: tuple[str, ...], start: Fit | None = None) -> Fit:
     count = LENS_MODELS[model].count
     if model == "rational":
         flags = (flags | cv2.CALIB_RATIONAL_MODEL) & ~cv2.CALIB_FIX_K3
@@ -121,10 +135,41 @@ def _fit_opencv(points: Sequence[np.ndarray], corners: Sequence[np.ndarray], siz
             flags |= HOLD_FLAGS[name]
     try:
         rms, K, dist, _, _, std, _, per_view = cv2.calibrateCameraExtended(
-            list(points), list(corners), size, np.eye(3), np.zeros(count), flags=flags, criteria=FIT_CRITERIA)
+            list(points), list(corners), size, np.eye(3) if start is None else start.K.copy(),
+            np.zeros(count) if start is None else start.dist.copy(), flags=flags, criteria=FIT_CRITERIA)
     except cv2.error as error:
         raise _calibration_failed(len(points), error) from None
     return Fit(float(rms), K, dist.ravel()[:count], std.ravel()[:4 + count], per_view.ravel(), model, terms=terms)
+
+
+def centre_prior(size: tuple[int, int]) -> dict[str, Any]:
+    """The centre prior (module docstring) as intrinsics.json records it: where and how sure."""
+    return {"principal_point": {"at_px": [(size[0] - 1) / 2, (size[1] - 1) / 2],
+                                "std_px": [CENTRE_PRIOR_REL * size[0], CENTRE_PRIOR_REL * size[1]],
+                                "why": "fewer views than determine it well: the held-out views chose the prior"}}
+
+
+def with_prior_std(fit: Fit, points: Sequence[np.ndarray], corners: Sequence[np.ndarray], size: tuple[int, int],
+                   flags: int) -> Fit:
+    """``fit`` (the principal point held at the image centre by the centre prior) with the prior's own
+    uncertainty carried into the other parameters' standard deviations, as a consider parameter is
+    [Bierman 1977, consider covariance]: the fit is repeated with the principal point moved by one prior
+    std along each axis, and each parameter's change adds in quadrature to its std (first-order
+    propagation of the prior's variance); cx, cy read the prior's std."""
+    prior = centre_prior(size)["principal_point"]["std_px"]
+    held = flags | cv2.CALIB_USE_INTRINSIC_GUESS | CENTRE_PRIOR_FLAGS
+    base = np.r_[fit.K[0, 0], fit.K[1, 1], fit.K[0, 2], fit.K[1, 2], fit.dist]
+    variance = fit.std[:len(base)] ** 2
+    for axis, step in enumerate(prior):
+        start = replace(fit, K=fit.K.copy())
+        start.K[axis, 2] += step
+        moved = _fit_opencv(points, corners, size, held, fit.model, fit.terms, start)
+        change = np.r_[moved.K[0, 0], moved.K[1, 1], moved.K[0, 2], moved.K[1, 2], moved.dist] - base
+        change[2:4] = 0.0
+        variance = variance + change ** 2
+    std = np.sqrt(variance)
+    std[2:4] = prior
+    return replace(fit, std=std)
 
 
 def _pose_jacobian(model: str, points: Sequence[np.ndarray], corners: Sequence[np.ndarray], K: np.ndarray,
@@ -256,6 +301,43 @@ def _fit_wide(points: Sequence[np.ndarray], corners: Sequence[np.ndarray], size:
     pooled = float(np.sqrt(np.sum(counts * per_view**2) / np.sum(counts)))
     std, xi_std = _standard_deviations(model, points, corners, K, dist, xi, full, free)
     return Fit(pooled, K, dist, std, per_view, model, xi, xi_std, terms)
+
+
+def _image_directions(fit: Fit, size: tuple[int, int]) -> list[tuple[float, float]]:
+    """(azimuth in normalized coordinates, pixel distance from the principal point) of the image's four
+    corners and four edge midpoints."""
+    w, h = size[0] - 1.0, size[1] - 1.0
+    fx, fy, cx, cy = fit.K[0, 0], fit.K[1, 1], fit.K[0, 2], fit.K[1, 2]
+    return [(float(np.arctan2((v - cy) / fy, (u - cx) / fx)), float(np.hypot(u - cx, v - cy)))
+            for u, v in ((0, 0), (w, 0), (0, h), (w, h), (w / 2, 0), (w / 2, h), (0, h / 2), (w, h / 2))]
+
+
+def fold_reason(fit: Fit, size: tuple[int, int]) -> str | None:
+    """Why ``fit``'s projection is not physical, or None: a lens maps the angle off its axis to the
+    distance from the principal point monotonically [Kannala 2006, Sec. 2: r(theta) increasing; Hartley 2004,
+    Sec. 7.4: radial distortion as a monotone map of the radius], so the distance must grow with the
+    angle until it reaches the image's edge (its corners and edge midpoints), or until FOLD_FIELD_DEG off
+    axis (the hemisphere a fisheye's image circle may end at inside the frame). A fit whose projection
+    turns back first has no ray through the image beyond the fold, and two rays through the pixels
+    before it: its higher terms extrapolate past the board corners (measured: fisheye k1..k4 on the
+    Sony HX5V views folds at 32 deg, 360 px out, the image corners lying 386-413 px out)."""
+    cap = np.radians(FOLD_FIELD_DEG - (1.0 if fit.model in ("pinhole", "rational") else 0.0))
+    theta = np.linspace(1e-3, cap, FOLD_STEPS)
+    centre = fit.K[:2, 2]
+    for azimuth, reach in _image_directions(fit, size):
+        rays = np.stack([np.sin(theta) * np.cos(azimuth), np.sin(theta) * np.sin(azimuth), np.cos(theta)], 1)
+        with np.errstate(all="ignore"):
+            distance = np.linalg.norm(project(fit.model, rays, np.zeros(3), np.zeros(3), fit.K, fit.dist, fit.xi)
+                                      - centre, axis=1)
+        bad = ~np.isfinite(distance[1:]) | (np.diff(distance) <= 0)
+        if not bad.any():
+            continue
+        k = int(np.argmax(bad))
+        if distance[:k + 1].max() < reach:
+            return (f"the {fit.model} projection with {', '.join(fit.terms) or 'no terms'} folds back "
+                    f"{np.degrees(theta[k]):.1f} deg off axis, {distance[k]:.0f} px from the principal point, inside "
+                    f"the image ({reach:.0f} px out that way): not a physical lens")
+    return None
 
 
 def fit_model(points: Sequence[np.ndarray], corners: Sequence[np.ndarray], size: tuple[int, int], flags: int,

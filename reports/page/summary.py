@@ -86,8 +86,11 @@ def _lens_row(cal: dict[str, Any]) -> str:
     unc, cross = cal.get("projection_uncertainty_px"), cal.get("cross_validation")
     text = cal.get("model", "pinhole")
     if unc:
-        corners = max(unc[k] for k in ("top_left", "top_right", "bottom_left", "bottom_right"))
-        text += f"; a ray lands within +- {unc['centre']:.2f} px at the centre, {corners:.2f} px at the corners"
+        known = [unc[k] for k in ("top_left", "top_right", "bottom_left", "bottom_right") if unc.get(k) is not None]
+        at_corners = (f"{max(known):.2f} px at the corners" if known else "no ray through the image corners")
+        if known and len(known) < 4:
+            at_corners += f" ({4 - len(known)} of 4 corners have no ray)"
+        text += f"; a ray lands within +- {unc['centre']:.2f} px at the centre, {at_corners}"
         over_cd = cal.get("projection_uncertainty_cd_px")
         text += (f", {over_cd['median']:.2f} px over the CD (at most {over_cd['max']:.2f})" if over_cd else "") + " (1 std)"
     if cross:

@@ -71,11 +71,14 @@ def _publisher() -> dict:
             "dist": np.array([*radial["radial"], 0.0, 0.0, 0.0])}
 
 
-def _calibrate(views: list[Path], out: Path, capsys) -> tuple[dict, str]:
+def _calibrate(views: list[Path], out: Path, capsys, publishers_model: bool = True) -> tuple[dict, str]:
     assert main(["calibrate", "intrinsics", *map(str, views), "--board", "4x6", "--square-mm", str(SQUARE_MM),
                  "--no-tangential", "--out", str(out), "--quiet"]) == 0
     record = json.loads(out.read_text())
-    assert record["model"] == "pinhole", record["model_choice"]   # --model auto keeps the publisher's model here
+    if publishers_model:   # --model auto keeps the publisher's model on the eleven views
+        assert record["model"] == "pinhole", record["model_choice"]
+    # (on left01-04 the models compared at their own chosen terms give fisheye k1, k2 held out 0.076 px against the
+    # pinhole's k1, k2 0.088 px, 16 % better: auto takes it; the bar below is on fx, whatever the model)
     return record, capsys.readouterr().out
 
 
@@ -128,7 +131,7 @@ def test_real_views_agree_with_the_publishers_calibration_of_the_same_model(tmp_
 @needs_bumblebee
 def test_four_real_views_calibrate_with_a_warning_and_an_uncertainty_that_covers_eleven(tmp_path, capsys):
     eleven, _ = _calibrate(BUMBLEBEE_VIEWS, tmp_path / "eleven.json", capsys)
-    four, printed = _calibrate(BUMBLEBEE_VIEWS[:4], tmp_path / "four.json", capsys)
+    four, printed = _calibrate(BUMBLEBEE_VIEWS[:4], tmp_path / "four.json", capsys, publishers_model=False)
     summary = printed.splitlines()[0]
     assert "4 of 4 views used" in summary and "warning: only 4 views used (fewer than 6)" in summary
     assert len(four["warnings"]) == 1 and "fewer than 6" in four["warnings"][0]

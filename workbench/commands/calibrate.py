@@ -74,6 +74,27 @@ def add_intrinsics(steps: argparse._SubParsersAction) -> None:
     p.add_argument("--quiet", action="store_true", help="no progress bar")
 
 
+IMAGE_CORNERS = ("top_left", "top_right", "bottom_left", "bottom_right")
+
+
+def _px(value: float | None) -> str:
+    return "no ray" if value is None else f"{value:.2f}"
+
+
+def corners_text(s: dict) -> str:
+    """The largest projection uncertainty over the image corners that have a ray (a fisheye's corners may lie
+    beyond its image circle: no ray, None in the record), and how many have none."""
+    known = [s[k] for k in IMAGE_CORNERS if s.get(k) is not None]
+    if not known:
+        largest = s.get("max")
+        return "no ray through any image corner" + (f" (largest over the image {largest:.2f} px)"
+                                                    if largest is not None else "")
+    text = f"corners up to {max(known):.2f} px"
+    if len(known) < len(IMAGE_CORNERS):
+        text += f" ({len(IMAGE_CORNERS) - len(known)} of {len(IMAGE_CORNERS)} corners have no ray)"
+    return text
+
+
 def uncertainty_line(record: dict) -> str:
     """intrinsics.json's projection uncertainty and cross-validation diff in one line.
 
@@ -83,9 +104,8 @@ def uncertainty_line(record: dict) -> str:
     if not unc:
         return "projection uncertainty: not computed"
     s = unc["std_px"]
-    corners = max(s[k] for k in ("top_left", "top_right", "bottom_left", "bottom_right"))
-    line = (f"projection uncertainty (worst direction, rays at infinity): centre {s['centre']:.2f}, median "
-            f"{s['median']:.2f}, corners up to {corners:.2f} px; ")
+    line = (f"projection uncertainty (worst direction, rays at infinity): centre {_px(s.get('centre'))}, median "
+            f"{_px(s.get('median'))}, {corners_text(s)}; ")
     if "diff_px" not in cross:
         return line + f"no cross-validation: {cross.get('skipped')}"
     return line + (f"cross-validation diff median {cross['diff_px']['median']:.2f} px against "
@@ -110,6 +130,11 @@ def run_intrinsics(args: argparse.Namespace) -> int:
     print(f"fx {record['fx']:.2f} +- {std['fx']:.2f}, fy {record['fy']:.2f} +- {std['fy']:.2f}, "
           f"cx {record['cx']:.2f} +- {std['cx']:.2f}, cy {record['cy']:.2f} +- {std['cy']:.2f} px; "
           f"dist {', '.join(f'{d:.4g}' for d in record['dist'])}" + (f", xi {record['xi']:.4g}" if "xi" in record else ""))
+    prior = (record.get("priors") or {}).get("principal_point")
+    if prior:   # calibration.intrinsics.lens_models.centre_prior
+        print(f"priors: principal point at the image centre ({prior['at_px'][0]:.1f}, {prior['at_px'][1]:.1f}) +- "
+              f"{prior['std_px'][0]:.1f}, {prior['std_px'][1]:.1f} px, chosen by the held-out views; the stds above "
+              "include it")
     choice = record.get("model_choice")
     print(f"model {record['model']}: " + (choice["why"] if choice else "as asked (--model)"))
     if choice and "terms" in choice:   # calibration.intrinsics.lens_choice.choose_terms
