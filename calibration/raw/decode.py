@@ -26,7 +26,10 @@ Other images (8/16-bit JPEG, PNG, TIFF, grey or colour, read with OpenImageIO) a
 brought to [0, 1] by their integer range and passed through an inverse response when one
 is given (a callable, or response.json: ``{"points": [[irradiance, value], ...]}``, a
 monotone table on [0, 1] interpolated as renderer.response does); without one they are
-flagged non-linear. Float images (EXR, float TIFF) are taken as linear already.
+flagged non-linear. Float images (EXR, float TIFF) are taken as linear already. Channels are
+picked by name: the EXR this command writes reads back as it was decoded (its colour
+channels, ``saturated`` as the saturation mask, and from its header the colour pattern,
+levels, linearity, source and EXIF); an unsupported layout is refused naming its channels.
 
 EXIF: exposure time, ISO, make and model, from the file's own tags: tifffile for
 TIFF-based files (DNG, NEF, CR2, ARW, PEF, TIFF), Pillow for JPEG and PNG, rawpy's
@@ -64,6 +67,12 @@ TIFF_BASED = frozenset({".dng", ".nef", ".nrw", ".cr2", ".arw", ".srf", ".sr2", 
                         ".3fr", ".erf", ".kdc", ".dcr", ".mos", ".mef", ".rwl", ".srw"})
 DEMOSAIC_ALGORITHMS = ("linear", "ahd", "dht", "aahd", "vng", "ppg")
 ResponseLike = Callable[[np.ndarray], np.ndarray] | str | Path | dict | None
+HEADER = "workbench:decode"          # the EXR header attribute write_exr records the decode in
+SATURATION_CHANNEL = "saturated"     # write_exr's saturation mask (1 where saturated)
+# What an EXR's decode header restores (the rest is the file's own: size, saturated share).
+# Its ``linear`` is read apart (a float image of codes may still take a response).
+RESTORED_FIELDS = ("black_level", "white_level", "cfa", "exposure_time_s", "iso", "make", "model", "source",
+                   "demosaic", "response", "layout", "demosaic_reason")
 
 
 @dataclass
@@ -118,8 +127,11 @@ def is_raw(path: str | Path) -> bool:
     return Path(path).suffix.lower() in RAW_EXTENSIONS
 
 
-def decode(path: str | Path, *, response: ResponseLike = None, demosaic: str = "linear") -> DecodedImage:
-    """A photograph as linear camera RGB (raw) or as [0, 1] values (others, inverted through ``response``)."""
+def decode(path: str | Path, *, response: ResponseLike = None, demosaic: str = "linear",
+           response_for_codes_only: bool = False) -> DecodedImage:
+    """A photograph as linear camera RGB (raw) or as [0, 1] values (others, inverted through ``response``).
+    ``response_for_codes_only``: a linear float image ignores ``response`` instead of refusing it
+    (a reader that holds one curve for whatever photo comes: the report's)."""
     path = Path(path)
     if not path.is_file():
         raise UserInputError("no such file", file=path)
@@ -130,7 +142,7 @@ def decode(path: str | Path, *, response: ResponseLike = None, demosaic: str = "
         if response is not None:
             raise UserInputError("a raw file is linear: it takes no response curve", file=path, field="--response")
         return _decode_raw(path, demosaic)
-    return _decode_image(path, response)
+    return _decode_image(path, response, response_for_codes_only)
 
 
 def _decode_raw(path: Path, demosaic: str) -> DecodedImage:
@@ -219,44 +231,98 @@ def cfa_channels(cfa: str | None, shape: tuple[int, int]) -> np.ndarray | None:
     return channel
 
 
-def _decode_image(path: Path, response: ResponseLike) -> DecodedImage:
-    pixels, channel_names, alpha = _read_with_openimageio(path)
-    if alpha is not None:
-        pixels = np.delete(pixels, alpha, axis=2)
-        channel_names = [c for i, c in enumerate(channel_names) if i != alpha]
-    if pixels.shape[2] not in (1, 3):
-        raise UserInputError("unsupported channel layout", file=path, expected="grey or RGB (with or without alpha)",
-                             got=channel_names)
-    names = ["Y"] if pixels.shape[2] == 1 else ["R", "G", "B"]
+def _decode_image(path: Path, response: ResponseLike, response_for_codes_only: bool = False) -> DecodedImage:
+    """An image file through OpenImageIO: channels picked by name (_pick_channels), integer codes
+    brought to [0, 1] (and through ``response``), floats taken as they are; the EXR of
+    ``workbench decode`` has its recorded decode (header HEADER) restored."""
+    pixels, channel_names, alpha, header_text = _read_with_openimageio(path)
+    header = _decode_header(path, header_text)
+    pixels, names, marked = _pick_channels(path, pixels, channel_names, alpha, header)
     if np.issubdtype(pixels.dtype, np.integer):
-        if pixels.dtype.itemsize > 2:
-            raise UserInputError("unsupported sample type", file=path, expected="8- or 16-bit integers or floats",
-                                 got=str(pixels.dtype))
-        top = float(np.iinfo(pixels.dtype).max)
-        saturated = np.any(pixels >= top, axis=2)
-        values = pixels.astype(np.float32) / top
-        black, white = [0.0] * pixels.shape[2], top
-        inverse, described = load_response(response)
-        if inverse is not None:
-            values = np.asarray(inverse(values), np.float32)
+        values, saturated, black, white, described = _integer_values(path, pixels, response)
+        linear = described is not None
     else:
-        if response is not None:
+        linear = bool(header.get("linear", True)) if header else True
+        if response is not None and linear and not response_for_codes_only:
             raise UserInputError("a float image is taken as linear: it takes no response curve", file=path,
                                  field="--response")
         values = pixels.astype(np.float32)
         if not np.all(np.isfinite(values)):
             raise UserInputError("the image holds NaN or infinite values", file=path)
-        saturated = np.zeros(values.shape[:2], bool)
-        black, white, inverse, described = None, None, None, None
-    linear = inverse is not None or not np.issubdtype(pixels.dtype, np.integer)
+        inverse, described = load_response(None if linear else response)
+        if inverse is not None:  # a decode of codes without a curve: the curve now
+            values, linear = np.asarray(inverse(values), np.float32), True
+        saturated = marked if marked is not None else np.zeros(values.shape[:2], bool)
+        black, white = None, None
     info = DecodeInfo(width=values.shape[1], height=values.shape[0], black_level=black, white_level=white, cfa=None,
                       saturated_fraction=float(saturated.mean()), linear=linear, source="image", demosaic=None,
                       channels=names, response=described, **read_exif(path))
+    for key in RESTORED_FIELDS:
+        if header is not None and key in header and not (key == "response" and described is not None):
+            setattr(info, key, header[key])
     return DecodedImage(values, saturated, info)
 
 
-def _read_with_openimageio(path: Path) -> tuple[np.ndarray, list[str], int | None]:
-    """(pixels (H, W, C) in the file's own type, channel names, the alpha channel's index or None)."""
+def _integer_values(path: Path, pixels: np.ndarray, response: ResponseLike):
+    """8/16-bit codes as [0, 1] values, through the inverse ``response`` when given: (values,
+    saturated (any channel at the top code), black levels, white level, the response's description)."""
+    if pixels.dtype.itemsize > 2:
+        raise UserInputError("unsupported sample type", file=path, expected="8- or 16-bit integers or floats",
+                             got=str(pixels.dtype))
+    top = float(np.iinfo(pixels.dtype).max)
+    saturated = np.any(pixels >= top, axis=2)
+    values = pixels.astype(np.float32) / top
+    inverse, described = load_response(response)
+    if inverse is not None:
+        values = np.asarray(inverse(values), np.float32)
+    return values, saturated, [0.0] * pixels.shape[2], top, described
+
+
+def _decode_header(path: Path, text: Any) -> dict | None:
+    """The decode record write_exr puts in the EXR header (None where there is none); a header
+    of that name that is not such a record is refused."""
+    if text is None:
+        return None
+    try:
+        header = json.loads(text) if isinstance(text, str) else None
+    except ValueError:
+        header = None
+    channels = header.get("channels") if isinstance(header, dict) else None
+    if not (isinstance(header, dict) and isinstance(header.get("linear", True), bool)
+            and isinstance(channels, list) and channels and all(isinstance(c, str) for c in channels)):
+        raise UserInputError("the image's decode header is not the record `workbench decode` writes", file=path,
+                             field=HEADER, expected="JSON with the decode's fields (channels, linear, cfa, ...)",
+                             got=str(text)[:80])
+    return header
+
+
+def _pick_channels(path: Path, pixels: np.ndarray, names: list[str], alpha: int | None,
+                   header: dict | None) -> tuple[np.ndarray, list[str], np.ndarray | None]:
+    """The image's colour channels by name ([Kainz 2013]: R, G, B, Y, A and any named others), alpha
+    left out, and the ``saturated`` channel (write_exr's) as the saturation mask (> 0.5; None
+    without one): the channels the decode header names, in its order; else R, G, B by name;
+    else one channel (grey) or three (RGB) in the file's order. Anything else is refused,
+    naming the file and its channels."""
+    keep = [i for i in range(len(names)) if i != alpha]
+    marked = None
+    if SATURATION_CHANNEL in names and names.index(SATURATION_CHANNEL) in keep:
+        index = names.index(SATURATION_CHANNEL)
+        marked = np.asarray(pixels[..., index]) > 0.5
+        keep.remove(index)
+    available = {names[i]: i for i in keep}
+    wanted = header["channels"] if header else (["R", "G", "B"] if set(available) == {"R", "G", "B"} else None)
+    if wanted is not None and len(wanted) == len(keep) and set(wanted) == set(available):
+        return pixels[..., [available[name] for name in wanted]], list(wanted), marked
+    if wanted is None and len(keep) in (1, 3):
+        return pixels[..., keep], ["Y"] if len(keep) == 1 else ["R", "G", "B"], marked
+    expected = (f"the channels its decode header names ({', '.join(header['channels'])})" if header else
+                "grey or RGB (with or without alpha), and optionally a 'saturated' mask as `workbench decode` writes")
+    raise UserInputError("unsupported channel layout", file=path, expected=expected, got=names)
+
+
+def _read_with_openimageio(path: Path) -> tuple[np.ndarray, list[str], int | None, Any]:
+    """(pixels (H, W, C) in the file's own type, channel names, the alpha channel's index or
+    None, the HEADER attribute or None)."""
     import OpenImageIO as oiio  # deferred: start-up time
 
     image = oiio.ImageInput.open(str(path))
@@ -267,6 +333,7 @@ def _read_with_openimageio(path: Path) -> tuple[np.ndarray, list[str], int | Non
         spec = image.spec()
         pixels = image.read_image(0, 0, 0, spec.nchannels, oiio.UNKNOWN)
         error = image.geterror()
+        header = spec.getattribute(HEADER)
     finally:
         image.close()
     if pixels is None or error:
@@ -278,7 +345,7 @@ def _read_with_openimageio(path: Path) -> tuple[np.ndarray, list[str], int | Non
     if pixels.dtype == np.float16:
         pixels = pixels.astype(np.float32)
     alpha = spec.alpha_channel if spec.alpha_channel >= 0 else None
-    return pixels, list(spec.channelnames), alpha
+    return pixels, list(spec.channelnames), alpha, header
 
 
 def load_response(response: ResponseLike) -> tuple[Callable[[np.ndarray], np.ndarray] | None, str | None]:
@@ -387,13 +454,13 @@ def write_exr(path: str | Path, decoded: DecodedImage) -> Path:
                              got=str(path))
     data = np.concatenate([decoded.pixels, decoded.saturated[..., None].astype(np.float32)], axis=2)
     data = np.ascontiguousarray(data, np.float32)
-    names = [*decoded.info.channels, "saturated"]
+    names = [*decoded.info.channels, SATURATION_CHANNEL]
 
     def write(tmp: Path) -> None:
         spec = oiio.ImageSpec(data.shape[1], data.shape[0], data.shape[2], oiio.FLOAT)
         spec.channelnames = tuple(names)
         spec.attribute("compression", "zip")
-        spec.attribute("workbench:decode", json.dumps(decoded.info.to_json()))
+        spec.attribute(HEADER, json.dumps(decoded.info.to_json()))
         output = oiio.ImageOutput.create(str(tmp))
         if output is None or not output.open(str(tmp), spec):
             raise OSError(f"cannot write {tmp}: {oiio.geterror()}")

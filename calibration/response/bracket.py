@@ -6,6 +6,12 @@ tags); for a raw bracket, the raw values normalised by the black and white level
 Units: images enter as integer codes (8 or 16 bits) and are normalised to values
 y = code / (2^bits - 1) in [0, 1]; raw values as (count - black) / (white - black); times
 in seconds.
+
+Before any fit, the frames are checked against their times (``check_frames_follow_times``,
+``check_raw_follows_times``): each pair of frames consecutive in time, over the values both
+see well exposed, must show its claimed exposure ratio (raw: the measured ratio itself;
+developed images: the ordering a monotone response implies), else the bracket is refused
+naming the pair.
 """
 
 from __future__ import annotations
@@ -34,6 +40,36 @@ MAX_PIXELS = 1_000_000       # larger images are read at a stride (the curve nee
 # Raw brackets: a raw value is used where its neighbourhood lies between these fractions of
 # the black-to-white range.
 RAW_USABLE = (0.02, 0.9)
+
+# Frames against their claimed times (check_frames_follow_times, check_raw_follows_times).
+# A pair is judged on the values both frames see well exposed (usable in both), and only
+# where there are PAIR_VALUES_MIN of them (fewer: the fit's own overlap check speaks).
+PAIR_VALUES_MIN = 100
+# Developed images: a monotone response ([Debevec 1997, Sec. 2.1, Eq. 1]) makes the longer
+# exposure brighter wherever neither frame is clipped. Measured share of well-exposed values
+# brighter in the longer frame: 0.924-0.995 on the draft dataset's JPEG bracket (ev-6..ev+2,
+# x2 and x4 steps; lowest in the brightest pair, JPEG artefacts beside highlights), 0.995-1.000
+# on tests/calibration/test_response.py's PNG brackets (sRGB and shoulder curves, 5 seeds);
+# the same bracket in reverse order 0.004-0.055, the same frame twice 0 (all equal). "Most"
+# is more than ORDER_SHARE_MIN: 0.42 above the reversed maximum and below the correct minimum.
+ORDER_SHARE_MIN = 0.5
+# Two frames whose well-exposed codes are equal at more than this share are the same image
+# (correct pairs: at most 0.020 equal; a frame twice: 1.000).
+IDENTICAL_SHARE = 0.9
+# Raw frames: the median ratio of the pixels' values (linear: no response needed) is the
+# exposure ratio. Measured against the true ratio: within 0.06 % on the draft dataset's DNG
+# bracket (6 pairs) and 0.10 % on test_response.py's synthetic DNG brackets (5 seeds x 4
+# pairs), shot noise being the only error. A camera's marked times are nominal: 1/60 and
+# 1/125 s are marked x2.083 apart for a true x2 (powers of two), 4.2 %, and a mechanical
+# shutter's short times scatter by a few per cent more; RAW_RATIO_TOLERANCE (10 %) leaves room
+# for both and refuses a time that is wrong by more, a frame twice (x1) or reversed times (x1/c).
+RAW_RATIO_TOLERANCE = 0.10
+# A raw sensor may be non-linear (value ~ (E t)^b, b reported by the linearity check), so
+# the ratios are compared with the claimed ones raised to the bracket's common exponent b
+# (the median over pairs of ln measured / ln claimed). A pair whose own exponent lies outside
+# RAW_EXPONENT_RANGE is no sensor's response but wrong times: identical frames give 0,
+# reversed ones -1 (the synthetic non-linear raw of test_response.py: 0.80).
+RAW_EXPONENT_RANGE = (0.5, 2.0)
 
 
 @dataclass(frozen=True)
@@ -68,6 +104,7 @@ class RawBracket:
     values: np.ndarray
     usable: np.ndarray
     times_s: np.ndarray
+    files: tuple[str, ...] = ()
 
 
 def _exposure_time(path: Path) -> float | None:
@@ -194,7 +231,9 @@ def read_bracket(paths: Sequence[str | Path], times_s: Sequence[float] | None = 
         frames.append(_bracket_frame(path, image, bits, stride))
     codes, levels, usable = (np.stack(parts) for parts in zip(*frames, strict=True))
     channels = ("R", "G", "B") if first.shape[2] == 3 else ("grey",)
-    return Bracket(codes, levels, usable, times, bits, tuple(str(p) for p in checked), channels, stride)
+    bracket = Bracket(codes, levels, usable, times, bits, tuple(str(p) for p in checked), channels, stride)
+    check_frames_follow_times(bracket)
+    return bracket
 
 
 def _bracket_frame(path: Path, image: np.ndarray, bits: int, stride: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -257,4 +296,92 @@ def read_raw_bracket(paths: Sequence[str | Path], times_s: Sequence[float] | Non
     frames = [first] + [_raw_frame(path, first[2]) for path in checked[1:]]
     values = np.stack([frame.ravel() for frame, _, _ in frames], 1)
     usable = np.stack([mask.ravel() for _, mask, _ in frames], 1).astype(float)
-    return RawBracket(values, usable, times)
+    bracket = RawBracket(values, usable, times, tuple(str(p) for p in checked))
+    check_raw_follows_times(bracket)
+    return bracket
+
+
+
+def _pairs_in_time(times: np.ndarray) -> list[tuple[int, int]]:
+    """Indices (shorter, longer) of the frames consecutive in exposure time; frames of equal
+    times are not a pair (nothing is claimed between them)."""
+    order = np.argsort(times, kind="stable")
+    return [(int(i), int(j)) for i, j in zip(order[:-1], order[1:], strict=True) if times[j] > times[i]]
+
+
+def _contradiction(files: Sequence[str], times: np.ndarray, pair: tuple[int, int], measured: str) -> UserInputError:
+    """The one-line refusal naming the pair of files, the claimed ratio and the measured one."""
+    i, j = pair
+    return UserInputError(f"{files[i]} ({times[i]:g} s) and {files[j]} ({times[j]:g} s) contradict their exposure "
+                          f"times: claimed x{times[j] / times[i]:.3f}, measured {measured}", field="exposure times",
+                          expected="frames whose brightness follows their times (EXIF ExposureTime, or --times in "
+                                   "the order the files are given)")
+
+
+def check_frames_follow_times(bracket: Bracket) -> None:
+    """Refuse developed frames that contradict their times. The response f is unknown but
+    monotone, Z = f(E t) ([Debevec 1997, Sec. 2.1, Eq. 1]), so of two frames the longer
+    exposure is brighter at every value neither clips: over the values both frames see well
+    exposed (``usable`` in both), the longer one must be brighter at more than
+    ORDER_SHARE_MIN of them, and frames whose codes are equal at more than IDENTICAL_SHARE
+    are the same image. Only the ordering is tested: the ratio itself needs the curve."""
+    for i, j in _pairs_in_time(bracket.times_s):
+        both = bracket.usable[i] & bracket.usable[j]
+        count = int(both.sum())
+        if count < PAIR_VALUES_MIN:
+            continue
+        short, long = bracket.codes[i][both], bracket.codes[j][both]
+        equal, brighter, darker = (float(np.mean(test)) for test in (long == short, long > short, long < short))
+        if equal > IDENTICAL_SHARE:
+            raise _contradiction(bracket.files, bracket.times_s, (i, j),
+                                 f"x1, the same image ({equal:.1%} of {count} well-exposed values equal)")
+        if brighter <= ORDER_SHARE_MIN:
+            raise _contradiction(bracket.files, bracket.times_s, (i, j),
+                                 f"not above x1 (the longer exposure brighter at {brighter:.1%} and darker at "
+                                 f"{darker:.1%} of {count} well-exposed values; a response is monotone: brighter at "
+                                 "most)")
+
+
+def raw_pair_ratios(bracket: RawBracket) -> list[tuple[tuple[int, int], float, float, int]]:
+    """Each pair of raw frames consecutive in time: ((shorter, longer), claimed ratio, measured
+    ratio, values used). The measured ratio is the median over the pixels both frames see well
+    exposed (within RAW_USABLE in both) of longer / shorter: raw values are linear in the
+    exposure ([EMVA 1288, Sec. 2]), and the median ([Hampel 1986]) ignores the few pixels a
+    moving object or a hot pixel changes. Pairs with fewer than PAIR_VALUES_MIN such pixels
+    are left out."""
+    rows = []
+    for i, j in _pairs_in_time(bracket.times_s):
+        v = bracket.values
+        both = (bracket.usable[:, i] > 0) & (bracket.usable[:, j] > 0) & (v[:, i] > 0) & (v[:, j] > 0)
+        if int(both.sum()) >= PAIR_VALUES_MIN:
+            measured = float(np.median(v[both, j] / v[both, i]))
+            rows.append(((i, j), float(bracket.times_s[j] / bracket.times_s[i]), measured, int(both.sum())))
+    return rows
+
+
+def check_raw_follows_times(bracket: RawBracket) -> None:
+    """Refuse a raw bracket whose measured exposure ratios (raw_pair_ratios) contradict the
+    claimed ones: a pair whose exponent ln(measured) / ln(claimed) lies outside
+    RAW_EXPONENT_RANGE (the same frame twice: 0; reversed times: -1), or, with two pairs or
+    more, a pair off the bracket's common power law (value ~ (E t)^b, b the median exponent,
+    1 for a linear sensor; [EMVA 1288, Sec. 6.4]) by more than RAW_RATIO_TOLERANCE. A common
+    b other than 1 is left to the linearity check to report."""
+    files = bracket.files or tuple(f"frame {k + 1}" for k in range(len(bracket.times_s)))
+    rows = raw_pair_ratios(bracket)
+    exponents = [math.log(measured) / math.log(claimed) for _, claimed, measured, _ in rows]
+    for (pair, _, measured, count), exponent in zip(rows, exponents, strict=True):
+        if not RAW_EXPONENT_RANGE[0] <= exponent <= RAW_EXPONENT_RANGE[1]:
+            same = " (the same exposure)" if abs(math.log(measured)) < math.log1p(RAW_RATIO_TOLERANCE) else ""
+            raise _contradiction(files, bracket.times_s, pair,
+                                 f"x{measured:.3f}{same}, the median ratio of {count} well-exposed raw values")
+    if len(rows) < 2:
+        return
+    b = float(np.median(exponents))
+    misfit = [abs(math.log(measured) - b * math.log(claimed)) for _, claimed, measured, _ in rows]
+    worst = int(np.argmax(misfit))
+    if misfit[worst] > math.log1p(RAW_RATIO_TOLERANCE):
+        pair, claimed, measured, count = rows[worst]
+        raise _contradiction(files, bracket.times_s, pair,
+                             f"x{measured:.3f}, the median ratio of {count} well-exposed raw values (the bracket's "
+                             f"other pairs follow their times to the power {b:.3f}: x{claimed ** b:.3f} here, "
+                             f"tolerance {RAW_RATIO_TOLERANCE:.0%})")

@@ -21,6 +21,7 @@ from calibration.response.methods import (
     curve_points,
     log_domain_difference,
 )
+from workbench.core.errors import UserInputError
 from workbench.core.files import atomic_write_text
 
 COVERAGE_WARNING = (0.15, 0.9)  # a bracket whose usable values do not span these is warned about
@@ -28,9 +29,14 @@ COVERAGE_WARNING = (0.15, 0.9)  # a bracket whose usable values do not span thes
 
 def raw_record(paths: list[Path], check: dict, timings: dict[str, float]) -> dict:
     """response.json of a raw bracket: the linearity check (calibration.response.methods.linearity_slope)
-    and ``points`` a power law of the measured slope (the identity when linear)."""
+    and ``points`` a power law of the measured slope (the identity when linear). A slope that
+    is not positive is no response (0 ** slope would be infinite, and JSON has no infinity):
+    calibration.response.bracket refuses such brackets first, and this refuses them again."""
     x = np.linspace(0.0, 1.0, 256)
     slope = 1.0 if check["linear"] else check["slope"]
+    if not (math.isfinite(slope) and slope > 0):
+        raise UserInputError("the raw values do not grow with the exposure time", field="exposure times",
+                             expected="a positive slope of ln(raw value) against ln(time)", got=slope)
     return {"method": "raw-linearity", "linear": check["linear"], "points": [[float(a), float(a**slope)] for a in x],
             "linearity": check, "times_s": check["times_s"], "files": [str(p) for p in paths],
             "settings": {"raw_usable": list(RAW_USABLE), "tolerance": LINEARITY_TOLERANCE},

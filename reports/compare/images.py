@@ -4,7 +4,9 @@
   read them: raw files (DNG and whatever LibRaw reads) to linear camera RGB, black level
   subtracted per channel, 1 at the white level, no white balance, no gamma, bilinear
   demosaicing; a pixel is clipped where a raw sample it was made from reached the white
-  level. Linear float images (EXR, float TIFF) as they are. A JPEG, PNG or integer TIFF
+  level. Linear float images (EXR, float TIFF) as they are; the EXR ``workbench decode`` writes
+  of a raw file as that raw file (its ``saturated`` channel the clipped pixels, its header's
+  colour pattern the mosaic). A JPEG, PNG or integer TIFF
   through the inverse of the calibration's fitted response (calibration.json's
   ``response``); without one it is refused.
 * Renders: EXR, linear camera RGB (renderer.render), read with OpenImageIO.
@@ -80,22 +82,26 @@ def read_photo(path: str | Path, response: dict | None = None, what: str = "--ph
 
     ``response`` is the calibration's fitted response (calibration.json's ``response``,
     ``points`` of normalised irradiance and value): a JPEG, PNG or integer TIFF is taken
-    through its inverse; without one such a photo is refused (it is not linear)."""
+    through its inverse; without one such a photo is refused (it is not linear). A linear
+    float image ignores it."""
     path = Path(path)
     if not path.is_file():
         raise UserInputError("no such file", field=what, got=str(path))
     raw = is_raw(path)
-    decoded = decode(path, response=None if raw or response is None else response)
+    decoded = decode(path, response=None if raw else response, response_for_codes_only=True)
+    # A raw file, or the EXR `workbench decode` wrote of one (its header restores the colour
+    # pattern, and its values keep 1 at the white level): a sensor's mosaic and clip level.
+    sensor = raw or decoded.info.source == "raw"
     if not decoded.info.linear:
         raise UserInputError("the photo is not linear and the calibration holds no response curve to invert",
                              field=what, got=str(path),
                              expected="a raw file (DNG, ...), a linear float image (EXR, float TIFF), or a "
                                       "calibration.json with a response (calibrate with a bracket)")
     rgb = decoded.rgb(path, what)
-    channel = cfa_channels(decoded.info.cfa, rgb.shape[:2]) if raw else None
-    clip_level = 1.0 if raw and decoded.saturated.any() else None  # decode: 1 is the white level
-    return Photo(rgb, np.asarray(decoded.saturated, bool), str(path), "raw" if raw else "linear", channel, clip_level,
-                 decoded.info.to_json())
+    channel = cfa_channels(decoded.info.cfa, rgb.shape[:2]) if sensor else None
+    clip_level = 1.0 if sensor and decoded.saturated.any() else None  # decode: 1 is the white level
+    return Photo(rgb, np.asarray(decoded.saturated, bool), str(path), "raw" if sensor else "linear", channel,
+                 clip_level, decoded.info.to_json())
 
 
 def through_photo_sensor(render: np.ndarray, photo: Photo) -> np.ndarray:
