@@ -22,7 +22,7 @@ Scenes and rendering
     tables        which efficiency table serves each CD and grating, built when missing
     camera        the camera model shared with calibration (OpenCV pinhole with distortion)
     response      camera response curves
-    camera_coverage  pre-render checks (table coverage of the camera's sensitivities)
+    camera_coverage  pre-render checks (table coverage of the camera's sensitivities; where the camera looks)
     trace/        the numpy trace, no Mitsuba: ``geometry`` (rays against planes, the box's
                   walls, the light's rectangle, the grating equation), ``planner`` (what a
                   scene needs simulated), ``prediction`` and ``efficiency_weights`` (where the

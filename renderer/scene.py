@@ -17,6 +17,7 @@ angles in degrees, wavelengths in nm.
           (default; Mitsuba's area light) or ``{ cos_power = n }`` (n >= 0): radiance
           L0 cos^n(theta) about the normal, an LED array with lenses / a narrower beam,
           L0 = power_w / (A 2 pi / (n + 2)) (renderer.emitter; n = 0 is Lambertian).
+          The default light is the measured one, scaled with ``box.size``.
 [[cd]]    ``center``, ``normal``, ``rotation_deg``, ``outer_radius`` (0.060),
           ``inner_radius`` (0.0075), ``structure`` (built-in name or file; relative to the
           scene file), ``table`` (options of ``workbench rcwa table``: preset, orders, ...),
@@ -40,6 +41,10 @@ angles in degrees, wavelengths in nm.
           to compare with non-raw photos; renderer.response).
 [fit]     the scene fit's free parameters, named as the file's fields
           (``"cd[0].structure.period" = { bounds = [1.5, 1.7] }``; renderer.fit_parameters).
+
+Placement checks when a scene loads (docs/scene_format.md): the light in the ceiling, every object in the
+box, each CD and opaque grating lit on its front, the camera in or before the box looking in; warnings
+(``SceneSpec.warnings``) for a camera that sees little of the scene.
 """
 
 from __future__ import annotations
@@ -56,8 +61,9 @@ import numpy as np
 
 from rcwa.factorization import FACTORIZATION_RULES
 from rcwa.materials import material_from_spec
-from rcwa.structure import BUILTIN_STRUCTURES
+from rcwa.structure import BUILTIN_STRUCTURES, load_structure
 from renderer.camera import CameraModel, look_at
+from renderer.camera_coverage import camera_view_warnings, check_camera_placement
 from renderer.fit_parameters import FitTable, parse_fit_table
 from renderer.lens import LENS_MODELS
 from renderer.response import ResponseCurve
@@ -134,6 +140,7 @@ class SceneSpec:
     gratings: tuple[GratingSpec, ...] = ()
     base_dir: Path | None = field(default=None, compare=False)
     fit: FitTable | None = field(default=None, compare=False)  # the free parameters of a scene fit ([fit])
+    warnings: tuple[str, ...] = field(default=(), compare=False)  # legitimate but suspicious (camera_view_warnings)
 
 
 def cornell_data() -> dict:
@@ -166,15 +173,16 @@ def parse_scene(text: str, *, source: str, base_dir: Path | None) -> SceneSpec:
 def _parse(data: dict, source: str, text: str, base_dir: Path | None) -> SceneSpec:
     v.reject_unknown(data, {"name", "description", "box", "light", "cd", "glass", "grating", "camera", "fit"}, "")
     box = _parse_box(v.required(data, "box", ""))
-    light = _parse_light(v.required(data, "light", ""))
+    light = _parse_light(v.required(data, "light", ""), box)
     cds = tuple(_parse_cd(c, f"cd[{i}]", base_dir) for i, c in enumerate(data.get("cd", [])))
     glass = tuple(_parse_glass(g, f"glass[{i}]") for i, g in enumerate(data.get("glass", [])))
     gratings = tuple(_parse_grating(g, f"grating[{i}]", base_dir) for i, g in enumerate(data.get("grating", [])))
     camera = _parse_camera(v.required(data, "camera", ""))
-    _check_camera_placement(camera.model, box)
+    pose_field = "camera.world_to_camera" if "world_to_camera" in data["camera"] else "camera.look_at"
+    warnings = _check_placement(box, light, cds, gratings, glass, camera.model, pose_field)
     fit = parse_fit_table(data.get("fit"), cds, light)
     return SceneSpec(str(data.get("name", "scene")), source, text, box, light, camera, cds, glass, gratings, base_dir,
-                     fit)
+                     fit, warnings)
 
 
 def _parse_box(d: Any) -> dict:
@@ -196,7 +204,7 @@ def _parse_box(d: Any) -> dict:
     return out
 
 
-def _parse_light(d: Any) -> LightSpec:
+def _parse_light(d: Any, box: dict) -> LightSpec:
     if not isinstance(d, dict):
         raise UserInputError("must be a table", field="light", got=d)
     v.reject_unknown(d, {"center", "size", "power_w", "spectrum", "emission_profile"}, "light.")
@@ -205,8 +213,8 @@ def _parse_light(d: Any) -> LightSpec:
         raise UserInputError("unknown light spectrum", field="light.spectrum",
                              expected=f"flat, cornell or one of {LED_SPECTRA}", got=spectrum)
     geometry = cornell_data()["geometry"]["light"]
-    pts = np.asarray(geometry) * MM
-    cx, cy, cz = (float(c) for c in pts.mean(axis=0) - [0, 1e-4, 0])  # the measured light (in a measured-size box)
+    pts = np.asarray(geometry) * MM * box_scale(box)  # the measured light, scaled with the box (x 1.0 when unscaled)
+    cx, cy, cz = (float(c) for c in pts.mean(axis=0) - [0, 1e-4, 0])  # 0.1 mm below the ceiling
     default_center = (cx, cy, cz)
     default_size = (float(np.ptp(pts[:, 0])), float(np.ptp(pts[:, 2])))
     return LightSpec(
@@ -463,16 +471,86 @@ def _box_bounds(box: dict | None = None) -> tuple[np.ndarray, np.ndarray]:
     return lo * scale, hi * scale
 
 
-def _check_camera_placement(camera: CameraModel, box: dict) -> None:
-    """The camera must be inside the box or in front of its open face (z < 0), not in or
-    behind a wall (1 mm clearance)."""
-    origin = -camera.world_to_camera[:3, :3].T @ camera.world_to_camera[:3, 3]
+# Scene sanity (docs/scene_format.md, "Placement checks"): what would render black or miss the scene is refused.
+SLACK_M = 1e-3            # an object may touch a wall (a CD resting on the floor, round-off), not pass through it
+LIGHT_DROP = 0.02         # of the box's height: how far below the ceiling the ceiling light may hang (measured: 0.1 mm)
+
+
+def _extent(lo: np.ndarray, hi: np.ndarray) -> str:
+    return "the box's extent, " + ", ".join(f"{a} {a0:.4g} to {a1:.4g}" for a, a0, a1 in zip("xyz", lo, hi, strict=True)) + " m"
+
+
+def _check_placement(box: dict, light: LightSpec, cds, gratings, glass, camera: CameraModel, pose_field: str) -> tuple[str, ...]:
+    """The light in the ceiling, every object in the box, each CD and opaque grating lit on its front,
+    the camera in the box or before its open front looking in. Returns the warnings (a camera that sees little)."""
     lo, hi = _box_bounds(box)
-    clearance = 1e-3
-    inside = np.all(origin > lo + clearance) and np.all(origin < hi - clearance)
-    in_front = origin[2] < lo[2] - clearance and lo[0] - 1.0 < origin[0] < hi[0] + 1.0
-    if not (inside or in_front):
-        raise UserInputError("the camera is inside or behind a wall of the box", field="camera.look_at.origin",
-                             expected=f"inside the box ({lo.round(3).tolist()} to {hi.round(3).tolist()} m) "
-                                      "or in front of its open side (z < 0)",
-                             got=origin.round(4).tolist())
+    _check_light_placement(light, lo, hi)
+    for i, cd in enumerate(cds):
+        top = np.asarray(cd.center) + (CD_TOP_THICKNESS_M if cd.top_surface else 0.0) * np.asarray(cd.normal)
+        _check_inside(np.stack([cd.center, top]), _disc_half_extent(cd.outer_radius, cd.normal), f"cd[{i}]", lo, hi)
+        if not _lit_front(cd.center, cd.normal, light):
+            _refuse_unlit(cd.normal, f"cd[{i}]")
+    for i, g in enumerate(gratings):  # the disc inscribed in the plate: any rotation of it lies inside it
+        _check_inside(np.asarray([g.center]), _disc_half_extent(min(g.size) / 2, g.normal), f"grating[{i}]", lo, hi)
+        if not _lit_front(g.center, g.normal, light) and not _transmits(g.structure):  # see-through: lit from behind,
+            _refuse_unlit(g.normal, f"grating[{i}]")                                   # it shows its transmitted orders
+    for i, item in enumerate(glass):
+        turn = math.radians(item.rotation_deg)  # a cube turns about y
+        across = abs(math.cos(turn)) + abs(math.sin(turn))
+        half = np.full(3, item.size) if item.shape == "sphere" else item.size / 2 * np.array([across, 1.0, across])
+        _check_inside(np.asarray([item.center]), half, f"glass[{i}]", lo, hi)
+    share = check_camera_placement(camera, lo, hi, pose_field)
+    return camera_view_warnings(camera, [e.center for e in (*cds, *gratings)], share)
+
+
+def _check_light_placement(light: LightSpec, lo: np.ndarray, hi: np.ndarray) -> None:
+    """The ceiling light: its rectangle in the ceiling's plane (at most LIGHT_DROP of the box's height below
+    it, never above it: the ceiling would hide it) and within the ceiling's x, z extent."""
+    x, y, z = light.center
+    half = np.asarray(light.size) / 2
+    if np.any(2 * half > hi[[0, 2]] - lo[[0, 2]] + SLACK_M):
+        raise UserInputError("the light is larger than the box's ceiling", field="light.size",
+                             expected=f"at most {hi[0] - lo[0]:.4g} x {hi[2] - lo[2]:.4g} m", got=list(light.size))
+    floor_y = hi[1] - LIGHT_DROP * (hi[1] - lo[1])
+    on_ceiling = floor_y <= y <= hi[1] + 1e-9
+    within = np.all(np.abs([x, z] - (lo[[0, 2]] + hi[[0, 2]]) / 2) + half <= (hi[[0, 2]] - lo[[0, 2]]) / 2 + SLACK_M)
+    if not (on_ceiling and within):
+        raise UserInputError(
+            "the light is not in the box's ceiling", field="light.center",
+            expected=f"y {floor_y:.4g} to {hi[1]:.4g} m (the ceiling) and its {2 * half[0]:.4g} x {2 * half[1]:.4g} m "
+                     f"rectangle within the ceiling's x and z ({_extent(lo, hi)})",
+            got=[round(c, 4) for c in light.center])
+
+
+def _disc_half_extent(radius: float, normal) -> np.ndarray:
+    """Half the extent along x, y, z of a disc of ``radius`` about ``normal``."""
+    return radius * np.sqrt(np.clip(1.0 - np.square(np.asarray(normal, float)), 0.0, None))
+
+
+def _check_inside(centers: np.ndarray, half: np.ndarray, where: str, lo: np.ndarray, hi: np.ndarray) -> None:
+    """An object (its centres ``centers``, each +- ``half`` along x, y, z) inside the box, SLACK_M allowed."""
+    if np.all(centers - half >= lo - SLACK_M) and np.all(centers + half <= hi + SLACK_M):
+        return
+    raise UserInputError(f"{where} is outside the box or through a wall", field=f"{where}.center",
+                         expected=f"the object (+- {np.round(half, 4).tolist()} m about its centre) within {_extent(lo, hi)}",
+                         got=np.round(centers[0], 4).tolist())
+
+
+def _transmits(structure: str) -> bool:
+    """A see-through structure (a lossless substrate), as renderer.tables.table_settings decides."""
+    eps = np.asarray(load_structure(structure).substrate.epsilon(np.array([550.0])))
+    return bool(np.all((eps.imag == 0) & (eps.real > 0)))
+
+
+def _lit_front(center, normal, light: LightSpec) -> bool:
+    """Some point of the light (a corner of its rectangle) in front of the element's plane: else no light
+    reaches its grooved side and it renders black (a flat element's plane is the same for all its points)."""
+    corners = np.array([[light.center[0] + sx * light.size[0] / 2, light.center[1], light.center[2] + sz * light.size[1] / 2]
+                        for sx in (-1, 1) for sz in (-1, 1)])
+    return bool(np.max((corners - np.asarray(center)) @ np.asarray(normal)) > 0)
+
+
+def _refuse_unlit(normal, where: str) -> None:
+    raise UserInputError(f"{where} faces away from the light: no light reaches its front (the grooved side)",
+                         field=f"{where}.normal", expected="a normal with part of the light in front of it, "
+                         "(light point - center) . normal > 0", got=np.round(normal, 4).tolist())

@@ -16,7 +16,11 @@ stages:
    point-to-edge distances over the same unknowns (+ k1 without intrinsics), with the
    analytic Jacobian of cv2.projectPoints; repeated with shrinking search windows until
    the projection stops moving (the "moving edges" scheme of [Harris 1992] and
-   [Drummond 2002, Eqs. 3-6]). With intrinsics given they are held fixed.
+   [Drummond 2002, Eqs. 3-6]). With intrinsics given they are held fixed. Then the test that
+   can say no: the share of the scene's projected edges the photo shows at the fitted camera
+   (``coverage``, calibration.pose.edge_fit.edge_coverage; 0.92-0.99 on photos of the scene, 0.25-0.62
+   on photos of chessboards and a colour chart) must reach MIN_COVERAGE (0.75), else the photo is
+   refused as not showing the scene, before anything renders. pose.json records it.
 3. **Render check** (renderer.rerender.FitRenderer: the scene rendered with the fitted camera,
    fixed seed): the photometric scale (exposure x light power) is the ratio of the photo
    to the render over the walls, and the render, scaled, clipped, mosaicked and

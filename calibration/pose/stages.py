@@ -17,7 +17,9 @@ from calibration.intrinsics.vignetting import WallTiles
 from calibration.pose.edge_fit import (
     PoseSettings,
     Unknowns,
+    check_coverage,
     coarse_fit,
+    edge_coverage,
     fine_fit,
 )
 from calibration.pose.edges import smoothed
@@ -107,6 +109,8 @@ def _fit_photo(photo: Photo, model: SceneModel, start: CameraModel, unknowns: Un
     tick = time.perf_counter()
     image = smoothed(photo.grey)
     camera, match, fine_log = fine_fit(image, model, camera, unknowns, settings)
+    coverage = edge_coverage(image, model, camera, settings)
+    check_coverage(photo.path, coverage)  # before the render check: a photo of something else renders for nothing
     timings["fine_s"] = time.perf_counter() - tick
     _advance(bar)
     scale = scale_std = tiles = None
@@ -120,7 +124,7 @@ def _fit_photo(photo: Photo, model: SceneModel, start: CameraModel, unknowns: Un
     _advance(bar)
     repeats = restarts(image, model, camera, unknowns, settings) if unknowns.intrinsics else None
     cov, stats, cross = covariance_parts(match, unknowns, camera, intrinsics_std)
-    residuals = stats | {"per_feature": per_feature_residuals(match, unknowns, camera)}
+    residuals = stats | coverage | {"per_feature": per_feature_residuals(match, unknowns, camera)}
     std = derived_std(camera, unknowns, cov, intrinsics_std, repeats, cross)
     fringes = None
     if renderer is not None and scale is not None and settings.cd_fringes:
@@ -129,7 +133,7 @@ def _fit_photo(photo: Photo, model: SceneModel, start: CameraModel, unknowns: Un
                                   settings.cd_fringes_apply)
         if fringes is not None and fringes.accepted:
             camera = fringes.camera
-            residuals = covariance(match, unknowns, camera, intrinsics_std)[1] | {
+            residuals = covariance(match, unknowns, camera, intrinsics_std)[1] | coverage | {
                 "per_feature": per_feature_residuals(match, unknowns, camera)}
         timings["cd_fringes_s"] = time.perf_counter() - tick
     log = {"coarse": coarse_log, "fine": fine_log, "render_check": check_log,

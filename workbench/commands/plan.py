@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import sys
 
 from workbench.commands.arguments import SCENE_HELP
 
@@ -23,6 +24,9 @@ def run(args: argparse.Namespace) -> int:
     from renderer.scene import load_scene  # deferred: as above
     from renderer.trace.planner import format_plan, plan_scene  # deferred: the renderer pulls in scipy and cv2 (start-up time)
 
-    result = plan_scene(load_scene(args.scene))
+    spec = load_scene(args.scene)  # refuses a scene that would render black or miss the box (renderer.scene)
+    for warning in spec.warnings:  # legitimate but suspicious: a camera that sees little of the scene
+        print(f"warning: {warning}", file=sys.stderr)
+    result = plan_scene(spec)
     print(json.dumps(result.to_json(), indent=2) if args.json else format_plan(result))
     return 0
