@@ -44,6 +44,7 @@ JSON sidecar (settings, versions, timings).
 from __future__ import annotations
 
 import json
+import os
 import time
 from collections.abc import Callable
 from dataclasses import asdict, dataclass, field
@@ -320,6 +321,27 @@ def _pick_channels(path: Path, pixels: np.ndarray, names: list[str], alpha: int 
     raise UserInputError("unsupported channel layout", file=path, expected=expected, got=names)
 
 
+IMAGE_BYTES_PER_SAMPLE = 48  # the decode's and the report's float64 working copies of each sample (about six)
+IMAGE_MEMORY_FRACTION = 0.5
+
+
+def check_image_size(width: int, height: int, channels: int, path: str | Path, total_bytes: int | None = None) -> None:
+    """Refuse an image whose declared size would not fit in memory once decoded, before its pixels are
+    read (issue 46, cause 1: a 3.5 MB PNG declaring 60000 x 60000 pixels took 24 GB before the kernel
+    killed the report), with the estimate in the message."""
+    if total_bytes is None:
+        try:
+            total_bytes = os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")
+        except (ValueError, OSError, AttributeError):
+            return
+    need = int(width) * int(height) * max(int(channels), 1) * IMAGE_BYTES_PER_SAMPLE
+    if need > IMAGE_MEMORY_FRACTION * total_bytes:
+        raise UserInputError(f"declares {width} x {height} pixels, which would need about {need / 2**30:.0f} GiB to "
+                             f"decode and compare, more than half of this machine's {total_bytes / 2**30:.0f} GiB",
+                             file=path, expected="an image of at most about "
+                             f"{int(IMAGE_MEMORY_FRACTION * total_bytes / (3 * IMAGE_BYTES_PER_SAMPLE) / 1e6)} megapixels")
+
+
 def _read_with_openimageio(path: Path) -> tuple[np.ndarray, list[str], int | None, Any]:
     """(pixels (H, W, C) in the file's own type, channel names, the alpha channel's index or
     None, the HEADER attribute or None)."""
@@ -331,6 +353,7 @@ def _read_with_openimageio(path: Path) -> tuple[np.ndarray, list[str], int | Non
                              expected="a raw photograph, JPEG, PNG, TIFF or EXR")
     try:
         spec = image.spec()
+        check_image_size(spec.width, spec.height, spec.nchannels, path)
         pixels = image.read_image(0, 0, 0, spec.nchannels, oiio.UNKNOWN)
         error = image.geterror()
         header = spec.getattribute(HEADER)

@@ -31,7 +31,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from calibration.raw.decode import bilinear_demosaic, cfa_channels, decode, is_raw
+from calibration.raw.decode import bilinear_demosaic, cfa_channels, check_image_size, decode, is_raw
 from renderer.regions import WALL_REGIONS
 from renderer.regions import region_masks as region_masks  # re-exported: the report's modules take it from here
 from renderer.spectra import camera_sensitivities, light_spectrum
@@ -67,6 +67,8 @@ def read_linear(path: str | Path, what: str) -> np.ndarray:
     buf = oiio.ImageBuf(str(path))
     if buf.has_error:
         raise UserInputError(f"cannot read the image ({buf.geterror().strip()})", field=what, got=str(path))
+    spec = buf.spec()  # the header only: pixels are read on demand
+    check_image_size(spec.width, spec.height, spec.nchannels, path)
     pixels = buf.get_pixels(oiio.FLOAT)
     if pixels is None or pixels.ndim != 3 or pixels.shape[2] < 3:
         raise UserInputError("not an RGB image", field=what, expected="3 or more channels",

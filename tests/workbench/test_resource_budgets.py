@@ -110,3 +110,44 @@ def test_a_device_pipe_or_endless_file_is_refused_unread(tmp_path, name):
     code, err, peak = _probe([a.format(**files) if a.startswith("{") else a for a in args], tmp_path)
     assert code == 2 and err.startswith("error: ") and expected in err, err
     assert peak < PROBE_MEMORY_BYTES, f"{name}: {peak / 2**20:.0f} MiB before the refusal"
+
+
+def _png_bomb(path: Path, side: int = 60000) -> None:
+    """A PNG whose header declares side x side RGB pixels, with a few rows of data (kilobytes on disk)."""
+    import struct
+    import zlib
+
+    def chunk(kind: bytes, data: bytes) -> bytes:
+        return struct.pack(">I", len(data)) + kind + data + struct.pack(">I", zlib.crc32(kind + data) & 0xFFFFFFFF)
+
+    rows = zlib.compress((b"\x00" + b"\x00" * (side * 3)) * 100, 9)
+    path.write_bytes(b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", struct.pack(">IIBBBBB", side, side, 8, 2, 0, 0, 0))
+                     + chunk(b"IDAT", rows) + chunk(b"IEND", b""))
+
+
+@pytest.mark.parametrize("reader", ["decode", "report's render reader"])
+def test_an_image_declaring_60000_square_pixels_is_refused_unread(tmp_path, reader):
+    """Issue 46, cause 1: a small PNG declaring 60000 x 60000 pixels took 24 GB through `report --render`
+    and a MemoryError through `decode`. The declared size is checked before the pixels are read (this
+    OpenImageIO also refuses a header out of proportion to its file, whichever comes first)."""
+    bomb = tmp_path / "bomb.png"
+    _png_bomb(bomb)
+    if reader == "decode":
+        code, err, peak = _probe(["decode", str(bomb), "--out", str(tmp_path / "b.exr")], tmp_path)
+    else:
+        script = ("import sys\nfrom reports.compare.images import read_linear\nfrom workbench.core.errors import "
+                  f"UserInputError\ntry:\n    read_linear({str(bomb)!r}, '--render')\nexcept UserInputError as e:\n"
+                  "    print(f'error: {e}', file=sys.stderr); sys.exit(2)\n")
+        process = subprocess.Popen([sys.executable, "-c", script], stderr=subprocess.PIPE, text=True)
+        _, status, usage = os.wait4(process.pid, 0)
+        code, err, peak = os.waitstatus_to_exitcode(status), process.stderr.read(), usage.ru_maxrss * 1024
+    assert code == 2 and err.startswith("error: ") and "bomb.png" in err, err
+    assert peak < PROBE_MEMORY_BYTES, f"{peak / 2**20:.0f} MiB before the refusal"
+
+
+def test_the_declared_size_check_refuses_what_would_not_fit():
+    from calibration.raw.decode import check_image_size
+
+    check_image_size(6000, 4000, 3, "photo.jpg", total_bytes=24 << 30)  # a 24-megapixel photo fits
+    with pytest.raises(UserInputError, match="declares 60000 x 60000 pixels"):
+        check_image_size(60000, 60000, 3, "bomb.png", total_bytes=24 << 30)
