@@ -48,7 +48,7 @@ class Photo:
 def read_photo(path: str | Path, inverse_response: Callable[[np.ndarray], np.ndarray] | None = None) -> Photo:
     """The photo at ``path`` as linear RGB (calibration.raw.decode); ``inverse_response``, from
     normalised value to normalised irradiance, applies to non-raw images only."""
-    decoded = decode(path, response=None if is_raw(path) else inverse_response)
+    decoded = decode(path, response=None if is_raw(path) else inverse_response, response_for_codes_only=True)
     rgb = decoded.rgb(path)
     info = decoded.info
     return Photo(str(path), rgb, decoded.saturated, bool(info.linear), info.exposure_time_s, info.cfa)

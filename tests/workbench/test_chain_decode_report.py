@@ -59,6 +59,9 @@ def test_real_raw_through_decode_reads_back_as_the_raw(tmp_path, capsys):
     pose_read = pose_photo.read_photo(exr)
     np.testing.assert_array_equal(pose_read.rgb, decode(COLORCHART).pixels)
     assert pose_read.cfa == "RGGB" and pose_read.linear and pose_read.saturated.shape == pose_read.rgb.shape[:2]
+    # ... and with calibrate DATASET's inverse response (for codes), which a linear EXR ignores too
+    curved = pose_photo.read_photo(exr, lambda v: v**2.2)
+    np.testing.assert_array_equal(curved.rgb, pose_read.rgb)
 
 
 def test_saturation_mask_is_carried(tmp_path, capsys):
