@@ -97,3 +97,22 @@ def test_rcwa_info_says_a_table_is_planned(tmp_path, capsys) -> None:
     assert info["planned"]["fill_orders"] == [5]
     assert main(["rcwa", "info", str(table)]) == 0
     assert f"3 of {mask.size} nodes solved" in capsys.readouterr().out
+
+
+def test_a_built_in_scene_exported_edited_and_rendered(tmp_path, capsys):
+    """Issue 45, item 5: a user copies cornell_cd out to change its resolution; the copy renders as edited."""
+    import json
+
+    from workbench.cli import main
+
+    scene = tmp_path / "mine.toml"
+    assert main(["list", "scenes", "--export", "cornell_cd", "--out", str(scene)]) == 0
+    text = scene.read_text()
+    start = text.index("resolution = [", text.index("[camera]"))
+    scene.write_text(text[:start] + "resolution = [64, 48]" + text[text.index("]", start) + 1:])
+    assert main(["render", str(scene), "--out", str(tmp_path / "r.exr"), "--spp", "2", "--quiet"]) == 0
+    assert json.loads((tmp_path / "r.json").read_text())["resolution"] == [64, 48]
+    assert main(["list", "scenes", "--export", "cornell_cd", "--out", str(scene)]) == 2  # no silent overwrite
+    assert main(["list", "structures", "--export", "cd", "--out", str(tmp_path / "cd.toml")]) == 0
+    assert main(["render", str(tmp_path / "cd.toml"), "--out", str(tmp_path / "x.exr")]) == 2  # a structure is no scene
+    assert main(["list", "materials", "--export", "gold"]) == 2
