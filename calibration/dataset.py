@@ -75,8 +75,11 @@ def _files(folder: Path) -> list[Path]:
 def dataset_files(dataset: str | Path) -> dict[str, list[Path]]:
     """The photos, bracket files and board views of a dataset folder (checked: photos exist)."""
     root = Path(dataset)
+    if root.is_file():  # one photo and nothing else: say what a dataset holds and what each stage needs
+        raise UserInputError("is a file, not a dataset folder", file=root,
+                             expected=f"a folder DATASET with photos/{root.name}; " + "; ".join(stage_needs({"photos": [root]})))
     if not root.is_dir():
-        raise UserInputError("is a file, not a dataset folder" if root.exists() else "no such dataset folder", file=root,
+        raise UserInputError("no such dataset folder", file=root,
                              expected="a folder with photos/ (and optionally brackets/ and calibration/)")
     photos = _files(root / "photos")
     if not photos:
@@ -86,6 +89,24 @@ def dataset_files(dataset: str | Path) -> dict[str, list[Path]]:
     if len(set(names)) != len(names):
         raise UserInputError("photo file names must be unique", file=root / "photos")
     return {"photos": photos, "brackets": _files(root / "brackets"), "boards": _files(root / "calibration")}
+
+
+def stage_needs(files: dict[str, list[Path]]) -> list[str]:
+    """What each calibration stage needs and what it does without it, for a dataset's files (or none):
+    the lines a person with one photo reads first (issue 45, item 7)."""
+    photos = files.get("photos", [])
+    raw = bool(photos) and all(p.suffix.lower() in RAW_SUFFIXES for p in photos)
+    boards, brackets = files.get("boards", []), files.get("brackets", [])
+    lines = [
+        f"intrinsics: {len(boards)} board views in calibration/ (with board.json, or --board and --square-mm)" if boards
+        else "intrinsics: no board views in calibration/, so the first photo's pose fit frees the focal length, "
+             "principal point and k1, k2 (put 10 or more board views in calibration/ for a lens you can trust)",
+        ("response: raw photos are linear; a bracket in brackets/ only checks it" if raw else
+         f"response: from the {len(brackets)} bracket frames in brackets/") if brackets or raw
+        else "response: none (JPEG photos need an exposure bracket in brackets/, or shoot raw: a raw file is linear)",
+        "pose, vignetting, scene fit and report: run on the photos in photos/ with what the stages above give",
+    ]
+    return lines
 
 
 def dataset_board(files: dict[str, list[Path]], dataset: str | Path, board: tuple[int, int] | None = None,

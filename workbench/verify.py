@@ -79,7 +79,7 @@ import tomli_w
 from PIL import Image
 from tqdm import tqdm
 
-from calibration.dataset import calibrate_dataset, dataset_files
+from calibration.dataset import calibrate_dataset, dataset_files, stage_needs
 from calibration.raw.checks import check_raw_file
 from calibration.raw.decode import is_raw
 from rcwa.structure import BUILTIN_STRUCTURES
@@ -98,7 +98,7 @@ from reports.scene_fit.verdict_record import Outcome, Verdict
 from workbench.core.errors import UserInputError
 from workbench.core.executor import DaskExecutor
 from workbench.core.files import atomic_write_text
-from workbench.verify_run import PRESETS, STAGES, Run, VerifySettings, open_run, read_record, run_lock, run_stage
+from workbench.verify_run import PRESETS, STAGES, Run, VerifySettings, _say, open_run, read_record, run_lock, run_stage
 
 __all__ = ["STAGES", "VerifySettings", "format_summary", "open_run", "read_record", "run_lock", "verify"]
 
@@ -476,6 +476,8 @@ def _verify_locked(root: Path, dataset: Path, scene: str | Path, spec: SceneSpec
     run = Run(root, open_run(root, identity, settings, force), dataset, photos, size, settings)
     atomic_write_text(run.scene, run_scene_text(spec, PRESETS[settings.preset]["tables"]))
     run.save()
+    for line in stage_needs(dataset_files(dataset)):  # what each stage has to work with, before it runs
+        _say(run, line)
     started = time.perf_counter()
     try:
         run.executor = _executor(settings.scheduler, settings.workers)

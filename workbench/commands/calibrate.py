@@ -247,8 +247,10 @@ def run_pose(args: argparse.Namespace) -> int:
 
 
 def run_dataset(args: argparse.Namespace) -> int:
-    from calibration.dataset import calibrate_dataset  # deferred: pulls in the renderer and scipy (start-up time)
+    from calibration.dataset import calibrate_dataset, dataset_files, stage_needs  # deferred: start-up time
 
+    for line in stage_needs(dataset_files(args.dataset)):
+        print(line)
     record = calibrate_dataset(args.dataset, args.scene, args.out, board=args.board, square_mm=args.square_mm,
                                settings=_pose_settings(args), progress=not args.quiet, model=args.model)
     camera, std = record["camera"], record["std"]
