@@ -48,6 +48,7 @@ class FitRenderer:
             if key in d:
                 raise ValueError(f"extra object {key!r} would replace the scene's own {key!r}")
             d[key] = obj
+        self._dict = d
         self.scene = mi.load_dict(d)
         self.params = mi.traverse(self.scene)
         self.base_radiance = np.array(self.params["light.emitter.radiance.values"])
@@ -80,12 +81,22 @@ class FitRenderer:
         self.focal = max(self.camera.fx, self.camera.fy)
         need = self.camera.pinhole_plan()  # the pinhole image this camera needs, at its own focal length
         if need.width > self.wide_size[0] or need.height > self.wide_size[1]:
-            raise ValueError(f"the camera needs a {need.width} x {need.height} pinhole render, more than the "
-                             f"{self.wide_size[0]} x {self.wide_size[1]} this fit renderer was built with; "
-                             "build it for this camera")
+            self._grow(need.width, need.height)  # an off-centre or strongly distorted camera (issue 45, item 2)
         self.params["sensor.x_fov"] = 2 * math.degrees(math.atan(0.5 * self.wide_size[0] / self.focal))
         self.params["sensor.to_world"] = self.mi.ScalarTransform4f(self.camera.mitsuba_to_world().tolist())
         self.params.update()
+
+    def _grow(self, width: int, height: int) -> None:
+        """Rebuild the scene with a film wide enough for a ``width`` x ``height`` pinhole render (with the
+        same margin as at the start): the film's size is fixed once a Mitsuba scene is loaded."""
+        self.wide_size = (max(self.wide_size[0], int(width * FOV_MARGIN) // 2 * 2 + 2),
+                          max(self.wide_size[1], int(height * FOV_MARGIN) // 2 * 2 + 2))
+        film = self._dict["sensor"]["film"]
+        film["width"], film["height"] = self.wide_size
+        self.scene = self.mi.load_dict(self._dict)
+        self.params = self.mi.traverse(self.scene)
+        if self.light_power_scale != 1.0:
+            self.params["light.emitter.radiance.values"] = self.mi.Float(self.base_radiance * self.light_power_scale)
 
     def render(self, seed: int = 0) -> np.ndarray:
         # Mitsuba's stub types seed as mi.UInt32, yet mi.render takes a Python int (its own default is 0).
