@@ -80,10 +80,8 @@ def annulus_hits(origin: np.ndarray, directions: np.ndarray, center: np.ndarray,
 
     Parameters
     ----------
-    origin : (3,) or (N, 3) array
-        The rays' start points.
-    directions : (N, 3) array
-        Their directions.
+    origin, directions : arrays
+        The rays, as ``ray_plane_t`` takes them.
     center, normal : (3,) arrays
         The annulus's centre and normal.
     inner, outer : float
