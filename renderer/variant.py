@@ -7,11 +7,13 @@ the workbench therefore looks for libLLVM itself, newest first, skips versions k
 to work, sets ``DRJIT_LIBLLVM_PATH`` before drjit loads, and falls back to the scalar
 spectral variant with one clear warning when it finds none.
 
-Dr.Jit's thread pool splits a render's samples by its size, and the film's sums then run in
-another order: the same seed renders other bytes with 1, 3, 4 or 8 threads (measured on a
-cornell_cd crop at 64 spp; 1 and 2 agreed there by chance). ``WORKBENCH_RENDER_THREADS=N``
-pins the pool, so renders are the same bytes on any machine; the test suite sets it
-(tests/conftest.py). Unset, Dr.Jit uses every core.
+Dr.Jit's thread pool splits a render's samples into blocks by its size, and a pixel whose
+samples fall in two blocks is summed in the order the workers finish: the same seed gives
+the same samples on any pool, summed in another order (a cornell_cd crop at 16 spp: 4 of
+2652 values differ between 1 and 3 threads, by 2e-8 of the peak). ``WORKBENCH_RENDER_THREADS=N``
+pins the pool (the test suite sets it: tests/conftest.py). With N=1 the bytes repeat by
+construction; with more, a quiet machine repeats them and a loaded one may differ in the
+last bits (seen once on CI, 3 threads on 2 cores). Unset, Dr.Jit uses every core.
 """
 
 from __future__ import annotations
