@@ -133,7 +133,7 @@ def test_synthetic_brackets_pass_and_raw_ratios_are_the_true_ones(tmp_path):
 def brackets(tmp_path_factory):
     from tests.conftest import synthetic_dataset
 
-    out = synthetic_dataset(tmp_path_factory, 5)  # shared with test_response.py and tests/datasets_synthetic
+    out = synthetic_dataset(tmp_path_factory, 0)  # the suite's shared seed-0 dataset (tests/conftest.py)
     seconds = json.loads((out / "truth.json").read_text())["exposure_time_s"]
     names = sorted((p.name for p in (out / "brackets").iterdir()), key=lambda n: seconds[n])  # shortest first
     return out / "brackets", [n for n in names if n.endswith(".jpg")], [n for n in names if n.endswith(".dng")]

@@ -362,7 +362,7 @@ def log_curve_of(points, inverse: bool = False) -> np.ndarray:
 def dataset(tmp_path_factory):
     from tests.conftest import synthetic_dataset
 
-    out = synthetic_dataset(tmp_path_factory, 5)  # shared with tests/datasets_synthetic/test_synth.py
+    out = synthetic_dataset(tmp_path_factory, 0)  # the suite's shared seed-0 dataset (tests/conftest.py)
     return out, json.loads((out / "truth.json").read_text())
 
 

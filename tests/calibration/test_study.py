@@ -43,7 +43,7 @@ def study(tmp_path_factory):
     return out, run_calibrate_study(dataset, "cornell_cd", out, cfg, progress=False)
 
 
-@pytest.mark.slow
+@pytest.mark.heavy  # the study's renders and fits: 1.5 min on 2 cores; `make bench` runs the study itself
 def test_outputs_layout(study) -> None:
     out, data = study
     for name in ("study_calibrate.json", "calibrate_settings.csv", "calibrate_photos.csv", "response_knots.csv",
@@ -62,7 +62,7 @@ def test_outputs_layout(study) -> None:
     assert all(np.isfinite(r[k]) for r in data["error_vs_time"] for k in ERRORS)
 
 
-@pytest.mark.slow
+@pytest.mark.heavy
 def test_full_resolution_meets_the_bars_and_a_quarter_costs_accuracy(study) -> None:
     _, data = study
     full, quarter = ([r for r in data["error_vs_time"] if r["factor"] == "scale" and r["scale"] == s][0] for s in (1.0, 0.25))

@@ -47,7 +47,7 @@ def _true_corners(truth: dict) -> dict[str, np.ndarray]:
     return {ch: falloff[rows, cols, k] for k, ch in enumerate(CHANNELS)}
 
 
-@pytest.mark.slow
+@pytest.mark.heavy  # a dataset of its own (synth + calibrate: 3.5 min on 2 cores); the fit: test_vignetting.py
 def test_the_lens_falloff_is_recovered_at_the_corners(vignetted) -> None:
     _, _, result, truth = vignetted
     record = result["vignetting"]
@@ -59,7 +59,7 @@ def test_the_lens_falloff_is_recovered_at_the_corners(vignetted) -> None:
         assert np.all(expected < 0.72)  # the truth is a real falloff (30-36 %), not a trivially passed one
 
 
-@pytest.mark.slow
+@pytest.mark.heavy  # a dataset of its own (synth + calibrate: 3.5 min on 2 cores); the fit: test_vignetting.py
 @pytest.mark.parametrize("photo", ["view0.dng", "view1.dng"])
 def test_the_exposure_is_the_one_on_the_lens_axis(vignetted, photo: str) -> None:
     """With the falloff applied the scale is photo / (V render): the issue-14 bar of 1 % holds
@@ -71,7 +71,7 @@ def test_the_exposure_is_the_one_on_the_lens_axis(vignetted, photo: str) -> None
     assert result["std"]["exposure_scale"][photo] < 0.01 * result["exposure_scale"][photo]
 
 
-@pytest.mark.slow
+@pytest.mark.heavy  # a dataset of its own (synth + calibrate: 3.5 min on 2 cores); the fit: test_vignetting.py
 def test_the_report_compares_the_photo_with_the_render_through_the_lens(vignetted, tmp_path) -> None:
     dataset, out, _, _ = vignetted
     exr = tmp_path / "render.exr"

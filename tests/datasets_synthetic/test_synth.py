@@ -21,7 +21,7 @@ from renderer.response import ResponseCurve
 from tests.conftest import synthetic_dataset
 from workbench.core.errors import UserInputError
 
-SEED = 5  # the suite's shared draft dataset (tests/conftest.py), also used by test_response.py
+SEED = 0  # the suite's shared draft dataset (tests/conftest.py), also calibrated by test_dataset.py and verified by test_verify.py
 
 
 @pytest.fixture(scope="module")
@@ -89,7 +89,9 @@ def test_photos_are_exposed_like_photographs(dataset):
     out, truth = dataset
     for k in range(PRESETS["draft"]["views"]):
         raw, black, white = _raw(out / "photos" / f"view{k}.dng")
-        assert black + 200 < np.percentile(raw, 99) < white  # exposed, mostly unclipped
+        # exposed, mostly unclipped: the hidden exposure is auto-exposure times a log-normal factor (sigma 0.3),
+        # so a seed may clip the light and the CD's orders on ~1 % of the pixels (seed 0: 0.8 % and 1.1 %)
+        assert black + 200 < np.percentile(raw, 98) < white
     poses = [np.array(truth["camera"]["world_to_camera"][f"view{k}.dng"]) for k in range(2)]
     centres = [np.linalg.inv(T)[:3, 3] for T in poses]
     assert np.linalg.norm(centres[0] - centres[1]) > 0.05  # a second viewpoint, not a copy
@@ -352,7 +354,8 @@ def test_calibration_set_recovers_the_intrinsics(dataset):
 
 
 def test_same_seed_same_bytes(tmp_path, monkeypatch):
-    small = dict(PRESETS["draft"], views=2, calibration_views=2, spp=8, calibration_spp=8)
+    # determinism needs no accuracy: a quarter of draft's pixels, 2 views of each kind, 8 spp
+    small = dict(PRESETS["draft"], resolution=(320, 240), views=2, calibration_views=2, spp=8, calibration_spp=8)
     monkeypatch.setitem(PRESETS, "draft", small)
     runs = {}
     for name, seed, render_seed in (("a", 3, None), ("b", 3, None), ("c", 4, None), ("d", 3, 4)):

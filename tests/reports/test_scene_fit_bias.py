@@ -74,7 +74,7 @@ def test_a_render_without_variance_or_too_noisy_is_not_used() -> None:
     assert noisy is False and note["render_edge_sigma_px"] > 0.35
 
 
-@pytest.mark.slow
+@pytest.mark.heavy  # a report-targeted render of view0 and a fit: 2 min on 2 cores
 def test_the_renders_rim_offsets_account_for_the_photos(tmp_path_factory, tmp_path: Path) -> None:
     from renderer.scene import load_scene
     from renderer.trace.prediction import cd_geometry

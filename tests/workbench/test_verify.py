@@ -530,7 +530,7 @@ def test_score_refuses_a_folder_that_is_not_a_run(tmp_path: Path, capsys: pytest
     assert str(tmp_path / "run.json") in err and "not a verify run" in err
 
 
-@pytest.mark.slow
+@pytest.mark.heavy  # a dask cluster's start and a render and report on it: 70 s; test_verify_dask.py is its peer
 def test_the_render_stage_runs_on_a_dask_scheduler(reference: tuple[Path, dict, float], dataset: Path,
                                                    tmp_path: Path) -> None:
     """--scheduler ADDRESS: a copy of the reference run without its render and report stages,
