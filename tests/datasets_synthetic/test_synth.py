@@ -21,7 +21,7 @@ from renderer.response import ResponseCurve
 from tests.conftest import synthetic_dataset
 from workbench.core.errors import UserInputError
 
-SEED = 0  # the suite's shared draft dataset (tests/conftest.py), also calibrated by test_dataset.py and verified by test_verify.py
+SEED = 0  # the suite's shared draft dataset (tests/conftest.py), calibrated by test_dataset.py, verified by test_verify.py
 
 
 @pytest.fixture(scope="module")

@@ -17,7 +17,8 @@ def add_parser(commands: argparse._SubParsersAction) -> None:
     synth.add_argument("--out", required=True, metavar="DIR",
                        help="the dataset folder (photos/, brackets/, calibration/, truth.json)")
     synth.add_argument("--seed", type=count_argument(0, SEED_MAX), default=0,
-                       help="seed of the hidden camera and the noise: same seed, same bytes (bit for bit with WORKBENCH_RENDER_THREADS=1)")
+                       help="seed of the hidden camera and the noise: same seed, same bytes "
+                            "(bit for bit with WORKBENCH_RENDER_THREADS=1)")
     synth.add_argument("--preset", choices=["draft", "full", "large"], default="draft",
                        help="draft: 640 x 480, 2 views, 20 board views (about a minute); "
                             "full: 978 x 734, 3 views (about 14 minutes); large: one 6000 x 4000 view at 2 spp and "
