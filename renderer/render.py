@@ -168,9 +168,9 @@ def _render(spec: SceneSpec, out: Path, preset: str, spp: int, pass_spp: int, in
         mean, variance, done, pass_seconds, extra = _targeted_passes(mi, scene_d, built, passes, goal, partial, key,
                                                                      executor, progress)
         passes = replace(passes, count=extra["target"]["frame_spp"] // pass_spp)
-    _write_images(mi, out, spec, built["plan"], mean, variance)
+    lit = _write_images(mi, out, spec, built["plan"], mean, variance)
     info = _sidecar(out, key, preset, passes, variant, built["tables"], time.perf_counter() - started, pass_seconds,
-                    done) | extra
+                    done) | extra | {"lit_pixel_fraction": lit}
     atomic_write_text(out.with_suffix(".json"), json.dumps(info, indent=2))
     partial.unlink(missing_ok=True)
     crop_path(partial).unlink(missing_ok=True)  # a targeted render's crop sums
@@ -242,17 +242,20 @@ def _target_pass_images(mi, scene_d: dict, passes: _Passes, target: Target, exec
     return run
 
 
-def _write_images(mi, out: Path, spec: SceneSpec, plan, mean: np.ndarray, variance: np.ndarray | None) -> None:
-    """The EXR, its preview and (with a variance) the variance EXR, from the plan's mean and the variance of that mean."""
+def _write_images(mi, out: Path, spec: SceneSpec, plan, mean: np.ndarray, variance: np.ndarray | None) -> float:
+    """The EXR, its preview and (with a variance) the variance EXR, from the plan's mean and the variance of that mean;
+    returns the share of the EXR's pixels that are lit (float32, as written)."""
     rgb = spec.camera.model.warp(mean, plan) * spec.camera.exposure
     if not np.all(np.isfinite(rgb)):
         raise RuntimeError("the render produced non-finite values")
     out.parent.mkdir(parents=True, exist_ok=True)
-    _atomic(out, lambda tmp: mi.Bitmap(rgb.astype(np.float32), mi.Bitmap.PixelFormat.RGB).write(str(tmp)))
+    written = rgb.astype(np.float32)
+    _atomic(out, lambda tmp: mi.Bitmap(written, mi.Bitmap.PixelFormat.RGB).write(str(tmp)))
     _atomic(out.with_suffix(".png"), lambda tmp: _write_preview(rgb, tmp))
     if variance is not None:
         variance = np.maximum(spec.camera.model.warp(variance, plan), 0.0) * spec.camera.exposure**2
         _atomic(variance_path(out), lambda tmp: mi.Bitmap(variance.astype(np.float32), mi.Bitmap.PixelFormat.RGB).write(str(tmp)))
+    return lit_fraction(written)
 
 
 def variance_path(out: str | Path) -> Path:
@@ -311,6 +314,20 @@ def pass_seed(seed: int, index: int) -> int:
     """Pass ``index``'s Mitsuba seed: spread apart per render seed, inside Mitsuba's unsigned
     32 bits (``--seed`` reaches 2**32 - 1; beyond 32 bits Mitsuba's sampler raises)."""
     return (seed * 100_003 + index) % 2**32
+
+
+def lit_fraction(image: np.ndarray) -> float:
+    """The share of pixels that received any light (a channel above 0)."""
+    return float(np.mean(np.any(image > 0, axis=-1)))
+
+
+def black_warning(info: dict) -> str | None:
+    """A warning line when no pixel of the render received light (None otherwise, and for a
+    sidecar written before the count was kept)."""
+    if info.get("lit_pixel_fraction", 1.0) > 0:
+        return None
+    return (f"warning: {info['output']} is black: no pixel received light. Check the scene's light (its power_w and "
+            "where it points) and that the camera is inside the box and not facing a wall at point-blank range")
 
 
 def summary(info: dict) -> str:

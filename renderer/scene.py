@@ -75,6 +75,11 @@ MM = 1e-3
 CD_TOP_THICKNESS_M = 1.2e-3
 LED_SPECTRA = ("LED-B1", "LED-B2", "LED-B3", "LED-B4", "LED-B5", "LED-BH1", "LED-RGB1", "LED-V1", "LED-V2")
 SPECTRAL_RANGE_NM = (360.0, 830.0)
+# The light's power within float32's range: its spectral radiance (power over area, solid angle and the
+# spectrum, renderer.emitter) must neither overflow (1e308 W is inf in float32) nor underflow to zero (Mitsuba
+# then stops with "no probability mass found", measured at 1e-46 W). A nanowatt to a gigawatt: 10 and 8 orders
+# of magnitude around the Cornell box's 10 W lamp.
+MIN_LIGHT_POWER_W, MAX_LIGHT_POWER_W = 1e-9, 1e9
 
 
 @dataclass(frozen=True)
@@ -220,7 +225,8 @@ def _parse_light(d: Any, box: dict) -> LightSpec:
     return LightSpec(
         center=v.point(d["center"], "light.center") if "center" in d else default_center,
         size=v.pair(d["size"], "light.size", positive=True) if "size" in d else default_size,
-        power_w=v.number(d.get("power_w", 10.0), "light.power_w", positive=True),
+        power_w=v.number(d.get("power_w", 10.0), "light.power_w",
+                         at_least=MIN_LIGHT_POWER_W, at_most=MAX_LIGHT_POWER_W),
         spectrum=spectrum,
         cos_power=_emission_profile(d.get("emission_profile", "lambertian")),
     )

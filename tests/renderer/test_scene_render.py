@@ -250,6 +250,8 @@ BASE = load_scene("cornell_cd").text
     (('origin = [0.278, 0.42, -0.55]', 'origin = [-0.2, 0.3, 0.3]'), "camera.look_at.origin"),
     (('structure = "cd"', 'structure = "no_such_grating.toml"'), "cd[0].structure"),
     (('power_w = 10.0', 'power_w = 0'), "light.power_w"),
+    (('power_w = 10.0', 'power_w = 1e308'), "light.power_w"),
+    (('power_w = 10.0', 'power_w = 1e-46'), "light.power_w"),
     (('model = "cornell"', 'model = "cornell"\nsize = [0.6, -0.5, 0.6]'), "box.size[1]"),
     (('emission_profile = "lambertian"', 'emission_profile = { cos_power = -1 }'), "light.emission_profile.cos_power"),
     (('emission_profile = "lambertian"', 'emission_profile = { cos_power = inf }'), "light.emission_profile.cos_power"),
@@ -266,6 +268,25 @@ def test_bad_scene_files(edit, field):
     with pytest.raises(UserInputError) as err:
         parse_scene(BASE.replace(old, new), source="bad.toml", base_dir=None)
     assert "bad.toml" in str(err.value) and field in str(err.value)
+
+
+def test_a_black_render_is_warned_about(tmp_path, capsys):
+    """An exposure of 1e-46 is a valid positive scale that underflows every pixel to 0 in float32:
+    the render is written, its sidecar counts no lit pixel and the command says so on stderr;
+    the same scene at its own exposure lights nearly every pixel (the box's inside fills the frame)."""
+    from workbench.cli import main
+
+    dim = tmp_path / "dim.toml"
+    assert "\nexposure = 1.0\n" in BASE
+    dim.write_text(BASE.replace("\nexposure = 1.0\n", "\nexposure = 1e-46\n"))
+    assert main(["render", str(dim), "--out", str(tmp_path / "dim.exr"), "--spp", "4", "--resolution", "40x30",
+                 "--quiet"]) == 0
+    assert "is black: no pixel received light" in capsys.readouterr().err
+    assert json.loads((tmp_path / "dim.json").read_text())["lit_pixel_fraction"] == 0.0
+    assert main(["render", "cornell_cd", "--out", str(tmp_path / "lit.exr"), "--spp", "4", "--resolution", "40x30",
+                 "--quiet"]) == 0
+    assert "is black" not in capsys.readouterr().err
+    assert json.loads((tmp_path / "lit.json").read_text())["lit_pixel_fraction"] > 0.9
 
 
 def test_render_cli_errors(capsys):

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import sys
 
 from workbench.commands.arguments import SCENE_HELP, SEED_MAX, count_argument, resolution_argument
 from workbench.commands.cache import add_cache_option
@@ -44,7 +45,7 @@ def add_parser(commands: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from renderer.render import render, summary  # deferred: the renderer pulls in scipy and cv2 (start-up time)
+    from renderer.render import black_warning, render, summary  # deferred: the renderer pulls in scipy and cv2 (start-up time)
 
     options = dict(preset=args.preset, spp=args.spp, resolution=args.resolution, integrator=args.integrator,
                    mode=args.mode, seed=args.seed, progress=not args.quiet, force=args.force, plan=not args.no_plan,
@@ -54,5 +55,8 @@ def run(args: argparse.Namespace) -> int:
             info = render(args.scene, args.out, executor=executor, **options)
     else:
         info = render(args.scene, args.out, **options)
+    warning = black_warning(info)
+    if warning is not None:
+        print(warning, file=sys.stderr)
     print(summary(info))  # also says when it was resumed or served from a finished identical render
     return 0

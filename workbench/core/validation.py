@@ -23,7 +23,8 @@ def reject_unknown(table: dict[str, Any], known: set[str], where: str) -> None:
             raise UserInputError("unknown field", field=f"{where}{key}", expected=f"one of {sorted(known)}")
 
 
-def number(value: Any, where: str, *, positive: bool = False, nonnegative: bool = False) -> float:
+def number(value: Any, where: str, *, positive: bool = False, nonnegative: bool = False,
+           at_least: float | None = None, at_most: float | None = None) -> float:
     if isinstance(value, bool) or not isinstance(value, (int, float)):
         raise UserInputError("must be a number", field=where, got=value)
     try:
@@ -36,6 +37,10 @@ def number(value: Any, where: str, *, positive: bool = False, nonnegative: bool 
         raise UserInputError("must be positive", field=where, expected="a number > 0", got=value)
     if nonnegative and not x >= 0:
         raise UserInputError("must not be negative", field=where, expected="a number >= 0", got=value)
+    if at_least is not None and not x >= at_least:
+        raise UserInputError("is too small", field=where, expected=f"a number >= {at_least:g}", got=value)
+    if at_most is not None and not x <= at_most:
+        raise UserInputError("is too large", field=where, expected=f"a number <= {at_most:g}", got=value)
     return x
 
 
