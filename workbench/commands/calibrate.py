@@ -28,6 +28,7 @@ from calibration.board.charuco import parse_charuco
 from calibration.intrinsics.calibrate import calibrate_board_views, write_intrinsics
 from calibration.intrinsics.lens_models import MODEL_CHOICES
 from workbench.commands.arguments import board_argument, exposure_times_argument, positive_number
+from workbench.core.files import exclusive_output
 
 if TYPE_CHECKING:  # calibration.pose.calibrate pulls in the renderer and scipy: imported where a pose is fitted
     from calibration.pose.calibrate import PoseSettings
@@ -115,13 +116,14 @@ def uncertainty_line(record: dict) -> str:
 def run_intrinsics(args: argparse.Namespace) -> int:
     charuco = parse_charuco(args.charuco) if args.charuco else None
     flags = (0 if args.fit_k3 else cv2.CALIB_FIX_K3) | (cv2.CALIB_ZERO_TANGENT_DIST if args.no_tangential else 0)
-    result = calibrate_board_views(args.images, args.board, args.square_mm / 1000.0, flags=flags, charuco=charuco,
-                                   progress=not args.quiet, model=args.model)
-    settings = {"board": list(args.board), "board_counts": "squares" if charuco else "inner corners",
-                "square_mm": args.square_mm, "charuco": None if charuco is None else
-                {"dictionary": charuco.dictionary, "marker_mm": charuco.marker_size_m * 1e3},
-                "model": args.model, "images": [str(p) for p in args.images]}
-    record = write_intrinsics(result, args.out, settings)
+    with exclusive_output(args.out, "calibrate"):
+        result = calibrate_board_views(args.images, args.board, args.square_mm / 1000.0, flags=flags, charuco=charuco,
+                                       progress=not args.quiet, model=args.model)
+        settings = {"board": list(args.board), "board_counts": "squares" if charuco else "inner corners",
+                    "square_mm": args.square_mm, "charuco": None if charuco is None else
+                    {"dictionary": charuco.dictionary, "marker_mm": charuco.marker_size_m * 1e3},
+                    "model": args.model, "images": [str(p) for p in args.images]}
+        record = write_intrinsics(result, args.out, settings)
     used = [v for v in result.views if v.used]
     std = record["std"]
     warned = f"; warning: {'; '.join(record['warnings'])}" if record["warnings"] else ""
@@ -167,7 +169,8 @@ def add_response(steps: argparse._SubParsersAction) -> None:
 def run_response(args: argparse.Namespace) -> int:
     from calibration.response.calibrate import calibrate_response  # deferred: pulls in scipy (start-up time)
 
-    result = calibrate_response(args.images, args.out, times_s=args.times, progress=not args.quiet)
+    with exclusive_output(args.out, "calibrate"):
+        result = calibrate_response(args.images, args.out, times_s=args.times, progress=not args.quiet)
     if result.get("method") == "raw-linearity":
         check = result["linearity"]
         print(f"wrote {args.out}: raw bracket of {len(result['files'])} files, slope of log value against log exposure "
@@ -239,8 +242,9 @@ def _pose_settings(args: argparse.Namespace) -> PoseSettings:
 def run_pose(args: argparse.Namespace) -> int:
     from calibration.pose.calibrate import calibrate_pose  # deferred: pulls in the renderer and scipy (start-up time)
 
-    record = calibrate_pose(args.photo, args.scene, args.out, intrinsics=args.intrinsics, response=args.response,
-                            settings=_pose_settings(args), progress=not args.quiet)
+    with exclusive_output(args.out, "calibrate"):
+        record = calibrate_pose(args.photo, args.scene, args.out, intrinsics=args.intrinsics, response=args.response,
+                                settings=_pose_settings(args), progress=not args.quiet)
     print(pose_summary_line(record["photo"], record))
     print(f"wrote {args.out}/pose.json and {args.out}/fitted_scene.toml in {record['timings']['total_s']:.1f} s")
     return 0
@@ -251,8 +255,9 @@ def run_dataset(args: argparse.Namespace) -> int:
 
     for line in stage_needs(dataset_files(args.dataset)):
         print(line)
-    record = calibrate_dataset(args.dataset, args.scene, args.out, board=args.board, square_mm=args.square_mm,
-                               settings=_pose_settings(args), progress=not args.quiet, model=args.model)
+    with exclusive_output(args.out, "calibrate"):
+        record = calibrate_dataset(args.dataset, args.scene, args.out, board=args.board, square_mm=args.square_mm,
+                                   settings=_pose_settings(args), progress=not args.quiet, model=args.model)
     camera, std = record["camera"], record["std"]
     board = record["settings"]["board"]
     if board is not None:

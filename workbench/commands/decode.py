@@ -7,6 +7,7 @@ import json
 from pathlib import Path
 
 from calibration.raw.decode import DEMOSAIC_ALGORITHMS, decode_to_exr
+from workbench.core.files import exclusive_output
 
 SUMMARY_KEYS = ("width", "height", "black_level", "white_level", "cfa", "exposure_time_s", "iso", "make", "model",
                 "saturated_fraction", "linear", "source", "demosaic", "channels", "response", "layout",
@@ -27,7 +28,8 @@ def add_parser(commands: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    record = decode_to_exr(args.file, args.out, response=args.response, demosaic=args.demosaic)
+    with exclusive_output(args.out, "decode"):
+        record = decode_to_exr(args.file, args.out, response=args.response, demosaic=args.demosaic)
     if args.json:
         print(json.dumps({k: record[k] for k in SUMMARY_KEYS}))
         return 0

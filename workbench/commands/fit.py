@@ -10,6 +10,7 @@ from reports.scene_fit.verdict_record import Verdict
 from workbench.commands.arguments import positive_number
 from workbench.commands.cache import add_cache_option
 from workbench.core.errors import UserInputError
+from workbench.core.files import exclusive_output
 
 
 def add_parser(commands: argparse._SubParsersAction) -> None:
@@ -55,7 +56,8 @@ def run(args: argparse.Namespace) -> int:
         inputs.supersample = args.supersample
     if args.step_nm is not None:
         inputs.step_nm = args.step_nm
-    record = run_fit(inputs)
+    with exclusive_output(out, "fit"):
+        record = run_fit(inputs)
     print(format_fit(record))
     print(f"wrote {out / 'scene_fit.json'} and {out / 'fitted_scene.toml'} in {record['timings']['total']:.1f} s")
     return 0

@@ -7,6 +7,7 @@ from pathlib import Path
 
 from workbench.commands.cache import add_cache_option
 from workbench.core.errors import UserInputError
+from workbench.core.files import exclusive_output
 
 
 def add_parser(commands: argparse._SubParsersAction) -> None:
@@ -41,8 +42,9 @@ def run(args: argparse.Namespace) -> int:
     out = Path(args.out)
     if out.exists() and not out.is_dir():
         raise UserInputError("is a file, not a folder", field="--out", expected="a folder for the report", got=args.out)
-    report = build_report(Inputs(Path(args.photo), Path(args.render), Path(args.calibration), args.scene, out,
-                                 tuple(Path(s) for s in args.study), tuple(Path(b) for b in args.bracket)))
+    with exclusive_output(out, "report"):
+        report = build_report(Inputs(Path(args.photo), Path(args.render), Path(args.calibration), args.scene, out,
+                                     tuple(Path(s) for s in args.study), tuple(Path(b) for b in args.bracket)))
     fo = report.get("fringe_offset_px") or {}
     median, p95 = fo.get("median"), fo.get("p95")
     offsets = (f"fringe offset photo-render: median {median:.2f} px, p95 {p95:.2f} px over {fo.get('count')} band edges"
