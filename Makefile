@@ -5,10 +5,12 @@
 #                reports) run on that dask.distributed cluster
 #   make paper   verify with the paper's settings (paper tables, the targeted render, the paper's 978 x 734 frame)
 #   make check   lint (ruff), types (mypy), configured in pyproject.toml, and the layering (tests/check_layering.py)
-#   make test    the whole test suite (about 10 minutes on 2 cores; `make test-fast` skips the slow marker)
+#   make test    the whole test suite on TEST_WORKERS pytest-xdist workers (default 2; `make test-fast` skips the slow
+#                marker, `make test-heavy` runs the whole-run checks it leaves out)
 #   make bench   benchmarks: the solver against open-source peers (separate env .venv-bench), tables, renders, calibration, reports, the planner
 
 PYTHON ?= python3
+TEST_WORKERS ?= 2
 VENV   := .venv
 BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed
@@ -80,10 +82,10 @@ check: install
 	$(BIN)/python -m tests.check_layering
 
 test: install
-	$(BIN)/python -m pytest -q -m "not heavy" --durations=30
+	$(BIN)/python -m pytest -q -n $(TEST_WORKERS) --dist loadfile -m "not heavy" --durations=30
 
 test-fast: install
-	$(BIN)/python -m pytest -q -m "not slow and not heavy"
+	$(BIN)/python -m pytest -q -n $(TEST_WORKERS) --dist loadfile -m "not slow and not heavy"
 
 test-heavy: install
 	$(BIN)/python -m pytest -q -m heavy

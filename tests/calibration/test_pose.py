@@ -288,11 +288,19 @@ def synthetic_dataset(tmp_path_factory) -> Path:
 
 def calibrated_dataset(tmp_path_factory, dataset: Path | None = None) -> tuple[Path, dict, dict]:
     """`calibrate DATASET` on a copy of the dataset (default: the shared seed-0 one) without its
-    truth, once per session: (out, calibration.json, truth.json)."""
+    truth, once per run, by one xdist worker while the others wait: (out, calibration.json, truth.json)."""
+    from filelock import FileLock
+
     from calibration.dataset import calibrate_dataset
 
     dataset = dataset or synthetic_dataset(tmp_path_factory)
     out = dataset.parent / "calibrated"
+    with FileLock(dataset.parent / "calibrated.lock"):
+        _calibrate_once(dataset, out, calibrate_dataset)
+    return out, json.loads((out / "calibration.json").read_text()), json.loads((dataset / "truth.json").read_text())
+
+
+def _calibrate_once(dataset: Path, out: Path, calibrate_dataset) -> None:
     if not (out / "calibration.json").exists():
         blind = dataset.parent / "photos-only"
         blind.mkdir(exist_ok=True)
@@ -300,7 +308,6 @@ def calibrated_dataset(tmp_path_factory, dataset: Path | None = None) -> tuple[P
             if not (blind / sub).exists():
                 (blind / sub).symlink_to(dataset / sub, target_is_directory=True)
         calibrate_dataset(blind, "cornell_cd", out, progress=False)
-    return out, json.loads((out / "calibration.json").read_text()), json.loads((dataset / "truth.json").read_text())
 
 
 @pytest.fixture(scope="module")

@@ -159,3 +159,17 @@ def test_installed_command_prints_no_traceback(tmp_path):
     proc = subprocess.run([sys.executable, "-m", "workbench.cli", "rcwa", "solve", str(path), "--wavelength", "550",
                            "--orders", "11"], capture_output=True, text=True)
     assert proc.returncode == 2 and "Traceback" not in proc.stderr and "thickness" in proc.stderr
+
+
+def test_the_pose_summary_line_states_the_scene_edges_found() -> None:
+    """calibrate pose and calibrate DATASET print each photo's coverage (the goodness-of-fit test that
+    refuses a photo of something else below 0.75), so a user sees how near a photo came to it."""
+    from workbench.commands.calibrate import pose_summary_line
+
+    photo = {"std": {"camera_center_m": [1e-4, 2e-4, 3e-4], "rotation_total_deg": 0.01},
+             "camera": {"camera_center_m": [0.278, 0.27, -0.8], "fov_x_deg": 39.3},
+             "residuals": {"robust_sigma_px": 0.31, "points": 900, "coverage": 0.934}, "exposure_scale": None}
+    line = pose_summary_line("view0.dng", photo)
+    assert "93 % of the scene's edges found" in line and "\n" not in line
+    del photo["residuals"]["coverage"]  # a record written before coverage was kept
+    assert "edges found" not in pose_summary_line("view0.dng", photo)

@@ -283,6 +283,8 @@ def pose_summary_line(name: str, photo: dict[str, Any]) -> str:
             f"+- {1000 * max(std['camera_center_m']):.2f} mm, rotation +- {std['rotation_total_deg']:.3f} deg, "
             f"FOV {photo['camera']['fov_x_deg']:.3f} deg, edge residual {residuals['robust_sigma_px']:.2f} px "
             f"({residuals['points']} points)")
+    if residuals.get("coverage") is not None:  # the goodness-of-fit test (calibration.pose.edge_fit.edge_coverage)
+        text += f", {100 * residuals['coverage']:.0f} % of the scene's edges found"
     if scale is not None:
         text += f", exposure x light {scale:.4g}"
     return text
