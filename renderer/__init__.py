@@ -3,7 +3,7 @@
 Mitsuba's variant is chosen in one place, :mod:`renderer.variant`; no other module calls
 ``mi.set_variant``. The modules:
 
-Plugins (registered with Mitsuba by ``renderer.mitsuba_scene.register_plugins``)
+Plugins (registered with Mitsuba by ``renderer.plugins.register_plugins``; docs/mitsuba_plugin.md)
     bwdf          the BWDF: a grating's diffraction orders from an RCWA efficiency table,
                   ``type = "bwdf"`` (paper mode, [Lange 2021, Eqs. 2-5], and improved mode)
     dielectric    a dispersive smooth dielectric, ``type = "dispersive_dielectric"``

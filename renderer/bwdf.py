@@ -62,6 +62,7 @@ from renderer.delta_lobes import (
     select,
 )
 from renderer.efficiency import EfficiencyLookup
+from renderer.plugins import check_variant
 from workbench.core.conventions import ORDER_SIGN
 
 MODES = ("paper", "improved")
@@ -209,14 +210,14 @@ class GratingBWDF(DeltaLobesBSDF):
     honoured: disabled components (reflection 0, transmission 1) are never sampled, and
     the n^2 radiance factor of transmission applies in radiance transport only.
 
-    Example::
+    docs/mitsuba_plugin.md documents it for Mitsuba users (dict and XML scenes). Example::
 
         import mitsuba as mi
-        from renderer import bwdf
+        from renderer.plugins import register_plugins
         from renderer.variant import set_variant
 
         set_variant()  # the one place that picks Mitsuba's variant
-        bwdf.register()
+        register_plugins()
         cd = mi.load_dict({"type": "bwdf", "filename": "cd.zarr", "mapping": "radial", "center": [0.0, 0.0, 0.0]})
         params = mi.traverse(cd)
         params["uniform_share"] = 0.3
@@ -267,6 +268,7 @@ class GratingBWDF(DeltaLobesBSDF):
 
     @staticmethod
     def _configure(props: mi.Properties) -> dict:
+        check_variant(mi.variant())  # registered by hand in an RGB variant, it would fail only inside a render
         path = str(props.get("filename", ""))
         if not path:
             raise ValueError("bwdf: the 'filename' property (an efficiency table) is missing")
@@ -608,5 +610,7 @@ class GratingBWDF(DeltaLobesBSDF):
 
 
 def register() -> None:
-    """Register ``type = "bwdf"`` with Mitsuba (after renderer.variant.set_variant)."""
+    """Register ``type = "bwdf"`` with Mitsuba (after renderer.variant.set_variant; renderer.plugins
+    registers every plugin at once)."""
+    check_variant(mi.variant())
     mi.register_bsdf("bwdf", lambda props: GratingBWDF(props))

@@ -17,18 +17,11 @@ import numpy as np
 from rcwa.materials import Material, material_from_spec
 from renderer.meshes import annulus_mesh, quad_mesh
 from renderer.placement import cd_top_center, frame_to, glass_cube_to_world, grating_to_world, light_to_world, transform
+from renderer.plugins import register_plugins
 from renderer.scene import CDSpec, GlassSpec, GratingSpec, SceneSpec, box_scale, cornell_data
 from renderer.spectra import Curves, camera_sensitivities, irregular, light_spectrum
 from renderer.tables import element_table
 from renderer.trace.planner import planned_nodes
-
-
-def register_plugins() -> None:
-    """Register the renderer's Mitsuba plugins: bwdf, cospower_area, dispersive_dielectric."""
-    from renderer import bwdf, dielectric, emitter  # deferred: they import mitsuba, and need its variant set
-
-    for module in (bwdf, emitter, dielectric):
-        module.register()
 
 
 def light_dict(mi, light) -> dict:

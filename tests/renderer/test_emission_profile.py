@@ -60,7 +60,8 @@ def _light(cos_power, *, size=(0.2, 0.15), power_w=10.0, spectrum="LED-B3", cent
 
 
 def _emitter(mi, light):
-    from renderer.mitsuba_scene import light_dict, register_plugins
+    from renderer.mitsuba_scene import light_dict
+    from renderer.plugins import register_plugins
 
     register_plugins()
     scene = mi.load_dict({"type": "scene", "light": light_dict(mi, light)})
@@ -137,7 +138,7 @@ def test_sampling_is_consistent(mitsuba_variant, cos_power):
 
 def _floor_render(mi, cos_power, *, builtin=False, res=12, spp=256, light_size=0.01, height=0.25, box=False, seed=0):
     """A white floor (and optionally walls) under a downward light of radiance 1 / nm."""
-    from renderer.mitsuba_scene import register_plugins
+    from renderer.plugins import register_plugins
 
     register_plugins()
     half = light_size / 2
