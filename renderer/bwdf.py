@@ -62,7 +62,7 @@ from renderer.delta_lobes import (
     select,
 )
 from renderer.efficiency import EfficiencyLookup
-from renderer.plugins import check_variant
+from renderer.variant import check_variant
 from workbench.core.conventions import ORDER_SIGN
 
 MODES = ("paper", "improved")

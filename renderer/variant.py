@@ -121,3 +121,29 @@ def _pin_threads(environ: Mapping[str, str] | None = None) -> int | None:
 
     dr.set_thread_count(int(text))
     return int(text)
+
+
+SPECTRAL_VARIANTS = ("scalar_spectral", "llvm_ad_spectral", "cuda_ad_spectral")  # what renderer.plugins needs
+
+
+def check_variant(variant: str | None) -> None:
+    """Refuse a Mitsuba variant the plugins cannot run in (None: no variant set yet).
+
+    Parameters
+    ----------
+    variant
+        Mitsuba's current variant, as ``mitsuba.variant()`` gives it.
+
+    Raises
+    ------
+    RuntimeError
+        When no variant is set, or it is not one of SPECTRAL_VARIANTS.
+    """
+    choices = ", ".join(SPECTRAL_VARIANTS)
+    if variant is None:
+        raise RuntimeError(f"set a Mitsuba variant before registering the workbench's plugins: one of {choices} "
+                           "(renderer.variant.set_variant() picks llvm_ad_spectral where libLLVM is found)")
+    if variant not in SPECTRAL_VARIANTS:
+        raise RuntimeError(f"the workbench's plugins (bwdf, dispersive_dielectric, cospower_area) need a spectral, "
+                           f"unpolarized Mitsuba variant: one of {choices}; the current variant is {variant!r} "
+                           "(an RGB or mono variant has no wavelengths to read the efficiency tables at)")
