@@ -33,12 +33,12 @@ from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
-import cv2
 import numpy as np
 from tqdm import tqdm
 
 from renderer import render_target
 from renderer.mitsuba_scene import cropped_sensor, scene_dict
+from renderer.preview import PreviewRequest, white_balance, write_preview
 from renderer.regions import region_masks
 from renderer.render_target import CROP_SEED_OFFSET, PASS_SPP, TARGETS, State, Target, Window, crop_path, target_settings
 from renderer.scene import SceneSpec, load_scene
@@ -121,7 +121,7 @@ class _Passes:
 def render(scene: str | Path, out: str | Path, *, preset: str = "draft", spp: int | None = None,
            resolution: tuple[int, int] | None = None, integrator: str = "path", mode: str = "improved",
            seed: int = 0, progress: bool = True, executor=None, force: bool = False, plan: bool = True,
-           target: str | None = None) -> dict:
+           target: str | None = None, preview: PreviewRequest | None = None) -> dict:
     """Render ``scene``; with ``executor`` (workbench.core.executor.DaskExecutor) the passes run on a
     dask.distributed cluster, each with its own seed, averaged here: the result is the
     same as a local render with the same seed.
@@ -136,14 +136,17 @@ def render(scene: str | Path, out: str | Path, *, preset: str = "draft", spp: in
     renderer.mitsuba_scene.scene_dict); False builds whole tables, for comparison.
     ``target`` ("report"): each region sampled to what the report measures there
     (renderer.render_target), the preset's spp the frame's cap; None: ``spp`` samples everywhere.
+    ``preview``: the PNG preview's white level (renderer.preview; default: the image's own); a
+    served render whose preview used another level has its preview written again.
     """
     spp, pass_spp, spec, out = _checked_request(scene, out, preset, spp, resolution, integrator, mode, seed, target)
     with exclusive_output(out, "render"), cache_reading():  # one render per --out; no cache clear under it
-        return _render(spec, out, preset, spp, pass_spp, integrator, mode, seed, progress, executor, force, plan, target)
+        return _render(spec, out, preset, spp, pass_spp, integrator, mode, seed, progress, executor, force, plan, target,
+                       preview or PreviewRequest())
 
 
 def _render(spec: SceneSpec, out: Path, preset: str, spp: int, pass_spp: int, integrator: str, mode: str, seed: int,
-            progress: bool, executor, force: bool, plan: bool, target: str | None) -> dict:
+            progress: bool, executor, force: bool, plan: bool, target: str | None, preview: PreviewRequest) -> dict:
     """``render`` under its output's lock."""
     goal = target_settings(preset, spp) if target is not None else None
     pass_spp = PASS_SPP if goal is not None else pass_spp
@@ -152,7 +155,7 @@ def _render(spec: SceneSpec, out: Path, preset: str, spp: int, pass_spp: int, in
     partial = out.with_name(out.name + ".partial.npz")
     finished = _finished_render(out, key)
     if finished is not None:
-        return finished
+        return _refresh_preview(out, spec, finished, preview)
     for damaged in render_target.discard_damaged_checkpoints(partial):
         print(f"note: {damaged}: a damaged checkpoint (not a readable .npz) was removed; its passes are rendered again",
               file=sys.stderr)
@@ -168,9 +171,9 @@ def _render(spec: SceneSpec, out: Path, preset: str, spp: int, pass_spp: int, in
         mean, variance, done, pass_seconds, extra = _targeted_passes(mi, scene_d, built, passes, goal, partial, key,
                                                                      executor, progress)
         passes = replace(passes, count=extra["target"]["frame_spp"] // pass_spp)
-    lit = _write_images(mi, out, spec, built["plan"], mean, variance)
+    lit, shown = _write_images(mi, out, spec, built["plan"], mean, variance, preview)
     info = _sidecar(out, key, preset, passes, variant, built["tables"], time.perf_counter() - started, pass_seconds,
-                    done) | extra | {"lit_pixel_fraction": lit}
+                    done) | extra | {"lit_pixel_fraction": lit, "preview_settings": shown}
     atomic_write_text(out.with_suffix(".json"), json.dumps(info, indent=2))
     partial.unlink(missing_ok=True)
     crop_path(partial).unlink(missing_ok=True)  # a targeted render's crop sums
@@ -242,20 +245,40 @@ def _target_pass_images(mi, scene_d: dict, passes: _Passes, target: Target, exec
     return run
 
 
-def _write_images(mi, out: Path, spec: SceneSpec, plan, mean: np.ndarray, variance: np.ndarray | None) -> float:
+def _write_images(mi, out: Path, spec: SceneSpec, plan, mean: np.ndarray, variance: np.ndarray | None,
+                  preview: PreviewRequest) -> tuple[float, dict]:
     """The EXR, its preview and (with a variance) the variance EXR, from the plan's mean and the variance of that mean;
-    returns the share of the EXR's pixels that are lit (float32, as written)."""
+    returns the share of the EXR's pixels that are lit (float32, as written) and the preview's settings."""
     rgb = spec.camera.model.warp(mean, plan) * spec.camera.exposure
     if not np.all(np.isfinite(rgb)):
         raise RuntimeError("the render produced non-finite values")
     out.parent.mkdir(parents=True, exist_ok=True)
     written = rgb.astype(np.float32)
     _atomic(out, lambda tmp: mi.Bitmap(written, mi.Bitmap.PixelFormat.RGB).write(str(tmp)))
-    _atomic(out.with_suffix(".png"), lambda tmp: _write_preview(rgb, tmp))
+    shown: dict = {}
+    gains = white_balance(spec.light.spectrum, spec.camera.sensitivities)
+    _atomic(out.with_suffix(".png"), lambda tmp: shown.update(write_preview(rgb, tmp, gains, preview)))
     if variance is not None:
         variance = np.maximum(spec.camera.model.warp(variance, plan), 0.0) * spec.camera.exposure**2
         _atomic(variance_path(out), lambda tmp: mi.Bitmap(variance.astype(np.float32), mi.Bitmap.PixelFormat.RGB).write(str(tmp)))
-    return lit_fraction(written)
+    return lit_fraction(written), shown
+
+
+def _refresh_preview(out: Path, spec: SceneSpec, info: dict, preview: PreviewRequest) -> dict:
+    """A served render's preview, written again when this request's white level differs from the one it used."""
+    used = info.get("preview_settings") or {}
+    if preview.white_level is None or used.get("white_level") == preview.white_level:
+        return info
+    set_variant()
+    import mitsuba as mi  # deferred: after set_variant, and start-up time
+
+    rgb = np.array(mi.Bitmap(str(out)), dtype=np.float64)[..., :3]
+    shown: dict = {}
+    gains = white_balance(spec.light.spectrum, spec.camera.sensitivities)
+    _atomic(out.with_suffix(".png"), lambda tmp: shown.update(write_preview(rgb, tmp, gains, preview)))
+    record = {k: v for k, v in info.items() if k != "served"} | {"preview_settings": shown}
+    atomic_write_text(out.with_suffix(".json"), json.dumps(record, indent=2))
+    return record | {"served": True}
 
 
 def variance_path(out: str | Path) -> Path:
@@ -339,7 +362,9 @@ def summary(info: dict) -> str:
     resumed = (f"; resumed after {info['resumed_passes']} of {info['passes']} passes finished earlier"
                if info.get("resumed_passes") else "")
     noise = f", the passes' variance {info['variance']}" if info.get("variance") else ""
-    return (f"wrote {info['output']} (linear camera RGB), {info['preview']}{noise} and the sidecar "
+    shown = info.get("preview_settings")
+    preview = f" (white level {shown['white_level']:.4g})" if shown else ""
+    return (f"wrote {info['output']} (linear camera RGB), {info['preview']}{preview}{noise} and the sidecar "
             f"{info['output'][:-4]}.json: {size}, {info['seconds_total']:.1f} s ({info['variant']}){resumed}"
             + (f"; {target_summary(info['target'])}" if info.get("target") else ""))
 
@@ -489,13 +514,6 @@ def _refuse_to_overwrite(out: Path, partial: Path, key: str, force: bool) -> Non
                 f"seed {info.get('seed')})")
     raise UserInputError(f"the output already holds {what}", file=out,
                          expected="a new path, the same request, or --force to replace it")
-
-
-def _write_preview(rgb: np.ndarray, path: Path) -> None:
-    scale = np.percentile(rgb, 99.5) or 1.0
-    srgb = np.clip(rgb / scale, 0, 1) ** (1 / 2.2)
-    if not cv2.imwrite(str(path), (srgb[..., ::-1] * 255 + 0.5).astype(np.uint8)):
-        raise OSError(f"cannot write {path}")
 
 
 def _resume(partial: Path, key: str):

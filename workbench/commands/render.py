@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 import sys
 
-from workbench.commands.arguments import SCENE_HELP, SEED_MAX, count_argument, resolution_argument
+from workbench.commands.arguments import SCENE_HELP, SEED_MAX, count_argument, positive_number, resolution_argument
 from workbench.commands.cache import add_cache_option
 from workbench.core.executor import DaskExecutor
 
@@ -37,6 +37,13 @@ def add_parser(commands: argparse._SubParsersAction) -> None:
                         help="render the passes on this dask.distributed scheduler (default: in this process)")
     render.add_argument("--workers", type=count_argument(1), metavar="N",
                         help="start a local dask cluster with N worker processes (default: none, in this process)")
+    white = render.add_mutually_exclusive_group()
+    white.add_argument("--preview-white", type=positive_number(float), metavar="LEVEL",
+                       help="the PNG preview shows this white-balanced linear value as white, so renders made with "
+                            "the same LEVEL compare by eye (default: each render's own 99.5th percentile)")
+    white.add_argument("--preview-like", metavar="RENDER.json",
+                       help="the PNG preview takes the white level another render's preview used (its sidecar; "
+                            "default: none, the render's own)")
     render.add_argument("--quiet", action="store_true", help="no progress bar")
     render.add_argument("--force", action="store_true", help="replace a different render (its EXR, PNG and JSON) at --out")
     render.add_argument("--no-plan", action="store_true",
@@ -45,11 +52,16 @@ def add_parser(commands: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    from renderer.preview import PreviewRequest, white_level_of
     from renderer.render import black_warning, render, summary  # deferred: the renderer pulls in scipy and cv2 (start-up time)
 
     options = dict(preset=args.preset, spp=args.spp, resolution=args.resolution, integrator=args.integrator,
                    mode=args.mode, seed=args.seed, progress=not args.quiet, force=args.force, plan=not args.no_plan,
-                   target=args.target)
+                   target=args.target, preview=PreviewRequest())
+    if args.preview_white is not None:
+        options["preview"] = PreviewRequest(args.preview_white, "--preview-white")
+    elif args.preview_like is not None:
+        options["preview"] = PreviewRequest(white_level_of(args.preview_like), args.preview_like)
     if args.scheduler or args.workers:
         with DaskExecutor(args.scheduler, args.workers) as executor:
             info = render(args.scene, args.out, executor=executor, **options)
