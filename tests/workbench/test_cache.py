@@ -181,3 +181,31 @@ def test_a_cache_variable_naming_a_file_is_refused_in_one_line(tmp_path, monkeyp
     assert main(["cache", "list"]) == 2
     err = capsys.readouterr().err
     assert err.startswith("error: ") and "WORKBENCH_CACHE" in err and err.strip().count("\n") == 0
+
+
+@pytest.mark.parametrize("kind", ["folder", "dangling link", "link to a file"])
+def test_a_lock_file_that_is_a_folder_or_link_is_refused_by_name(tmp_path, kind):
+    """An entry's lock (workbench.core.cache.entry_lock) and an output's (exclusive_output) that are
+    a folder or a symbolic link are refused naming the path, not met with EISDIR or ELOOP; a link
+    is never followed (the file it names is left as it was)."""
+    from workbench.core.cache import entry_lock, lock_path
+    from workbench.core.errors import UserInputError
+    from workbench.core.files import exclusive_output
+
+    target = tmp_path / "precious.txt"
+    target.write_text("keep")
+    entry, out = tmp_path / "tables" / "abc.zarr", tmp_path / "out" / "x.exr"
+    for lock in (lock_path(entry), out.parent / ".x.exr.render.lock"):
+        lock.parent.mkdir(parents=True, exist_ok=True)
+        if kind == "folder":
+            lock.mkdir()
+        else:
+            lock.symlink_to(target if kind == "link to a file" else tmp_path / "nowhere")
+    with pytest.raises(UserInputError, match="where a lock file belongs") as caught:
+        with entry_lock(entry):
+            pass
+    assert str(lock_path(entry)) in str(caught.value)
+    with pytest.raises(UserInputError, match="where a lock file belongs"):
+        with exclusive_output(out, "render"):
+            pass
+    assert target.read_text() == "keep"

@@ -32,7 +32,7 @@ from pathlib import Path
 
 from filelock import FileLock, Timeout
 
-from workbench.core.files import path_safe_name
+from workbench.core.files import checked_lock_file, path_safe_name
 
 ENVIRONMENT_VARIABLE = "WORKBENCH_CACHE"
 KINDS = ("tables", "meshes")
@@ -86,7 +86,7 @@ def entry_lock(entry: str | os.PathLike[str], *, notify: Callable[[str], None] |
     """
     lock_file = lock_path(Path(entry))
     lock_file.parent.mkdir(parents=True, exist_ok=True)
-    lock = FileLock(str(lock_file))
+    lock = FileLock(str(checked_lock_file(lock_file)))
     try:
         lock.acquire(timeout=0)
     except Timeout:

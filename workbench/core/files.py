@@ -87,6 +87,24 @@ def path_safe_name(name: str, max_length: int = SAFE_NAME_LENGTH) -> str:
     return f"{safe[:max_length - 9]}-{digest}"
 
 
+def checked_lock_file(lock_file: Path) -> Path:
+    """``lock_file``, refused by name when a folder or a symbolic link stands in its place
+    (the flock would fail with EISDIR or ELOOP, which say nothing of what to do).
+
+    Raises
+    ------
+    UserInputError
+        When the path is a symbolic link or exists and is not a regular file.
+    """
+    from workbench.core.errors import UserInputError  # deferred: as in exclusive_output
+
+    if lock_file.is_symlink() or (lock_file.exists() and not lock_file.is_file()):
+        kind = "a symbolic link" if lock_file.is_symlink() else "a folder or other non-file"
+        raise UserInputError(f"is {kind} where a lock file belongs", file=lock_file,
+                             expected="a regular file or nothing: remove it (no running command holds it)")
+    return lock_file
+
+
 @contextmanager
 def exclusive_output(path: str | Path, command: str, busy: str | None = None) -> Iterator[None]:
     """One ``command`` at a time writing ``path``: an ``flock`` (filelock) on ``.NAME.COMMAND.lock``
@@ -99,7 +117,7 @@ def exclusive_output(path: str | Path, command: str, busy: str | None = None) ->
 
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    lock_file = path.parent / f".{path.name}.{command}.lock"
+    lock_file = checked_lock_file(path.parent / f".{path.name}.{command}.lock")
     lock = FileLock(str(lock_file))
     try:
         lock.acquire(timeout=0)
