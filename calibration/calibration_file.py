@@ -170,7 +170,11 @@ def _camera_std(data: dict, block: dict, key: str, source: str) -> dict[str, Any
 
 def _pose_covariance(joint: dict, source: str) -> dict[str, Any]:
     """calibration.json's per-photo ``covariance`` (calibration.pose.uncertainty.POSE_READOUTS), checked."""
-    names, matrix = joint.get("parameters"), np.asarray(joint.get("matrix", []), float)
+    names = joint.get("parameters")
+    try:
+        matrix = np.asarray(joint.get("matrix", []), float)
+    except (TypeError, ValueError):  # ragged rows, or entries that are not numbers
+        matrix = np.empty((0, 0))
     if (not isinstance(names, list) or matrix.shape != (len(names), len(names)) or not np.all(np.isfinite(matrix))
             or not np.allclose(matrix, matrix.T, rtol=1e-6, atol=1e-18)):
         raise UserInputError("is not a symmetric matrix named by its parameters", file=source,

@@ -39,9 +39,13 @@ class ResponseCurve:
             if isinstance(g, bool) or not isinstance(g, (int, float)) or not g > 0:
                 raise UserInputError("must be a positive number", field=f"{where}.gamma", got=g)
             return cls("gamma", float(g))
-        pts = np.asarray(spec["points"], dtype=float)
-        if pts.ndim != 2 or pts.shape[1] != 2 or len(pts) < 2:
-            raise UserInputError("must list at least two [x, y] pairs", field=f"{where}.points", got=spec["points"])
+        try:
+            pts = np.asarray(spec["points"], dtype=float)
+        except (TypeError, ValueError):  # ragged pairs, or entries that are not numbers
+            pts = np.empty(0)
+        if pts.ndim != 2 or pts.shape[1] != 2 or len(pts) < 2 or not np.all(np.isfinite(pts)):
+            raise UserInputError("must list at least two [x, y] pairs of finite numbers", field=f"{where}.points",
+                                 got=spec["points"])
         if np.any(np.diff(pts[:, 0]) <= 0) or np.any(np.diff(pts[:, 1]) < 0):
             raise UserInputError(
                 "the curve must increase (x strictly, y monotonically)", field=f"{where}.points", got=spec["points"]

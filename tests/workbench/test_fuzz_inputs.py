@@ -2,7 +2,8 @@
 one `error:` line, never a traceback (issue 45, item 2; issue 46, item 7).
 
 Inputs start from files the workbench really reads (the built-in CD structure, the built-in scene, a
-PNG, a JPEG and a DNG the synthetic sensor writes) and are mutated by hypothesis: a number replaced by
+PNG, a JPEG and a DNG the synthetic sensor writes, the calibration.json `calibrate DATASET` wrote for
+the suite's shared dataset) and are mutated by hypothesis: a number replaced by
 any float (inf, nan, huge, negative, zero) or integer, a line deleted or duplicated, text inserted, bytes
 flipped or the file truncated. Settings (``SETTINGS``): derandomized (the same examples every run),
 no deadline; EXAMPLES per command. What it found while it was built is in docs/testing.md.
@@ -29,7 +30,7 @@ from workbench.cli import main
 
 ROOT = Path(__file__).resolve().parents[2]
 CD_TEXT = (ROOT / "rcwa" / "structures" / "cd.toml").read_text()
-EXAMPLES = {"structure": 60, "scene": 12, "image": 40}
+EXAMPLES = {"structure": 60, "scene": 12, "image": 40, "calibration": 150}
 SETTINGS = dict(derandomize=True, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture,
                                                                         HealthCheck.too_slow])
 NUMBER = re.compile(r"(?<![\w.])-?\d+(?:\.\d+)?(?:e-?\d+)?(?![\w.])")
@@ -121,3 +122,38 @@ def test_mutated_images(tmp_path_factory, capsys, fmt, cut, flips):
     path = folder / f"photo.{fmt}"
     path.write_bytes(bytes(data))
     _one_line_or_success(*_command(["decode", str(path), "--out", str(folder / "out.exr")], capsys))
+
+
+@functools.cache
+def _calibration_text(path: str) -> str:
+    return Path(path).read_text()
+
+
+@pytest.fixture(scope="module")
+def calibration_json(tmp_path_factory) -> str:
+    from tests.calibration.test_pose import calibrated_dataset
+
+    out, _, _ = calibrated_dataset(tmp_path_factory)
+    return str(out / "calibration.json")
+
+
+@pytest.mark.slow
+@settings(max_examples=EXAMPLES["calibration"], **SETTINGS)
+@given(data=st.data())
+def test_mutated_calibration_files(tmp_path_factory, calibration_json, data):
+    """Every reader of calibration.json (calibration.calibration_file, its one owner) returns or
+    refuses with a UserInputError, which the command line prints as one line."""
+    from calibration.calibration_file import exposure_relative_std, read_camera, read_response, vignetting_record
+    from workbench.core.errors import UserInputError
+
+    text = data.draw(mutated_text(_calibration_text(calibration_json)))
+    path = tmp_path_factory.mktemp("calibration") / "calibration.json"
+    path.write_text(text, encoding="utf-8", errors="surrogatepass")
+    for read in (lambda: read_camera(path, "view0.dng"), lambda: read_response(path),
+                 lambda: exposure_relative_std(path, "view0.dng"), lambda: vignetting_record(path)):
+        try:
+            read()
+        except UserInputError:
+            pass
+        except Exception:  # noqa: BLE001 - a traceback is the failure this test looks for
+            pytest.fail(f"a mutated calibration.json (its start: {text[:300]!r}):\n{traceback.format_exc()}")
