@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from functools import cached_property
@@ -35,6 +36,9 @@ class OrderResult:
     direction_R: tuple[float, float] | None
     direction_T: tuple[float, float] | None
     amplitudes: dict[str, complex] = field(repr=False, default_factory=dict)
+    # (superstrate index, substrate index or NaN when it absorbs, cos of the incident polar angle):
+    # what turns the amplitudes into power-normalised Jones matrices (rcwa.polarimetry)
+    media: tuple[float, float, float] = field(repr=False, default=(math.nan, math.nan, math.nan))
 
     @classmethod
     def from_fields(cls, fields: dict[str, Any]) -> OrderResult:

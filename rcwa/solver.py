@@ -420,6 +420,9 @@ def _order_results(prep: PreparedStructure, kx: np.ndarray, ky: np.ndarray, r: n
     flags_R, flags_T = prop_R[rows].tolist(), prop_T[rows].tolist()
     # Polar angle of a propagating order (degrees from the normal): asin(kt / n) in its medium.
     root_sup, root_sub = math.sqrt(eps_sup.real), math.sqrt(eps_sub.real) if lossless_sub else 1.0
+    # The media and the incident wave's cosine, for the orders' Jones matrices (rcwa.polarimetry).
+    kt_in = float(kt[prep.zero])
+    media = (root_sup, root_sub if lossless_sub else math.nan, math.sqrt(max(0.0, 1.0 - kt_in**2 / eps_sup.real)))
     orders = []
     for j in range(rows.size):
         on_R, on_T = flags_R[j], flags_T[j]
@@ -430,7 +433,7 @@ def _order_results(prep: PreparedStructure, kx: np.ndarray, ky: np.ndarray, r: n
                 R_s=R_s, R_p=R_p, T_s=T_s, T_p=T_p, propagating_R=on_R, propagating_T=on_T,
                 direction_R=(math.degrees(math.asin(min(1.0, kts[j] / root_sup))), azs[j]) if on_R else None,
                 direction_T=(math.degrees(math.asin(min(1.0, kts[j] / root_sub))), azs[j]) if on_T else None,
-                amplitudes=dict(zip(amp_names, amps[j], strict=True)),
+                amplitudes=dict(zip(amp_names, amps[j], strict=True)), media=media,
             ))
         )
     return orders

@@ -50,7 +50,9 @@ def test_json_output_has_the_documented_fields(tmp_path, capsys):
     for key in ("wavelength_nm", "theta_deg", "phi_deg", "pol", "R_total", "T_total", "absorption", "orders"):
         assert key in data
     assert data["pol"] == "p" and data["wavelength_nm"] == 550.0
-    assert all(set(o) == {"m", "n", "R", "T", "direction_R", "direction_T"} and o["n"] == 0 for o in data["orders"])
+    fields = {"m", "n", "R", "T", "direction_R", "direction_T", "jones_R", "jones_T", "mueller_R", "mueller_T"}
+    assert all(set(o) == fields and o["n"] == 0 for o in data["orders"])
+    assert "M00 is the unpolarized efficiency" in data["polarimetry"]
     assert sum(o["R"] for o in data["orders"]) == pytest.approx(data["R_total"], abs=1e-12)
     assert "superstrate" in data["directions"] and "substrate" in data["directions"]
 

@@ -70,7 +70,8 @@ def _add_solve(actions: argparse._SubParsersAction) -> None:
     add_registry_option(solve, "--factorization", FACTORIZATION_CHOICES, default="auto", help=FACTORIZATION_HELP)
     add_registry_option(solve, "--stack", STACK_CHOICES, default="etm",
                         help="layer stacking: enhanced transmittance matrix (default) or Redheffer star product")
-    solve.add_argument("--json", action="store_true", help="print one JSON object instead of a table")
+    solve.add_argument("--json", action="store_true",
+                       help="print one JSON object instead of a table (with each order's Jones and Mueller matrices)")
 
 
 def _add_table(actions: argparse._SubParsersAction) -> None:
@@ -119,8 +120,21 @@ def run_solve(args: argparse.Namespace) -> int:
     structure = rcwa.load_structure(args.structure)
     result = rcwa.solve(structure, args.wavelength, args.theta, args.phi, args.orders, args.pol, args.factorization,
                         args.stack)
-    print(json.dumps(result.to_dict(), indent=2) if args.json else solve_table(result))
+    print(json.dumps(solve_record(result), indent=2) if args.json else solve_table(result))
     return 0
+
+
+def solve_record(result) -> dict:
+    """``rcwa solve --json``: the result, each order with its Jones and Mueller matrices
+    (rcwa.polarimetry; null for a side where the order does not propagate, and for pol s or p,
+    whose other column is not solved)."""
+    from rcwa.polarimetry import POLARIMETRY_CONVENTION, order_polarimetry
+
+    record = result.to_dict()
+    record["polarimetry"] = POLARIMETRY_CONVENTION
+    for entry, order in zip(record["orders"], result.orders, strict=True):
+        entry.update(order_polarimetry(order))
+    return record
 
 
 def run_table(args: argparse.Namespace) -> int:
