@@ -76,7 +76,8 @@ def _pose(value: Any, where: str, source: str) -> np.ndarray:
         raise UserInputError("must be a 4 x 4 matrix", file=source, field=where, got=value)
     matrix = np.array([[_number(x, where, source) for x in row] for row in matrix], float)
     rotation = matrix[:3, :3]
-    if not np.allclose(rotation @ rotation.T, np.eye(3), atol=1e-6) or np.linalg.det(rotation) <= 0:
+    if (np.max(np.abs(rotation)) > 1 + 1e-6  # a rotation's entries are cosines (and no overflow below)
+            or not np.allclose(rotation @ rotation.T, np.eye(3), atol=1e-6) or np.linalg.det(rotation) <= 0):
         raise UserInputError("its 3 x 3 part is not a rotation", file=source, field=where)
     return matrix
 
@@ -161,7 +162,9 @@ def _camera_std(data: dict, block: dict, key: str, source: str) -> dict[str, Any
     for name, field_name in (("rotation_deg", "rotation_deg"), ("translation_m", "camera_center_m")):
         values = pose.get(field_name) if isinstance(pose, dict) else None
         if isinstance(values, list) and values and all(_is_number(v) for v in values):
-            out[name] = math.sqrt(sum(float(v) ** 2 for v in values) / len(values))
+            rms = math.hypot(*(float(v) for v in values)) / math.sqrt(len(values))  # hypot: 1e308 does not overflow
+            if math.isfinite(rms):
+                out[name] = rms
     joint = pose.get("covariance") if isinstance(pose, dict) else None
     if isinstance(joint, dict):
         out["covariance"] = _pose_covariance(joint, source)
