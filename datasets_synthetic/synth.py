@@ -207,6 +207,7 @@ def synth(scene: str, out: str | Path, *, seed: int = 0, preset: str = "draft", 
         say(f"resuming: {renders.count} renders finished by an earlier run of this request are reused ({work})")
     staging = work / "dataset"
     try:
+        check_free_space(folder, required_bytes(p, renders.count))  # here: a refusal removes an empty work folder
         truth = _generate(spec, scene, staging, renders, (seed, render_seed), preset, p, progress)
         _check_output(folder, force)  # again: the folder may have changed while we rendered
         _move_into_place(staging, folder, work)
@@ -221,6 +222,33 @@ def synth(scene: str, out: str | Path, *, seed: int = 0, preset: str = "draft", 
 
 def _say(message: str) -> None:
     print(message, file=sys.stderr, flush=True)
+
+
+SPACE_MARGIN_BYTES = 16 * 2**20  # run.json, truth.json, board.json and the file system's own rounding
+
+
+def required_bytes(settings: dict, renders_done: int = 0) -> int:
+    """Disk space a synth run of ``settings`` (a preset) still needs, an upper bound: the work
+    folder's renders (float32 RGB, one per photo and board view, less the ``renders_done``
+    kept from an earlier run) and the dataset's files (16-bit raw DNGs of every photo, board
+    view and bracket frame, and 8-bit JPEGs of the brackets, uncompressed sizes)."""
+    width, height = settings["resolution"]
+    renders = settings["views"] + settings["calibration_views"]
+    scratch = max(0, renders - renders_done) * width * height * 3 * 4
+    raws = (renders + len(ALL_BRACKET_EV)) * width * height * 2
+    jpegs = len(ALL_BRACKET_EV) * width * height * 3
+    return scratch + raws + jpegs + SPACE_MARGIN_BYTES
+
+
+def check_free_space(folder: Path, needed: int) -> None:
+    """Refuse to start when the file system that will hold ``folder`` has less than ``needed``
+    bytes free: a run that fills the disk half-way fails after minutes of rendering."""
+    existing = next(p for p in (folder, *folder.parents) if p.exists())
+    free = shutil.disk_usage(existing).free
+    if free < needed:
+        raise UserInputError("not enough free disk space for this dataset", file=existing,
+                             expected=f"{needed / 1e6:.0f} MB free (the renders' scratch and the dataset's files)",
+                             got=f"{free / 1e6:.0f} MB free")
 
 
 def _checked_request(scene: str, out: str | Path, seed: int, preset: str) -> tuple[Any, dict, Path]:
