@@ -19,7 +19,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from renderer.spectra import camera_sensitivities, light_spectrum
+from renderer.spectra import light_camera_rgb
 from workbench.core.errors import UserInputError
 
 AUTO_PERCENTILE = 99.5  # of the balanced image: the auto white level (a few highlights clip)
@@ -50,9 +50,7 @@ def white_balance(light: str, sensitivities: str) -> tuple[float, float, float]:
         (R, G, B) gains: G over each channel's response to the light reflected by a
         reflectance-1 surface, the integral of sensitivity times spectrum.
     """
-    wl, spectrum = light_spectrum(light)
-    response = np.array([np.trapezoid(np.interp(wl, w, s, left=0.0, right=0.0) * spectrum, wl)
-                         for w, s in camera_sensitivities(sensitivities)])
+    response = light_camera_rgb(light, sensitivities)
     if not np.all(response > 0):
         raise UserInputError("the camera sees no light of this spectrum in some channel", field="light.spectrum",
                              got=light)

@@ -255,13 +255,19 @@ def _write_images(mi, out: Path, spec: SceneSpec, plan, mean: np.ndarray, varian
     out.parent.mkdir(parents=True, exist_ok=True)
     written = rgb.astype(np.float32)
     _atomic(out, lambda tmp: mi.Bitmap(written, mi.Bitmap.PixelFormat.RGB).write(str(tmp)))
-    shown: dict = {}
-    gains = white_balance(spec.light.spectrum, spec.camera.sensitivities)
-    _atomic(out.with_suffix(".png"), lambda tmp: shown.update(write_preview(rgb, tmp, gains, preview)))
+    shown = _write_png(out, spec, rgb, preview)
     if variance is not None:
         variance = np.maximum(spec.camera.model.warp(variance, plan), 0.0) * spec.camera.exposure**2
         _atomic(variance_path(out), lambda tmp: mi.Bitmap(variance.astype(np.float32), mi.Bitmap.PixelFormat.RGB).write(str(tmp)))
     return lit_fraction(written), shown
+
+
+def _write_png(out: Path, spec: SceneSpec, rgb: np.ndarray, preview: PreviewRequest) -> dict:
+    """The render's PNG preview beside ``out``, written atomically; returns its settings for the sidecar."""
+    shown: dict = {}
+    gains = white_balance(spec.light.spectrum, spec.camera.sensitivities)
+    _atomic(out.with_suffix(".png"), lambda tmp: shown.update(write_preview(rgb, tmp, gains, preview)))
+    return shown
 
 
 def _refresh_preview(out: Path, spec: SceneSpec, info: dict, preview: PreviewRequest) -> dict:
@@ -273,9 +279,7 @@ def _refresh_preview(out: Path, spec: SceneSpec, info: dict, preview: PreviewReq
     import mitsuba as mi  # deferred: after set_variant, and start-up time
 
     rgb = np.array(mi.Bitmap(str(out)), dtype=np.float64)[..., :3]
-    shown: dict = {}
-    gains = white_balance(spec.light.spectrum, spec.camera.sensitivities)
-    _atomic(out.with_suffix(".png"), lambda tmp: shown.update(write_preview(rgb, tmp, gains, preview)))
+    shown = _write_png(out, spec, rgb, preview)
     record = {k: v for k, v in info.items() if k != "served"} | {"preview_settings": shown}
     atomic_write_text(out.with_suffix(".json"), json.dumps(record, indent=2))
     return record | {"served": True}

@@ -50,6 +50,15 @@ def camera_sensitivities(name: str) -> Curves:
     return [(msds.wavelengths, msds.values[:, i]) for i in range(3)]
 
 
+def light_camera_rgb(light: str, sensitivities: str) -> np.ndarray:
+    """(3,) the camera RGB of the light ``light`` on a reflectance-1 white diffuser: the integral of
+    sensitivity x emission on the light's grid (trapezoidal). The previews' white balance
+    (renderer.preview) and the report's display matrix (reports.compare.images) both take it."""
+    wl, emission = light_spectrum(light)
+    return np.array([np.trapezoid(np.interp(wl, w, s, left=0, right=0) * emission, wl)
+                     for w, s in camera_sensitivities(sensitivities)])
+
+
 def on_common_grid(curves: Curves) -> tuple[np.ndarray, np.ndarray]:
     """The channels on the union of their wavelengths (nm), zero outside each one's data:
     wavelengths (N,) and curves (channels, N)."""

@@ -34,7 +34,7 @@ import numpy as np
 from calibration.raw.decode import bilinear_demosaic, cfa_channels, check_image_size, decode, is_raw
 from renderer.regions import WALL_REGIONS
 from renderer.regions import region_masks as region_masks  # re-exported: the report's modules take it from here
-from renderer.spectra import camera_sensitivities, light_spectrum
+from renderer.spectra import camera_sensitivities, light_camera_rgb
 from workbench.core.errors import UserInputError
 
 MIN_WALL_PIXELS = 50
@@ -164,9 +164,7 @@ def display_matrix(spec) -> np.ndarray:
     """Camera RGB -> linear sRGB, white-balanced on the scene's light (module docstring);
     the light's own camera RGB maps to equal sRGB values of luminance 1."""
     to_xyz = camera_to_xyz(spec.camera.sensitivities)
-    wl, emission = light_spectrum(spec.light.spectrum)
-    light_rgb = np.array([np.trapezoid(np.interp(wl, w, s, left=0, right=0) * emission, wl)
-                          for w, s in camera_sensitivities(spec.camera.sensitivities)])
+    light_rgb = light_camera_rgb(spec.light.spectrum, spec.camera.sensitivities)
     light_xyz = to_xyz @ light_rgb
     cone_light, cone_d65 = BRADFORD @ light_xyz, BRADFORD @ D65_XYZ
     adapt = np.linalg.inv(BRADFORD) @ np.diag(cone_d65 / cone_light) @ BRADFORD
